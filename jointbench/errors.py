@@ -1,0 +1,16 @@
+"""Exceptions that carry a message meant for a person, not a traceback.
+
+The CLI and the runner catch :class:`JointBenchError` and print its message; anything else is a bug.
+"""
+
+
+class JointBenchError(Exception):
+    """Base class for errors caused by the user's input, config or data."""
+
+
+class ConfigError(JointBenchError, ValueError):
+    """A configuration value is unknown, mistyped, in the wrong unit or impossible."""
+
+
+class InputError(JointBenchError, ValueError):
+    """A data record cannot be used (NaN, non-uniform time, mismatched lengths, too short...)."""

@@ -1,0 +1,175 @@
+"""Result objects returned by every estimator (one interface, no shape-dependent tuples).
+
+An :class:`Estimate` predicts the output (torque for an imposed angle) from the input, reports the
+low-frequency stiffness over time, and turns itself into tidy tables: :meth:`Estimate.to_frame` (one
+row per time sample: ``time`` plus ``I``, ``B``, ``K``, ``stiffness`` where available) and
+:meth:`Estimate.response_frame` (the impulse or frequency response, where there is one).
+"""
+from __future__ import annotations
+
+import dataclasses
+from abc import ABC, abstractmethod
+
+import numpy as np
+import pandas as pd
+
+
+class Estimate(ABC):
+    """Common interface of all estimates."""
+
+    estimator: str
+    time: np.ndarray
+    fs: float
+
+    @abstractmethod
+    def predict(self, u: np.ndarray) -> np.ndarray:
+        """Output predicted for input ``u`` (same sampling rate as the data it was fitted on)."""
+
+    @abstractmethod
+    def stiffness(self, t: np.ndarray | float) -> np.ndarray:
+        """Low-frequency stiffness (N·m/rad) at times ``t``."""
+
+    def parameters(self) -> dict[str, np.ndarray]:
+        """Time courses of I, B, K on :attr:`time` (empty when the estimate is nonparametric)."""
+        return {}
+
+    def to_frame(self) -> pd.DataFrame:
+        """``time`` plus whichever of ``I``, ``B``, ``K`` exist, and ``stiffness``."""
+        cols = {"time": self.time}
+        cols.update(self.parameters())
+        cols["stiffness"] = self.stiffness(self.time)
+        return pd.DataFrame(cols)
+
+    def response_frame(self) -> pd.DataFrame | None:
+        """Impulse or frequency response as a table, or ``None``."""
+        return None
+
+    def frequency_response(self, f: np.ndarray) -> np.ndarray:
+        """Complex impedance at frequencies ``f`` (Hz)."""
+        raise NotImplementedError(f"{type(self).__name__} has no frequency response")
+
+    def summary(self) -> dict[str, float | str]:
+        """A few numbers worth printing."""
+        out: dict[str, float | str] = {"estimator": self.estimator, "fs_hz": self.fs}
+        for k, v in self.parameters().items():
+            out[k] = float(np.mean(v))
+        out["stiffness"] = float(np.mean(self.stiffness(self.time)))
+        return out
+
+
+def _const(v: float, t) -> np.ndarray:
+    return np.full(np.shape(t), float(v))
+
+
+@dataclasses.dataclass(eq=False)
+class IRFEstimate(Estimate):
+    """Two-sided impulse response ``h(k)``, lags ``k = -M1 ... M2`` samples.
+
+    The convolution is not scaled by the sampling increment: ``y(t) = sum_k h(k) u(t - k)``
+    (Westwick & Perreault 2012, eq. 9 with the sum over -M1 ... M2).
+    """
+
+    lags: np.ndarray
+    h: np.ndarray
+    fs: float
+    time: np.ndarray
+    estimator: str = "irf"
+
+    def predict(self, u: np.ndarray) -> np.ndarray:
+        u = np.asarray(u, float)
+        m1 = -int(self.lags[0])
+        full = np.convolve(u, self.h)
+        return full[m1:m1 + len(u)]
+
+    def frequency_response(self, f: np.ndarray) -> np.ndarray:
+        w = 2 * np.pi * np.asarray(f, float)[..., None] / self.fs
+        return np.exp(-1j * w * self.lags) @ self.h
+
+    def stiffness(self, t) -> np.ndarray:
+        return _const(np.sum(self.h), t)
+
+    def response_frame(self) -> pd.DataFrame:
+        return pd.DataFrame({"lag": self.lags, "lag_s": self.lags / self.fs, "h": self.h})
+
+    def summary(self):
+        out = super().summary()
+        out["lags"] = f"{int(self.lags[0])} ... {int(self.lags[-1])} samples"
+        return out
+
+
+@dataclasses.dataclass(eq=False)
+class FRFEstimate(Estimate):
+    """Nonparametric frequency response at ``freq`` (Hz, 0 ... fs/2) with squared coherence."""
+
+    freq: np.ndarray
+    H: np.ndarray
+    coherence: np.ndarray
+    fs: float
+    time: np.ndarray
+    estimator: str = "frf"
+
+    def frequency_response(self, f: np.ndarray) -> np.ndarray:
+        f = np.asarray(f, float)
+        return np.interp(f, self.freq, self.H.real) + 1j * np.interp(f, self.freq, self.H.imag)
+
+    def predict(self, u: np.ndarray) -> np.ndarray:
+        u = np.asarray(u, float)
+        n = len(u)
+        f = np.fft.rfftfreq(n, 1.0 / self.fs)
+        return np.fft.irfft(np.fft.rfft(u) * self.frequency_response(f), n)
+
+    def stiffness(self, t) -> np.ndarray:
+        """|H| at the lowest positive frequency estimated."""
+        i = int(np.argmax(self.freq > 0))
+        return _const(abs(self.H[i]), t)
+
+    def response_frame(self) -> pd.DataFrame:
+        return pd.DataFrame({"freq_hz": self.freq, "re": self.H.real, "im": self.H.imag,
+                             "mag": np.abs(self.H), "phase_rad": np.angle(self.H),
+                             "coherence2": self.coherence})
+
+
+@dataclasses.dataclass(eq=False)
+class ParametricEstimate(Estimate):
+    """Second-order impedance ``tau = I theta'' + B theta' + K theta``.
+
+    ``I``, ``B``, ``K`` are scalars (time-invariant) or arrays on :attr:`time` (time-varying).
+    ``basis`` optionally keeps the nonparametric estimate the parameters were fitted to.
+    """
+
+    I: float | np.ndarray
+    B: float | np.ndarray
+    K: float | np.ndarray
+    fs: float
+    time: np.ndarray
+    estimator: str = "parametric"
+    basis: Estimate | None = None
+
+    def _on(self, v, t):
+        return _const(v, t) if np.ndim(v) == 0 else np.interp(t, self.time, v)
+
+    def parameters(self) -> dict[str, np.ndarray]:
+        return {k: self._on(getattr(self, k), self.time) for k in ("I", "B", "K")}
+
+    def stiffness(self, t) -> np.ndarray:
+        return self._on(self.K, t)
+
+    def predict(self, u: np.ndarray) -> np.ndarray:
+        """Torque from angle with central-difference derivatives (second order accurate)."""
+        u = np.asarray(u, float)
+        dt = 1.0 / self.fs
+        du = np.gradient(u, dt, edge_order=2)
+        ddu = np.gradient(du, dt, edge_order=2)
+        n = len(u)
+        t = self.time[:n] if len(self.time) >= n else np.arange(n) / self.fs
+        p = {k: self._on(getattr(self, k), t) for k in ("I", "B", "K")}
+        return p["I"] * ddu + p["B"] * du + p["K"] * u
+
+    def frequency_response(self, f: np.ndarray) -> np.ndarray:
+        if np.ndim(self.I) or np.ndim(self.B) or np.ndim(self.K):
+            raise NotImplementedError("time-varying parameters have no single frequency response")
+        w = 2 * np.pi * np.asarray(f, float)
+        return self.K + 1j * w * self.B - self.I * w ** 2
+
+    def response_frame(self) -> pd.DataFrame | None:
+        return None if self.basis is None else self.basis.response_frame()

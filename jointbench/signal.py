@@ -1,0 +1,92 @@
+"""Signal-processing steps shared by the simulators, the estimators and the harness."""
+from __future__ import annotations
+
+import numpy as np
+from scipy import signal as sps
+
+from jointbench.errors import InputError
+from jointbench.types import Trial
+
+
+def decimate(x: np.ndarray, q: int, cutoff: float = 0.8) -> np.ndarray:
+    """Zero-phase FIR anti-alias filter and keep every ``q``-th sample.
+
+    Parameters
+    ----------
+    x : ndarray
+        Signal.
+    q : int
+        Decimation factor (1 returns a copy).
+    cutoff : float
+        Pass band edge as a fraction of the new Nyquist frequency.
+    """
+    if q < 1 or int(q) != q:
+        raise InputError(f"decimation factor must be a whole number >= 1, got {q}")
+    x = np.asarray(x, float)
+    if q == 1:
+        return x.copy()
+    taps = sps.firwin(20 * q + 1, cutoff / q)
+    return sps.resample_poly(x, 1, q, window=taps)
+
+
+def resample_trial(trial: Trial, fs_new: float, cutoff: float = 0.8) -> Trial:
+    """Decimate a trial to ``fs_new`` (an integer divisor of its rate); truth signals follow."""
+    q = trial.fs / fs_new
+    if abs(q - round(q)) > 1e-9 or round(q) < 1:
+        raise InputError(f"trial '{trial.name}': can only decimate {trial.fs:g} Hz by a whole factor; "
+                         f"{fs_new:g} Hz is not {trial.fs:g}/q")
+    q = int(round(q))
+    if q == 1:
+        return trial
+    truth = trial.truth
+    if truth is not None:
+        import dataclasses
+
+        sig = {k: decimate(v, q, cutoff) for k, v in truth.signals.items()}
+        par = {k: (v if np.ndim(v) == 0 else np.asarray(v)[::q]) for k, v in
+               (("I", truth.I), ("B", truth.B), ("K", truth.K))}
+        truth = dataclasses.replace(truth, signals=sig, **par)
+    a = decimate(trial.angle, q, cutoff)
+    return Trial(time=trial.time[0] + np.arange(len(a)) / fs_new, angle=a,
+                 torque=decimate(trial.torque, q, cutoff), fs=fs_new, imposed=trial.imposed,
+                 truth=truth, name=trial.name)
+
+
+def trim(trial: Trial, start_s: float, end_s: float) -> Trial:
+    """Drop ``start_s`` seconds at the start and ``end_s`` at the end (filter transients)."""
+    i0 = int(round(start_s * trial.fs))
+    i1 = trial.n - int(round(end_s * trial.fs))
+    if i1 - i0 < 2:
+        raise InputError(f"trial '{trial.name}': trimming {start_s} s + {end_s} s leaves no data "
+                         f"of a {trial.duration:g} s record")
+    sl = slice(i0, i1)
+    truth = trial.truth
+    if truth is not None:
+        import dataclasses
+
+        sig = {k: v[sl] for k, v in truth.signals.items()}
+        par = {k: (v if np.ndim(v) == 0 else np.asarray(v)[sl]) for k, v in
+               (("I", truth.I), ("B", truth.B), ("K", truth.K))}
+        truth = dataclasses.replace(truth, signals=sig, **par)
+    return Trial(time=trial.time[sl], angle=trial.angle[sl], torque=trial.torque[sl], fs=trial.fs,
+                 imposed=trial.imposed, truth=truth, name=trial.name)
+
+
+def bandlimit_fb(h: np.ndarray, fs: float, cutoff_hz: float, order: int = 8,
+                 pad: int | None = None) -> np.ndarray:
+    """Butterworth low-pass applied forward and backward to a finite sequence (zero phase).
+
+    The sequence is taken as zero outside its window: it is zero-padded by ``pad`` samples on each
+    side (default: enough for the filter's impulse response to decay), filtered forward, reversed,
+    filtered again, and cut back to its window. Used to band-limit IRFs (Westwick & Perreault 2012,
+    Sec. V-B: "eighth-order Butterworth ... applied twice, once in each direction").
+    """
+    if not 0 < cutoff_hz < fs / 2:
+        raise InputError(f"band-limit cutoff must lie in (0, {fs / 2:g}) Hz at fs = {fs:g} Hz, "
+                         f"got {cutoff_hz:g} Hz")
+    sos = sps.butter(order, cutoff_hz, fs=fs, output="sos")
+    if pad is None:
+        pad = max(64, int(20 * fs / cutoff_hz))
+    x = np.concatenate([np.zeros(pad), np.asarray(h, float), np.zeros(pad)])
+    y = sps.sosfilt(sos, sps.sosfilt(sos, x)[::-1])[::-1]
+    return y[pad:pad + len(h)]

@@ -1,0 +1,137 @@
+"""The data a simulator produces and an estimator consumes: :class:`Trial` and its :class:`Truth`."""
+from __future__ import annotations
+
+import dataclasses
+from typing import Literal, Mapping
+
+import numpy as np
+
+from jointbench.errors import InputError
+
+Imposed = Literal["angle", "torque"]
+
+
+def _as_series(name: str, x, where: str) -> np.ndarray:
+    try:
+        a = np.asarray(x, dtype=float)
+    except (TypeError, ValueError):
+        raise InputError(f"{where}: '{name}' is not numeric") from None
+    if a.ndim != 1:
+        a = np.squeeze(a)
+    if a.ndim != 1:
+        raise InputError(f"{where}: '{name}' must be one-dimensional, got shape {np.shape(x)}")
+    bad = ~np.isfinite(a)
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise InputError(f"{where}: '{name}' has {int(bad.sum())} non-finite value(s) (NaN or inf), "
+                         f"first at sample {i}")
+    return a
+
+
+@dataclasses.dataclass(frozen=True)
+class Truth:
+    """What the simulator knows and an estimator must not see.
+
+    Attributes
+    ----------
+    I, B, K : float or ndarray
+        Inertia (kg·m²), damping (N·m·s/rad) and stiffness (N·m/rad); arrays (one value per sample of
+        the trial) when they vary in time.
+    signals : mapping of str to ndarray
+        Noise-free signals on the trial's time base, e.g. ``"torque"`` (impedance torque without
+        voluntary torque and sensor noise) and ``"angle"``.
+    """
+
+    I: float | np.ndarray
+    B: float | np.ndarray
+    K: float | np.ndarray
+    signals: Mapping[str, np.ndarray] = dataclasses.field(default_factory=dict)
+
+    def at(self, name: str, t: np.ndarray, time: np.ndarray) -> np.ndarray:
+        """Parameter ``name`` ('I', 'B' or 'K') at times ``t`` (interpolated when time-varying)."""
+        v = getattr(self, name)
+        if np.ndim(v) == 0:
+            return np.full(np.shape(t), float(v))
+        return np.interp(t, time, v)
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Trial:
+    """One record of joint angle and torque on a uniform time base.
+
+    Attributes
+    ----------
+    time : ndarray
+        Sample times (s), uniform at ``fs``.
+    angle : ndarray
+        Joint angle (rad).
+    torque : ndarray
+        Joint torque (N·m).
+    fs : float
+        Sampling rate (Hz).
+    imposed : {'angle', 'torque'}
+        Which signal the apparatus imposed (the input of the identification).
+    truth : Truth or None
+        Ground truth when simulated.
+    name : str
+        Label used in messages and outputs.
+    """
+
+    time: np.ndarray
+    angle: np.ndarray
+    torque: np.ndarray
+    fs: float
+    imposed: Imposed = "angle"
+    truth: Truth | None = None
+    name: str = "trial"
+
+    def __post_init__(self):
+        where = f"trial '{self.name}'"
+        t = _as_series("time", self.time, where)
+        a = _as_series("angle", self.angle, where)
+        y = _as_series("torque", self.torque, where)
+        if not (len(t) == len(a) == len(y)):
+            raise InputError(f"{where}: mismatched lengths: time {len(t)}, angle {len(a)}, torque {len(y)}")
+        if len(t) < 2:
+            raise InputError(f"{where}: needs at least 2 samples, got {len(t)}")
+        if not np.isfinite(self.fs) or self.fs <= 0:
+            raise InputError(f"{where}: sampling rate must be > 0 Hz, got {self.fs}")
+        dt = np.diff(t)
+        step = 1.0 / self.fs
+        dev = np.abs(dt - step)
+        if dev.max() > 1e-6 * step + 1e-9 * abs(t).max():
+            i = int(np.argmax(dev))
+            raise InputError(f"{where}: time is not uniform at {self.fs:g} Hz: step {dt[i]:.6g} s between "
+                             f"samples {i} and {i + 1} (expected {step:.6g} s)")
+        if self.imposed not in ("angle", "torque"):
+            raise InputError(f"{where}: imposed must be 'angle' or 'torque', got {self.imposed!r}")
+        object.__setattr__(self, "time", t)
+        object.__setattr__(self, "angle", a)
+        object.__setattr__(self, "torque", y)
+        object.__setattr__(self, "fs", float(self.fs))
+
+    @classmethod
+    def from_arrays(cls, angle, torque, fs: float, t0: float = 0.0, **kw) -> "Trial":
+        """Build a trial with a uniform time base starting at ``t0``."""
+        n = np.size(angle)
+        return cls(time=t0 + np.arange(n) / fs, angle=angle, torque=torque, fs=fs, **kw)
+
+    @property
+    def n(self) -> int:
+        return len(self.time)
+
+    @property
+    def duration(self) -> float:
+        return self.n / self.fs
+
+    @property
+    def input(self) -> np.ndarray:
+        """The imposed signal (the identification input)."""
+        return self.angle if self.imposed == "angle" else self.torque
+
+    @property
+    def output(self) -> np.ndarray:
+        return self.torque if self.imposed == "angle" else self.angle
+
+    def replace(self, **changes) -> "Trial":
+        return dataclasses.replace(self, **changes)
