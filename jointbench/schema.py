@@ -95,7 +95,7 @@ def _convert(tp: Any, value: Any, meta: Mapping[str, Any], where: str, key: str)
             try:
                 return _convert(a, value, meta, where, key)
             except ConfigError as exc:
-                errors.append(str(exc))
+                errors.append(exc)
         raise errors[0] if len(errors) == 1 else _fail(where, key, f"{value!r} matches none of {inner}")
     if origin is Literal:
         if value not in args:
@@ -128,7 +128,7 @@ def _convert(tp: Any, value: Any, meta: Mapping[str, Any], where: str, key: str)
         elem = args[0] if args else Any
         out = [_convert(elem, v, meta, where, f"{key}[{i}]") for i, v in enumerate(value)]
         return tuple(out) if origin is tuple else out
-    if origin is dict:
+    if origin is dict or tp is dict:
         if not isinstance(value, Mapping):
             raise _fail(where, key, f"expected a mapping, got {value!r}")
         return dict(value)

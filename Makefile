@@ -1,0 +1,64 @@
+# JointBench. Two commands do all the set-up on a fresh machine (each creates .venv when missing):
+#   make reproduce   # every implemented paper study -> results/<study>/
+#   make test        # the test suite (what .ci/run calls)
+PYTHON ?= python3
+VENV   := .venv
+BIN    := $(VENV)/bin
+STAMP  := $(VENV)/.installed-stamp
+RUN    := $(BIN)/jointbench run
+SHARED ?= ../shared
+
+.PHONY: help venv test bench reproduce westwick2012 westwick2012-fig2 westwick2012-fig3 \
+        westwick2012-fig4 westwick2012-fig5 westwick2012-fig6 westwick2012-table1 westwick2012-fig7 \
+        westwick2012-fig8 example-ankle clean-results
+
+help:
+	@echo "make reproduce   run every implemented paper study (results/<study>/report.md)"
+	@echo "make test        run the tests (creates .venv when missing)"
+	@echo "make bench       speed benchmarks (pytest-benchmark), JSON in results/benchmarks.json"
+	@echo "make westwick2012[-fig2|-fig3|-fig4|-fig5|-fig6|-table1|-fig7|-fig8]"
+	@echo "make example-ankle   README worked example on ../shared/data (developers only)"
+
+$(STAMP): pyproject.toml
+	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --upgrade pip
+	$(BIN)/python -m pip install --quiet -e '.[test]'
+	@touch $(STAMP)
+
+venv: $(STAMP)
+
+test: $(STAMP)
+	$(BIN)/python -m pytest -q
+
+bench: $(STAMP)
+	mkdir -p results
+	$(BIN)/python -m pytest -q tests/benchmarks --benchmark-enable --benchmark-sort=median \
+	    --benchmark-json=results/benchmarks.json
+
+reproduce: westwick2012
+
+westwick2012: $(STAMP)
+	$(RUN) westwick2012
+westwick2012-fig2: $(STAMP)
+	$(RUN) westwick2012 --parts fig2
+westwick2012-fig3: $(STAMP)
+	$(RUN) westwick2012 --parts fig3
+westwick2012-fig4: $(STAMP)
+	$(RUN) westwick2012 --parts fig4
+westwick2012-fig5: $(STAMP)
+	$(RUN) westwick2012 --parts fig5
+westwick2012-fig6: $(STAMP)
+	$(RUN) westwick2012 --parts fig6
+westwick2012-table1 westwick2012-fig7: $(STAMP)
+	$(RUN) westwick2012 --parts table1
+westwick2012-fig8: $(STAMP)
+	$(RUN) westwick2012 --parts fig8
+
+# The README's worked example on real ankle recordings (needs ../shared beside the checkout).
+example-ankle: $(STAMP)
+	@test -f $(SHARED)/data/reklab-ankle/ankle_stationary.npz || \
+	    { echo "$(SHARED)/data/reklab-ankle not found (developers' checkout only)"; exit 2; }
+	$(BIN)/python docs/ankle_example.py $(SHARED)/data/reklab-ankle/ankle_stationary.npz docs
+
+clean-results:
+	rm -rf results/*/

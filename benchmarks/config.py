@@ -1,0 +1,217 @@
+"""Study configs: YAML -> typed, validated objects.
+
+A study config (``configs/studies/<id>.yaml``) names its parts (one per figure or table of the
+paper), and for each part the protocol that computes it, its parameters, the simulated experiment
+(joint model, apparatus, perturbation, sensors, noise, sampling), the estimators with their settings,
+the seeds and any parameter sweep. Published values with tolerances and their source live in
+``configs/published/<id>.yaml``. Joint models may be given inline or by the name of a file in
+``configs/models/``. Every error names the file, the key and what is allowed.
+"""
+from __future__ import annotations
+
+import dataclasses
+import itertools
+from pathlib import Path
+from typing import Any, Mapping
+
+import yaml
+
+from jointbench.errors import ConfigError
+
+REPO = Path(__file__).resolve().parents[1]
+CONFIGS = REPO / "configs"
+
+
+def _load_yaml(path: Path) -> Any:
+    if not path.is_file():
+        raise ConfigError(f"{path}: file not found")
+    try:
+        return yaml.safe_load(path.read_text())
+    except yaml.YAMLError as exc:
+        raise ConfigError(f"{path}: not valid YAML: {exc}") from None
+
+
+def _check_keys(data: Mapping, allowed: dict[str, bool], where: str) -> None:
+    """``allowed`` maps key -> required."""
+    if not isinstance(data, Mapping):
+        raise ConfigError(f"{where}: expected a mapping, got {type(data).__name__}")
+    unknown = sorted(set(data) - set(allowed))
+    if unknown:
+        raise ConfigError(f"{where}: unknown key {unknown[0]!r}; allowed: {', '.join(allowed)}")
+    missing = [k for k, req in allowed.items() if req and k not in data]
+    if missing:
+        raise ConfigError(f"{where}: missing required key {missing[0]!r}")
+
+
+@dataclasses.dataclass(frozen=True)
+class Reading:
+    """One chosen reading of an ambiguous passage (rendered in the report's Interpretation)."""
+
+    id: str
+    topic: str
+    passage: str
+    reading: str
+    alternatives: str = ""
+
+
+@dataclasses.dataclass(frozen=True)
+class Check:
+    """One published value with its tolerance and how to compute it from the tidy rows."""
+
+    id: str
+    part: str
+    description: str
+    source: str
+    published: Any
+    low: float
+    high: float
+    select: Mapping[str, Any]
+    aggregate: str = "median"
+    if_missed: str = ""
+
+
+@dataclasses.dataclass(frozen=True)
+class Part:
+    """One figure or table of a paper."""
+
+    name: str
+    protocol: str
+    description: str
+    params: Mapping[str, Any]
+    experiment: Mapping[str, Any] | None
+    estimators: Mapping[str, Mapping[str, Any]]
+    seeds: tuple[int, ...]
+    sweep: Mapping[str, tuple[Any, ...]]
+    where: str
+
+    def grid(self) -> list[dict[str, Any]]:
+        """Every combination of the sweep (one empty dict without a sweep)."""
+        keys = list(self.sweep)
+        return [dict(zip(keys, combo)) for combo in itertools.product(*(self.sweep[k] for k in keys))]
+
+
+@dataclasses.dataclass(frozen=True)
+class Study:
+    id: str
+    title: str
+    paper: str
+    path: Path
+    parts: Mapping[str, Part]
+    readings: tuple[Reading, ...]
+    checks: tuple[Check, ...]
+
+
+_PART_KEYS = {"protocol": True, "description": True, "params": False, "experiment": False,
+              "estimators": False, "seeds": False, "sweep": False}
+_STUDY_KEYS = {"study": True, "title": True, "paper": True, "published": True, "readings": False,
+               "parts": True}
+_CHECK_KEYS = {"id": True, "part": True, "description": True, "source": True, "published": True,
+               "low": True, "high": True, "select": True, "aggregate": False, "if_missed": False}
+AGGREGATES = ("median", "mean", "min", "max")
+
+
+def _resolve_joint(experiment: Mapping, where: str, models_dir: Path) -> dict:
+    exp = dict(experiment)
+    joint = exp.get("joint")
+    if isinstance(joint, str):
+        path = models_dir / f"{joint}.yaml"
+        if not path.is_file():
+            known = ", ".join(sorted(p.stem for p in models_dir.glob("*.yaml"))) or "(none)"
+            raise ConfigError(f"{where}: key 'joint': no model file {path.name} in {models_dir}; "
+                              f"known: {known}")
+        exp["joint"] = _load_yaml(path)
+    return exp
+
+
+def _seeds(value: Any, where: str) -> tuple[int, ...]:
+    if value is None:
+        return (0,)
+    if isinstance(value, int) and not isinstance(value, bool):
+        if value < 1:
+            raise ConfigError(f"{where}: key 'seeds': need at least 1 seed, got {value}")
+        return tuple(range(value))
+    if isinstance(value, list) and value and all(isinstance(v, int) and not isinstance(v, bool)
+                                                 for v in value):
+        if len(set(value)) != len(value):
+            raise ConfigError(f"{where}: key 'seeds': repeated seed in {value}")
+        return tuple(value)
+    raise ConfigError(f"{where}: key 'seeds': expected a count (e.g. 7) or a list of whole numbers, "
+                      f"got {value!r}")
+
+
+def load_part(name: str, data: Mapping, where: str, models_dir: Path) -> Part:
+    _check_keys(data, _PART_KEYS, where)
+    experiment = data.get("experiment")
+    if experiment is not None:
+        if not isinstance(experiment, Mapping):
+            raise ConfigError(f"{where}: key 'experiment': expected a mapping")
+        experiment = _resolve_joint(experiment, f"{where}: experiment", models_dir)
+    est = data.get("estimators") or {}
+    if not isinstance(est, Mapping) or not all(v is None or isinstance(v, Mapping) for v in est.values()):
+        raise ConfigError(f"{where}: key 'estimators': expected a mapping name -> settings")
+    sweep = data.get("sweep") or {}
+    if not isinstance(sweep, Mapping) or not all(isinstance(v, list) and v for v in sweep.values()):
+        raise ConfigError(f"{where}: key 'sweep': expected a mapping key -> non-empty list of values")
+    params = data.get("params") or {}
+    if not isinstance(params, Mapping):
+        raise ConfigError(f"{where}: key 'params': expected a mapping")
+    if "joint" in params:   # analytic parts name a joint model like experiments do
+        params = _resolve_joint(params, f"{where}: params", models_dir)
+    return Part(name=name, protocol=str(data["protocol"]), description=str(data["description"]),
+                params=dict(params), experiment=experiment,
+                estimators={k: dict(v or {}) for k, v in est.items()},
+                seeds=_seeds(data.get("seeds"), where),
+                sweep={k: tuple(v) for k, v in sweep.items()}, where=where)
+
+
+def load_checks(path: Path, parts: Mapping[str, Part]) -> tuple[Check, ...]:
+    data = _load_yaml(path)
+    _check_keys(data, {"study": True, "source": True, "checks": True}, str(path))
+    out, seen = [], set()
+    for i, c in enumerate(data["checks"] or []):
+        where = f"{path}: checks[{i}]"
+        _check_keys(c, _CHECK_KEYS, where)
+        if c["id"] in seen:
+            raise ConfigError(f"{where}: key 'id': duplicate check id {c['id']!r}")
+        seen.add(c["id"])
+        if c["part"] not in parts:
+            raise ConfigError(f"{where}: key 'part': unknown part {c['part']!r}; parts: {', '.join(parts)}")
+        agg = c.get("aggregate", "median")
+        if agg not in AGGREGATES:
+            raise ConfigError(f"{where}: key 'aggregate': {agg!r} not allowed; allowed: {', '.join(AGGREGATES)}")
+        try:
+            low, high = float(c["low"]), float(c["high"])
+        except (TypeError, ValueError):
+            raise ConfigError(f"{where}: keys 'low'/'high' must be numbers") from None
+        if low > high:
+            raise ConfigError(f"{where}: low {low} > high {high}")
+        if not isinstance(c["select"], Mapping) or "metric" not in c["select"]:
+            raise ConfigError(f"{where}: key 'select': a mapping with at least 'metric'")
+        out.append(Check(id=str(c["id"]), part=c["part"], description=str(c["description"]),
+                         source=str(c["source"]), published=c["published"], low=low, high=high,
+                         select=dict(c["select"]), aggregate=agg, if_missed=str(c.get("if_missed", ""))))
+    return tuple(out)
+
+
+def load_study(path: str | Path, configs_dir: Path = CONFIGS) -> Study:
+    """Load ``configs/studies/<id>.yaml`` (or a path) with its published checks, strictly."""
+    path = Path(path)
+    if not path.suffix:
+        path = configs_dir / "studies" / f"{path}.yaml"
+    data = _load_yaml(path)
+    _check_keys(data, _STUDY_KEYS, str(path))
+    parts_data = data["parts"]
+    if not isinstance(parts_data, Mapping) or not parts_data:
+        raise ConfigError(f"{path}: key 'parts': expected a non-empty mapping")
+    models_dir = configs_dir / "models"
+    parts = {name: load_part(name, p, f"{path}: parts.{name}", models_dir) for name, p in parts_data.items()}
+    readings = []
+    for i, r in enumerate(data.get("readings") or []):
+        where = f"{path}: readings[{i}]"
+        _check_keys(r, {"id": True, "topic": True, "passage": True, "reading": True, "alternatives": False}, where)
+        readings.append(Reading(**{k: str(v) for k, v in r.items()}))
+    pub = Path(data["published"])
+    pub = pub if pub.is_absolute() else configs_dir.parent / pub
+    checks = load_checks(pub, parts)
+    return Study(id=str(data["study"]), title=str(data["title"]), paper=str(data["paper"]), path=path,
+                 parts=parts, readings=tuple(readings), checks=checks)

@@ -1,0 +1,49 @@
+"""Figure and table makers for the report, one per protocol (registered by protocol name).
+
+A maker is ``fn(part, rows, curves, folder) -> PartReport``: it reads the tidy rows and curves of one
+study part (never recomputes anything) and writes PNG files into ``folder``.
+"""
+from __future__ import annotations
+
+import dataclasses
+from typing import Callable
+
+import pandas as pd
+
+from jointbench.registry import Registry, import_submodules
+
+
+@dataclasses.dataclass
+class PartReport:
+    figures: list[tuple[str, str]] = dataclasses.field(default_factory=list)   # (file name, caption)
+    tables: list[tuple[str, pd.DataFrame]] = dataclasses.field(default_factory=list)
+    text: str = ""
+
+
+REGISTRY: Registry[Callable] = Registry("figure maker")
+
+
+def register(protocol: str):
+    return REGISTRY.register(protocol)
+
+
+def new_figure(*args, **kw):
+    """A matplotlib figure with the non-interactive backend (safe in worker processes and CI)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt.subplots(*args, **kw)
+
+
+def save(fig, folder, name: str) -> str:
+    import matplotlib.pyplot as plt
+
+    folder.mkdir(parents=True, exist_ok=True)
+    fig.savefig(folder / name, dpi=110, bbox_inches="tight")
+    plt.close(fig)
+    return name
+
+
+import_submodules(__name__, __path__)

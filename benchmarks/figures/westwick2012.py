@@ -1,0 +1,156 @@
+"""Figures and tables of the Westwick & Perreault (2012) parts, drawn from the tidy results."""
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from benchmarks.figures import PartReport, new_figure, register, save
+from benchmarks.tables import summarize
+
+
+def _curve(curves: pd.DataFrame, name: str, **eq) -> pd.DataFrame:
+    sel = curves[curves["curve"] == name]
+    for k, v in eq.items():
+        sel = sel[sel[k] == v]
+    return sel
+
+
+def _first_seed(curves: pd.DataFrame) -> pd.DataFrame:
+    return curves[curves["seed"] == curves["seed"].min()] if len(curves) else curves
+
+
+def _pivot(rows: pd.DataFrame, part: str, by: list[str]) -> pd.DataFrame:
+    s = summarize(rows, part, by)
+    s["value"] = [f"{m:.4g}" if n == 1 else f"{m:.4g} ({lo:.4g} to {hi:.4g})"
+                  for m, lo, hi, n in zip(s["median"], s["min"], s["max"], s["n"])]
+    return s.drop(columns=["median", "min", "max"])
+
+
+@register("westwick2012.differentiators")
+def differentiators(part, rows, curves, folder) -> PartReport:
+    order = int(part.params.get("order", 1))
+    fig, (a, b) = new_figure(2, 1, figsize=(6.5, 5.5))
+    per = _curve(curves, "periodic", series="closed form")
+    ref = _curve(curves, "periodic", series="inverse DFT")
+    a.plot(per["x"], per["y"], "k-", lw=1, label="closed form (eq. %d)" % (12 if order == 1 else 13))
+    a.plot(ref["x"], ref["y"], "r.", ms=2, label="inverse DFT")
+    a.set_xlabel("n (samples)")
+    a.set_ylabel("h%d(n) / (ws/N)^%d" % (order, order))
+    a.legend(fontsize=8)
+    two = _curve(curves, "two_sided")
+    b.stem(two["x"], two["y"], basefmt="k-")
+    b.set_xlabel("lag (samples)")
+    b.set_ylabel("periodic extension")
+    a.set_title(("Differentiator" if order == 1 else "Double differentiator") + " IRF, N = %d" %
+                int(part.params.get("N", 256)))
+    name = save(fig, folder, f"{part.name}.png")
+    cap = f"{part.description}: upper, the N-point sequence; lower, its periodic extension around lag 0."
+    return PartReport(figures=[(name, cap)], tables=[("Agreement and symmetry", _pivot(rows, part.name, []))])
+
+
+@register("westwick2012.sampling_rate")
+def sampling_rate(part, rows, curves, folder) -> PartReport:
+    fs_list = sorted(curves["fs_hz"].dropna().unique(), reverse=True)
+    fig, axes = new_figure(len(fs_list), 1, figsize=(6, 1.7 * len(fs_list)), sharex=True)
+    axes = np.atleast_1d(axes)
+    for ax, fs in zip(axes, fs_list):
+        c = _curve(curves, "irf_over_fs2", fs_hz=fs)
+        ax.stem(c["x"], c["y"], basefmt="k-")
+        ax.set_ylabel(f"{fs:g} Hz")
+    axes[0].set_title("Ankle impedance IRF / fs^2 (I = 0.01, B = 0.8, K = 140)")
+    axes[-1].set_xlabel("lag (samples)")
+    name = save(fig, folder, f"{part.name}.png")
+    t = _pivot(rows, part.name, ["fs_hz"])
+    return PartReport(figures=[(name, part.description)], tables=[("Shape against sampling rate", t)])
+
+
+@register("westwick2012.input_bandlimit")
+def input_bandlimit(part, rows, curves, folder) -> PartReport:
+    fig, ax = new_figure(figsize=(6.5, 4))
+    for series, c in curves[curves["curve"] == "irf"].groupby("series", sort=False):
+        ax.plot(c["x"] * 1e3, c["y"], label=series, lw=1.5 if series == "no noise" else 1)
+    ax.set_xlim(-100, 100)
+    ax.set_xlabel("lag (ms)")
+    ax.set_ylabel("impedance IRF (N·m/rad per sample)")
+    ax.set_title("Elbow impedance IRF at 200 Hz, 5 Hz input, angle SNR 30-60 dB (eq. 17)")
+    ax.legend(fontsize=8)
+    name = save(fig, folder, f"{part.name}.png")
+    return PartReport(figures=[(name, part.description)],
+                      tables=[("Distortion and spread against angle SNR", _pivot(rows, part.name, ["snr_db"]))])
+
+
+@register("parametric_fit")
+def parametric_fit(part, rows, curves, folder) -> PartReport:
+    figs = []
+    c0 = _first_seed(curves)
+    for est, c in c0.groupby("estimator"):
+        if not (c["curve"] == "frf_mag").any():
+            continue
+        fig, (a, b, g) = new_figure(3, 1, figsize=(6.5, 7), sharex=True)
+        for series, s in c[c["curve"] == "frf_mag"].groupby("series"):
+            a.loglog(s["x"], s["y"], {"estimate": "k-", "model": "r--", "truth": "b:"}[series], label=series)
+        for series, s in c[c["curve"] == "frf_phase"].groupby("series"):
+            b.semilogx(s["x"], s["y"], {"estimate": "k-", "model": "r--", "truth": "b:"}[series])
+        s = c[c["curve"] == "coherence2"]
+        g.semilogx(s["x"], s["y"], "k-")
+        a.set_ylabel("|impedance| (N·m/rad)")
+        b.set_ylabel("phase (deg)")
+        g.set_ylabel("coherence²")
+        g.set_xlabel("frequency (Hz)")
+        a.legend(fontsize=8)
+        a.set_title(f"{est}: spectral estimate and second-order fit (seed {int(c0['seed'].min())})")
+        figs.append((save(fig, folder, f"{part.name}_{est}.png"), f"{part.description} ({est})"))
+    return PartReport(figures=figs, tables=[("Fitted parameters (median and range over seeds)",
+                                             _pivot(rows, part.name, []))])
+
+
+@register("westwick2012.sampling_rate_experiment")
+def sampling_rate_experiment(part, rows, curves, folder) -> PartReport:
+    c0 = _first_seed(curves)
+    fs_list = sorted(c0["fs_hz"].dropna().unique(), reverse=True)
+    fig, axes = new_figure(len(fs_list), 1, figsize=(6, 1.8 * len(fs_list)))
+    axes = np.atleast_1d(axes)
+    for ax, fs in zip(axes, fs_list):
+        for series, style in (("nonparametric", "k-"), ("parametric", "r--")):
+            c = _curve(c0, "irf_over_fs2", fs_hz=fs, series=series)
+            ax.plot(c["x"] / fs * 1e3, c["y"], style, label=series)
+        ax.set_ylabel(f"{fs:g} Hz")
+    axes[0].legend(fontsize=8)
+    axes[0].set_title("Band-limited (20 Hz) impedance IRFs / fs^2 (Fig. 7)")
+    axes[-1].set_xlabel("lag (ms)")
+    name = save(fig, folder, "fig7.png")
+    sel = rows[(rows["metric"] == "vaf_parametric_irf") & (rows["status"] == "ok")]
+    pub = {50: "98.77 ± 0.12", 100: "98.86 ± 0.07", 250: "98.86 ± 0.09", 500: "98.84 ± 0.10"}
+    table = (sel.groupby("fs_hz")["value"].agg(["median", "mean", "std", "min", "max", "count"])
+             .reset_index().sort_values("fs_hz"))
+    table.insert(1, "published (Table I)", [pub.get(int(f), "") for f in table["fs_hz"]])
+    params = _pivot(rows[rows["metric"].isin(["I", "B", "K"])], part.name, [])
+    return PartReport(figures=[(name, "Fig. 7: nonparametric (solid) and parametric (dashed) IRFs, seed "
+                                f"{int(c0['seed'].min())}")],
+                      tables=[("Table I: parametric IRF fit (%VAF) by sampling rate, over seeds", table),
+                              ("I, B, K fitted at 500 Hz", params)])
+
+
+@register("westwick2012.input_noise")
+def input_noise(part, rows, curves, folder) -> PartReport:
+    c0 = _first_seed(curves)
+    fig, (a, b) = new_figure(2, 1, figsize=(6.5, 6.5), sharex=True)
+    for series, s in _curve(c0, "coherence2").groupby("series"):
+        a.semilogx(s["x"], s["y"], {"before": "0.6", "after": "k"}[series], label=series)
+    a.set_ylabel("coherence²")
+    a.legend(fontsize=8)
+    styles = {"original": ("0.6", "-"), "with noise": ("k", "-"), "eq. 17 prediction": ("r", "--"),
+              "eq. 17 with true impedance": ("b", ":"), "true impedance": ("g", "-.")}
+    for series, s in _curve(c0, "magnitude").groupby("series"):
+        col, ls = styles[series]
+        b.loglog(s["x"], s["y"], color=col, ls=ls, label=series)
+    fall = rows[(rows["metric"] == "fall_away_hz") & (rows["seed"] == rows["seed"].min())]["value"]
+    if len(fall):
+        b.axvline(float(fall.iloc[0]), color="0.8", lw=0.8)
+    b.set_ylabel("|impedance| (N·m/rad)")
+    b.set_xlabel("frequency (Hz)")
+    b.legend(fontsize=7)
+    a.set_title("25 dB angle noise, 2 Hz input (Fig. 8)")
+    name = save(fig, folder, f"{part.name}.png")
+    return PartReport(figures=[(name, part.description)],
+                      tables=[("Fall-away frequency and prediction error", _pivot(rows, part.name, []))])

@@ -1,0 +1,68 @@
+"""Protocols: what one case of a study part computes (one file per study or family).
+
+A protocol is a function ``fn(ctx: Context) -> None`` registered with :func:`register`, together with a
+``Params`` dataclass parsed strictly from the part's ``params`` (plus its sweep values). It reads the
+parsed experiment and estimators from the context, and records tidy metric rows and curves (for the
+figures) through ``ctx.metric`` and ``ctx.curve``. Protocols are pure functions of the case and seed.
+"""
+from __future__ import annotations
+
+import dataclasses
+from typing import Any, Callable, Mapping
+
+import numpy as np
+
+from jointbench.registry import Registry, import_submodules
+
+
+@dataclasses.dataclass(frozen=True)
+class Protocol:
+    name: str
+    fn: Callable[["Context"], None]
+    Params: type
+
+
+REGISTRY: Registry[Protocol] = Registry("protocol")
+
+
+def register(name: str, params: type, *, tags: tuple[str, ...] = ()):
+    """Register ``fn(ctx)`` as protocol ``name`` with parameter dataclass ``params``."""
+
+    def deco(fn):
+        REGISTRY.register(name, tags=tags)(Protocol(name, fn, params))
+        return fn
+
+    return deco
+
+
+@dataclasses.dataclass
+class Context:
+    """Everything one case may use, and where it puts its results."""
+
+    part: str
+    seed: int
+    params: Any
+    experiment: Any
+    estimators: Mapping[str, Any]
+    rows: list[dict] = dataclasses.field(default_factory=list)
+    curves: list[dict] = dataclasses.field(default_factory=list)
+
+    @property
+    def rng(self) -> np.random.Generator:
+        """A generator for protocol-level draws (independent of the simulator's streams)."""
+        return np.random.default_rng(np.random.SeedSequence([self.seed, 0x5EED]))
+
+    def metric(self, metric: str, value: float, estimator: str = "", **labels: Any) -> None:
+        """Record one tidy row (labels become columns, e.g. ``fs_hz=250``)."""
+        self.rows.append({"metric": metric, "value": float(value), "estimator": estimator, **labels})
+
+    def curve(self, name: str, x, y, series: str = "", **labels: Any) -> None:
+        """Record a curve for the figures (stored long: one row per point)."""
+        x = np.asarray(x, float)
+        y = np.asarray(y, float)
+        if x.shape != y.shape:
+            raise ValueError(f"curve {name!r}: x and y differ in shape {x.shape} vs {y.shape}")
+        self.curves.append({"curve": name, "series": series, "x": x.tolist(), "y": y.tolist(), **labels})
+
+
+import_submodules(__name__, __path__)

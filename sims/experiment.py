@@ -1,0 +1,366 @@
+"""The description of a simulated experiment (pure data) and :func:`simulate`, which runs it.
+
+An :class:`Experiment` holds already-parsed, validated parts: a joint model and a perturbation (picked
+from the registries :data:`sims.JOINTS` and :data:`sims.PERTURBATIONS`), the apparatus, the voluntary
+torque, the sensor models, the simulation rate and length, and the acquisition steps. It knows nothing
+of how the dynamics are integrated: :func:`simulate` hands the limb, the apparatus and the input signals
+to a backend from :data:`sims.BACKENDS` (``"lti"``: exact ZOH), then applies sensors and acquisition.
+
+References
+----------
+Westwick & Perreault 2012, Fig. 1 and eqs. 3-8 (Sec. II-A); Sec. IV (the experiment simulated here).
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Any, Callable, Mapping
+
+import numpy as np
+
+from jointbench.errors import ConfigError
+from jointbench.schema import param, parse
+from jointbench.signal import decimate
+from jointbench.types import Trial, Truth
+from sims import BACKENDS, JOINTS, PERTURBATIONS
+from sims.apparatus import APPARATUS_KINDS, Apparatus, PositionServo
+from sims.sensors import Sensor, Sensors
+from sims.voluntary import Voluntary
+
+#: the keys of an experiment block, in the order they are listed in messages
+EXPERIMENT_KEYS = ("joint", "apparatus", "perturbation", "voluntary", "sensors", "fs_sim", "duration",
+                   "acquisition")
+
+#: the independent random streams, in the order they are spawned from the seed (append new ones at the end)
+STREAMS = ("perturbation", "voluntary", "angle_noise", "torque_noise")
+
+
+@dataclasses.dataclass(frozen=True)
+class Acquisition:
+    """What the data acquisition does to every channel after the sensors, in this order.
+
+    Parameters
+    ----------
+    detrend : bool
+        Remove a least-squares straight line over the whole record (at the simulation rate).
+    fs : float or None
+        Acquired rate (Hz); must divide ``fs_sim`` by a whole factor q. Decimation uses
+        :func:`jointbench.signal.decimate` (zero-phase FIR anti-alias filter). None = ``fs_sim``.
+    trim : float
+        Seconds removed at both ends of the acquired record (filter and start-up transients).
+
+    References
+    ----------
+    Westwick & Perreault 2012, Sec. IV ("detrended, and then decimated to 500 Hz. Both ends of the
+    signals were trimmed").
+    """
+
+    detrend: bool = True
+    fs: float | None = param(None, unit="Hz", gt=0, doc="acquired rate; default fs_sim")
+    trim: float = param(0.0, unit="s", ge=0, doc="seconds dropped at each end")
+
+
+@dataclasses.dataclass(frozen=True)
+class _Timing:
+    fs_sim: float = param(unit="Hz", gt=0, doc="simulation rate")
+    duration: float = param(unit="s", gt=0, doc="simulated record length")
+
+
+@dataclasses.dataclass(frozen=True)
+class Response:
+    """What a backend returns: signals at the simulation rate, before any sensor model.
+
+    Attributes
+    ----------
+    angle, velocity, acceleration : ndarray
+        theta (rad), theta' (rad/s), theta'' (rad/s²) of the limb, the acceleration from the dynamics.
+    torque_measured : ndarray
+        The torque the load cell sees (N·m), T_m of Fig. 1 (position servo) or the applied torque.
+    torque_impedance : ndarray
+        The limb's impedance torque I theta'' + B theta' + K theta (N·m), free of noise.
+    """
+
+    angle: np.ndarray
+    velocity: np.ndarray
+    acceleration: np.ndarray
+    torque_measured: np.ndarray
+    torque_impedance: np.ndarray
+
+
+def _parse_tagged(data: Any, tag: str, known: list[str], lookup: Callable[[str], type], what: str,
+                  where: str, default: str | None = None) -> Any:
+    """Parse ``{tag: name, **settings}``: ``name`` picks a class whose settings dataclass parses the rest.
+
+    The class is its own settings dataclass, or has a ``Settings`` attribute, in which case the result is
+    ``cls(settings)``.
+    """
+    if data is None and default is not None:
+        data = {}
+    if not isinstance(data, Mapping):
+        raise ConfigError(f"{where}: expected a mapping with key '{tag}' (one of: {', '.join(known)}), "
+                          f"got {data!r}")
+    name = data.get(tag, default)
+    if name is None:
+        raise ConfigError(f"{where}: missing key '{tag}'; known {what}s: {', '.join(known)}")
+    if not isinstance(name, str) or name not in known:
+        raise ConfigError(f"{where}: key '{tag}': unknown {what} {name!r}; known: {', '.join(known)}")
+    cls = lookup(name)
+    settings_cls = getattr(cls, "Settings", cls)
+    settings = parse(settings_cls, {k: v for k, v in data.items() if k != tag}, where)
+    return settings if settings_cls is cls else cls(settings)
+
+
+@dataclasses.dataclass(frozen=True)
+class Experiment:
+    """A simulated identification experiment (pure description; see :func:`simulate`).
+
+    Parameters
+    ----------
+    joint : object
+        Joint model from :data:`sims.JOINTS`, e.g. :class:`sims.joint_second_order.SecondOrderJoint`.
+    perturbation : object
+        Perturbation from :data:`sims.PERTURBATIONS` (``generate(n, fs, rng)``), e.g.
+        :class:`sims.perturbation_filtered_noise.FilteredNoise`: the position command theta_r of a
+        position servo, or the applied torque of a torque drive.
+    fs_sim : float
+        Simulation rate (Hz), e.g. 5000.
+    duration : float
+        Simulated record length (s) before trimming.
+    apparatus : PositionServo or TorqueDrive
+        Default: a position servo of 30 000 N·m/rad.
+    voluntary : Voluntary
+        Voluntary torque; default zero.
+    sensors : Sensors
+        Sensor models of the angle and torque channels; default ideal.
+    acquisition : Acquisition
+        Detrend, decimation and trim; default: detrend, no decimation, no trim.
+    where : str
+        Where the description came from, prefixed to error messages (not compared).
+
+    References
+    ----------
+    Westwick & Perreault 2012, Fig. 1, eqs. 3-8 and Sec. IV.
+    """
+
+    joint: Any
+    perturbation: Any
+    fs_sim: float
+    duration: float
+    apparatus: Apparatus = dataclasses.field(default_factory=PositionServo)
+    voluntary: Voluntary = dataclasses.field(default_factory=Voluntary)
+    sensors: Sensors = dataclasses.field(default_factory=Sensors)
+    acquisition: Acquisition = dataclasses.field(default_factory=Acquisition)
+    where: str = dataclasses.field(default="experiment", compare=False, repr=False)
+
+    def __post_init__(self):
+        self._validate()
+
+    @classmethod
+    def from_mapping(cls, mapping: Mapping[str, Any] | None, where: str = "experiment") -> "Experiment":
+        """Parse the experiment block of a study config strictly.
+
+        Parameters
+        ----------
+        mapping : mapping
+            Keys ``joint`` (``{model: ..., ...}``), ``perturbation`` (``{kind: ..., ...}``), ``fs_sim``,
+            ``duration`` (required); ``apparatus`` (``{kind: position_servo|torque_drive, ...}``),
+            ``voluntary``, ``sensors`` (``{angle: ..., torque: ...}``), ``acquisition`` (optional).
+        where : str
+            File and section, prefixed to every error message.
+
+        Raises
+        ------
+        ConfigError
+            Unknown or missing key, wrong unit or type, impossible value; the message names ``where``,
+            the section and the key.
+        """
+        if not isinstance(mapping, Mapping):
+            raise ConfigError(f"{where}: expected a mapping of settings, got {mapping!r}")
+        unknown = sorted(set(mapping) - set(EXPERIMENT_KEYS), key=str)
+        if unknown:
+            raise ConfigError(f"{where}: unknown key {unknown[0]!r}; allowed: {', '.join(EXPERIMENT_KEYS)}")
+        for key in ("joint", "perturbation", "fs_sim", "duration"):
+            if key not in mapping:
+                raise ConfigError(f"{where}: missing required key {key!r}")
+        timing = parse(_Timing, {k: mapping[k] for k in ("fs_sim", "duration")}, where)
+        return cls(
+            joint=_parse_tagged(mapping["joint"], "model", JOINTS.names(), JOINTS.get, "joint model",
+                                f"{where}: joint"),
+            perturbation=_parse_tagged(mapping["perturbation"], "kind", PERTURBATIONS.names(),
+                                       PERTURBATIONS.get, "perturbation", f"{where}: perturbation"),
+            apparatus=_parse_tagged(mapping.get("apparatus"), "kind", list(APPARATUS_KINDS),
+                                    APPARATUS_KINDS.__getitem__, "apparatus", f"{where}: apparatus",
+                                    default="position_servo"),
+            voluntary=parse(Voluntary, mapping.get("voluntary"), f"{where}: voluntary"),
+            sensors=parse(Sensors, mapping.get("sensors"), f"{where}: sensors"),
+            acquisition=parse(Acquisition, mapping.get("acquisition"), f"{where}: acquisition"),
+            fs_sim=timing.fs_sim, duration=timing.duration, where=where)
+
+    # ----------------------------------------------------------------------------------- derived sizes
+    @property
+    def n_sim(self) -> int:
+        """Number of samples simulated: round(duration · fs_sim)."""
+        return int(round(self.duration * self.fs_sim))
+
+    @property
+    def fs(self) -> float:
+        """Acquired sampling rate (Hz)."""
+        return float(self.fs_sim if self.acquisition.fs is None else self.acquisition.fs)
+
+    @property
+    def decimation(self) -> int:
+        """Whole decimation factor fs_sim / fs."""
+        return int(round(self.fs_sim / self.fs))
+
+    @property
+    def trim_samples(self) -> int:
+        """Samples dropped at each end of the acquired record."""
+        return int(round(self.acquisition.trim * self.fs))
+
+    @property
+    def n(self) -> int:
+        """Number of samples in the acquired trial."""
+        return -(-self.n_sim // self.decimation) - 2 * self.trim_samples
+
+    def _validate(self) -> None:
+        w = self.where
+        for key, v, unit in (("fs_sim", self.fs_sim, "Hz"), ("duration", self.duration, "s")):
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and v > 0):
+                raise ConfigError(f"{w}: key '{key}': must be a finite number > 0 {unit}, got {v!r}")
+        for key, obj, need in (("joint", self.joint, "parameters"), ("perturbation", self.perturbation, "generate"),
+                               ("apparatus", self.apparatus, "measured_torque")):
+            if not hasattr(obj, need):
+                raise ConfigError(f"{w}: key '{key}': expected a {key} model, got {obj!r}")
+        if self.n_sim < 2:
+            raise ConfigError(f"{w}: key 'duration': {self.duration:g} s at fs_sim = {self.fs_sim:g} Hz gives "
+                              f"{self.n_sim} sample(s); need at least 2")
+        fs = self.fs
+        if fs > self.fs_sim * (1 + 1e-12):
+            raise ConfigError(f"{w}: acquisition: key 'fs': {fs:g} Hz is above fs_sim = {self.fs_sim:g} Hz; "
+                              f"acquisition can only decimate")
+        q = self.fs_sim / fs
+        if abs(q - round(q)) > 1e-9 * q:
+            lo, hi = self.fs_sim / math.ceil(q), self.fs_sim / math.floor(q)
+            raise ConfigError(f"{w}: acquisition: key 'fs': {fs:g} Hz does not divide fs_sim = {self.fs_sim:g} Hz "
+                              f"(decimation factor {q:.6g} is not a whole number); e.g. {lo:g} or {hi:g} Hz")
+        if self.n < 2:
+            n_acq = -(-self.n_sim // self.decimation)
+            raise ConfigError(f"{w}: acquisition: key 'trim': dropping {self.acquisition.trim:g} s at both ends "
+                              f"leaves {max(self.n, 0)} of {n_acq} samples ({self.duration:g} s at {fs:g} Hz); "
+                              f"need at least 2")
+        self.perturbation.check(self.fs_sim, self.duration, f"{w}: perturbation")
+        self.voluntary.check(self.fs_sim, f"{w}: voluntary")
+        self.sensors.check(self.fs_sim, f"{w}: sensors")
+
+    # ------------------------------------------------------------------------------------- acquisition
+    def acquire(self, x: np.ndarray) -> np.ndarray:
+        """Apply the acquisition steps to signals at the simulation rate: detrend, decimate, trim.
+
+        ``x`` is one signal, or several as the columns of a 2-D array (all steps act along axis 0).
+        """
+        x = np.asarray(x, float)
+        if self.acquisition.detrend:
+            x = _detrend_linear(x)
+        x = decimate(x, self.decimation)
+        i = self.trim_samples
+        return x[i:len(x) - i]
+
+
+def _detrend_linear(x: np.ndarray) -> np.ndarray:
+    """Remove the least-squares straight line along axis 0 (closed form; same as
+    ``scipy.signal.detrend(x, axis=0, type="linear")`` to rounding, and much faster)."""
+    t = np.arange(len(x)) - (len(x) - 1) / 2.0
+    tt = float(t @ t)
+    slope = (t @ x) / tt if tt > 0 else np.zeros(x.shape[1:])
+    return x - x.mean(axis=0) - np.multiply.outer(t, slope)
+
+
+def _measure(sensor: Sensor, filtered: np.ndarray, rng: np.random.Generator,
+             acquire: Callable[[np.ndarray], np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """One channel after its analog filter: (measured, noise-free measured), both acquired.
+
+    Noise is white at the simulation rate, drawn from the channel's own stream and scaled so that its
+    rms (or the SNR) is exact in the acquired record; quantization acts before acquisition.
+    """
+    clean = acquire(filtered)
+    if not sensor.noisy:
+        if sensor.quantization:
+            return acquire(sensor.quantize(filtered)), clean
+        return clean.copy(), clean
+    w = rng.standard_normal(len(filtered))
+    w_acq = acquire(w)
+    gain = sensor.noise_gain(clean, w_acq)
+    if sensor.quantization:
+        return acquire(sensor.quantize(filtered + gain * w)), clean
+    return clean + gain * w_acq, clean  # acquisition is linear: the same as acquiring filtered + gain * w
+
+
+def simulate(experiment: Experiment, seed: int | np.random.SeedSequence, backend: str | Any = "lti", *,
+             name: str = "trial") -> Trial:
+    """Simulate one trial of ``experiment``.
+
+    Steps: perturbation and voluntary torque at fs_sim -> backend (limb + apparatus) -> sensor models
+    (filter, noise, quantization) -> acquisition (detrend, decimate, trim).
+
+    Parameters
+    ----------
+    experiment : Experiment
+        The description.
+    seed : int or numpy.random.SeedSequence
+        All randomness comes from ``SeedSequence(seed).spawn(4)``, one independent stream per source in
+        the order of :data:`STREAMS` (perturbation, voluntary torque, angle noise, torque noise): changing
+        one source's level changes no other source. Same experiment and seed -> bit-identical arrays.
+    backend : str or object
+        Name in :data:`sims.BACKENDS` (default ``"lti"``) or an object with the backend's ``run`` method.
+    name : str
+        Name of the trial.
+
+    Returns
+    -------
+    Trial
+        ``time`` from 0 at the first kept sample, measured ``angle`` and ``torque`` at
+        ``experiment.fs``, ``imposed`` = 'angle' (position servo) or 'torque' (torque drive), and
+        ``truth`` = Truth(I, B, K, signals) whose signals all went through the same acquisition as the
+        measurements and align with them sample by sample:
+
+        - ``"angle"``: the joint angle through the angle sensor's filter (if any), without noise or
+          quantization (with no filter: the true joint angle);
+        - ``"torque"``: the impedance torque I theta'' + B theta' + K theta through the torque sensor's
+          filter, without noise. For a position servo this is the measured torque without the
+          voluntary torque and without sensor noise (eq. 8: T_m = T_imp - T_v);
+        - ``"command"``: the perturbation signal (position command, or applied torque);
+        - ``"voluntary"``: the voluntary torque T_v through the torque sensor's filter.
+
+    References
+    ----------
+    Westwick & Perreault 2012, Fig. 1, eqs. 3-8 and Sec. IV.
+    """
+    exp = experiment
+    if not isinstance(exp, Experiment):
+        raise TypeError(f"simulate() needs an Experiment, got {type(exp).__name__}")
+    if seed is None:
+        raise TypeError("simulate() needs a seed (an int >= 0 or a SeedSequence); None is not reproducible")
+    ss = seed if isinstance(seed, np.random.SeedSequence) else np.random.SeedSequence(seed)
+    rng = dict(zip(STREAMS, (np.random.default_rng(s) for s in ss.spawn(len(STREAMS)))))
+    runner = BACKENDS.get(backend)() if isinstance(backend, str) else backend
+
+    fs, n = exp.fs_sim, exp.n_sim
+    drive = exp.perturbation.generate(n, fs, rng["perturbation"])
+    tv = exp.voluntary.generate(n, fs, rng["voluntary"])
+    resp = runner.run(exp.joint, exp.apparatus, drive, tv, fs)
+
+    angle, angle_clean = _measure(exp.sensors.angle, exp.sensors.angle.filtered(resp.angle, fs),
+                                  rng["angle_noise"], exp.acquire)
+    # one pass of the torque sensor's filter over the measured, impedance and voluntary torques
+    torques = exp.sensors.torque.filtered(np.column_stack([resp.torque_measured, resp.torque_impedance, tv]), fs)
+    torque, _ = _measure(exp.sensors.torque, torques[:, 0], rng["torque_noise"], exp.acquire)
+    truth_torques = exp.acquire(torques[:, 1:] if exp.voluntary.active else torques[:, 1])
+    signals = {
+        "angle": angle_clean,
+        "torque": np.ascontiguousarray(truth_torques[:, 0]) if exp.voluntary.active else truth_torques,
+        "command": exp.acquire(drive),
+        "voluntary": np.ascontiguousarray(truth_torques[:, 1]) if exp.voluntary.active else np.zeros(len(angle)),
+    }
+    I, B, K = exp.joint.parameters()
+    return Trial.from_arrays(angle, torque, exp.fs, imposed=exp.apparatus.imposed,
+                             truth=Truth(I=I, B=B, K=K, signals=signals), name=name)

@@ -1,0 +1,46 @@
+"""Dependencies flow one way: jointbench <- {sims, estimators} <- benchmarks (CLI on top)."""
+import ast
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+FORBIDDEN = {
+    "jointbench": {"sims", "estimators", "benchmarks"},
+    "sims": {"estimators", "benchmarks"},
+    "estimators": {"sims", "benchmarks"},
+}
+
+
+def imported_top_levels(path: Path) -> set[str]:
+    tree = ast.parse(path.read_text(), str(path))
+    out = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            out |= {a.name.split(".")[0] for a in node.names}
+        elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+            out.add(node.module.split(".")[0])
+    return out
+
+
+@pytest.mark.parametrize("package", sorted(FORBIDDEN))
+def test_layering(package):
+    bad = []
+    for f in sorted((REPO / package).rglob("*.py")):
+        hit = imported_top_levels(f) & FORBIDDEN[package]
+        if hit:
+            bad.append(f"{f.relative_to(REPO)} imports {sorted(hit)}")
+    assert not bad, "\n".join(bad)
+
+
+def test_runtime_never_reads_shared():
+    """../shared exists only beside developers' checkouts: code outside tests must not refer to it."""
+    for pkg in ("jointbench", "sims", "estimators", "benchmarks"):
+        for f in (REPO / pkg).rglob("*.py"):
+            assert "shared/data" not in f.read_text(), f"{f} refers to ../shared"
+
+
+def test_modules_stay_small():
+    big = [f"{f.relative_to(REPO)}: {n}" for pkg in ("jointbench", "sims", "estimators", "benchmarks")
+           for f in (REPO / pkg).rglob("*.py") if (n := len(f.read_text().splitlines())) > 500]
+    assert not big, big

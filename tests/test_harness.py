@@ -1,0 +1,126 @@
+"""Config strictness, the runner (failures, determinism, cache) and the comparison table."""
+from __future__ import annotations
+
+import copy
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+import yaml
+
+from benchmarks import protocols
+from benchmarks.config import CONFIGS, Check, load_study
+from benchmarks.runner import Cache, expand, run_case, run_cases
+from benchmarks.study import run_study
+from benchmarks.tables import compare
+from jointbench.errors import ConfigError
+
+STUDY = CONFIGS / "studies" / "westwick2012.yaml"
+
+
+def write_study(tmp_path: Path, edit) -> Path:
+    """A copy of the Westwick study config, edited by ``edit(dict)``, with absolute published path."""
+    data = yaml.safe_load(STUDY.read_text())
+    data["published"] = str(CONFIGS / "published" / "westwick2012.yaml")
+    edit(data)
+    p = tmp_path / "study.yaml"
+    p.write_text(yaml.safe_dump(data, sort_keys=False))
+    return p
+
+
+def test_study_config_loads_and_names_every_part():
+    s = load_study("westwick2012")
+    assert set(s.parts) == {"fig2", "fig3", "fig4", "fig5", "fig6", "table1", "fig8"}
+    assert all(c.part in s.parts for c in s.checks)
+    assert {r.id for r in s.readings} >= {"R1", "R5", "R12"}
+
+
+@pytest.mark.parametrize("edit, message", [
+    (lambda d: d["parts"]["fig4"].update(colour="red"), r"parts\.fig4: unknown key 'colour'; allowed: protocol"),
+    (lambda d: d["parts"]["fig4"]["params"].update(N="many"), r"key 'N': expected a whole number"),
+    (lambda d: d["parts"]["fig5"]["params"].update(fs="200 kg"), r"key 'fs': unit 'kg' is not a frequency unit"),
+    (lambda d: d["parts"]["fig6"]["experiment"]["joint"].update(I=-0.1) if isinstance(
+        d["parts"]["fig6"]["experiment"]["joint"], dict) else d["parts"]["fig6"]["experiment"].update(
+        joint={"model": "second_order", "I": -0.1, "B": 1, "K": 50}), r"I.*> 0"),
+    (lambda d: d["parts"]["fig6"].update(estimators={"no_such_method": {}}), r"unknown estimator 'no_such_method'; known: .*irf2_ls"),
+    (lambda d: d["parts"]["fig6"].update(estimators={"ibk_spectral": {"fmaxx": 20}}), r"unknown key 'fmaxx'"),
+    (lambda d: d["parts"]["fig6"].update(seeds=0), r"key 'seeds': need at least 1 seed"),
+    (lambda d: d["parts"]["fig6"]["experiment"].update(joint="no_such_model"), r"no model file no_such_model.yaml"),
+])
+def test_bad_config_names_file_key_and_allowed(tmp_path, edit, message):
+    p = write_study(tmp_path, edit)
+    with pytest.raises(ConfigError, match=message) as exc:
+        expand(load_study(p))
+    assert str(p) in str(exc.value) or "no_such" in str(exc.value)
+
+
+def test_unknown_part_and_protocol(tmp_path):
+    with pytest.raises(ConfigError, match="unknown part 'fig99'"):
+        expand(load_study("westwick2012"), ["fig99"])
+    p = write_study(tmp_path, lambda d: d["parts"]["fig4"].update(protocol="nope"))
+    with pytest.raises(ConfigError, match="unknown protocol 'nope'"):
+        expand(load_study(p))
+
+
+def test_failing_case_is_recorded_and_others_run(tmp_path):
+    """A case that raises is returned as failed with its error; the rest of the study still runs."""
+    def edit(d):
+        d["parts"]["fig8"]["params"]["fall_db"] = 500     # never reached -> RuntimeError in the case
+        d["parts"]["fig8"]["seeds"] = 1
+        d["parts"]["fig8"]["experiment"]["duration"] = "6 s"
+    run = run_study(write_study(tmp_path, edit), parts=["fig2", "fig8"], out_root=tmp_path / "out",
+                    serial=True, progress=False)
+    status = {r.case.part: r.status for r in run.results}
+    assert status == {"fig2": "ok", "fig8": "failed"}
+    failed = run.failed[0]
+    assert "never falls 500" in failed.error and "Traceback" in failed.detail
+    cases = pd.read_csv(run.folder / "cases.csv")
+    assert (cases.loc[cases["part"] == "fig8", "status"] == "failed").all()
+    comp = pd.read_csv(run.folder / "comparison.csv")
+    w6 = comp[comp["check"] == "W6-eq17"].iloc[0]
+    assert w6["status"] == "miss" and "failed" in w6["note"]
+    assert (run.folder / "failures.log").is_file()
+    assert "## Failed cases" in (run.folder / "report.md").read_text()
+
+
+def test_same_seed_same_numbers_serial_and_parallel(tmp_path):
+    def edit(d):
+        d["parts"]["fig6"]["seeds"] = 2
+        d["parts"]["fig6"]["experiment"]["duration"] = "8 s"
+    cases = expand(load_study(write_study(tmp_path, edit)), ["fig6"])
+    off = Cache(tmp_path / "c", "x", enabled=False)
+    a = run_cases(cases, off, serial=True, progress=False)
+    b = run_cases(cases, off, workers=2, progress=False)
+    assert [r.rows for r in a] == [r.rows for r in b]
+    assert a[0].rows != a[1].rows                       # different seeds differ
+
+
+def test_cache_serves_finished_cases(tmp_path):
+    cases = expand(load_study("westwick2012"), ["fig4"])
+    cache = Cache(tmp_path, "fp")
+    first = run_cases(cases, cache, serial=True, progress=False)
+    assert len(list(tmp_path.glob("*.json"))) == 1
+    hit = cache.get(cases[0])
+    assert hit is not None and hit.rows == first[0].rows
+    assert Cache(tmp_path, "other-code").get(cases[0]) is None   # code change invalidates
+
+
+def test_compare_aggregates_and_flags_misses():
+    rows = pd.DataFrame({"part": "p", "status": "ok", "metric": "m", "fs_hz": [50, 50, 50, 100],
+                         "value": [1.0, 2.0, 10.0, 7.0]})
+    checks = (Check("c1", "p", "d", "s", 2, 1.5, 2.5, {"metric": "m", "fs_hz": 50}),
+              Check("c2", "p", "d", "s", 5, 4, 6, {"metric": "m", "fs_hz": 100}, if_missed="why"),
+              Check("c3", "p", "d", "s", 5, 0, 1, {"metric": "absent"}))
+    out = compare(checks, rows, {"p"}).set_index("check")
+    assert out.loc["c1", "reproduced"] == 2.0 and out.loc["c1", "status"] == "pass"   # median of 1, 2, 10
+    assert out.loc["c2", "status"] == "miss" and out.loc["c2", "note"] == "why"
+    assert out.loc["c3", "status"] == "miss" and np.isnan(out.loc["c3", "reproduced"])
+    assert list(out.reset_index().columns[:7]) == ["check", "description", "published", "reproduced",
+                                                     "low", "high", "status"]
+
+
+def test_protocols_are_registered():
+    assert {"westwick2012.differentiators", "westwick2012.sampling_rate", "westwick2012.input_bandlimit",
+            "westwick2012.sampling_rate_experiment", "westwick2012.input_noise",
+            "parametric_fit"} <= set(protocols.REGISTRY.names())
