@@ -42,7 +42,7 @@ Several --input are records of one condition, fitted together.
 
 example:
   jointbench estimate -e ibk_irf -i ankle.npz:z_pf --decimate 10 --torque-sign -1 \\
-      --set lag_before=40ms --set lag_after=40ms -o out/pf.csv --plot out/pf.png
+      --set lag_before=40ms --set lag_after=40ms --set bandlimit=20Hz -o out/pf.csv --plot out/pf.png
 """
 
 
@@ -112,7 +112,7 @@ def run(args: argparse.Namespace) -> int:
     if plot is not None:
         from benchmarks.plots_estimate import plot_estimate
 
-        _write_atomic(plot, lambda p: plot_estimate(est, p, trials=trials, fmt=plot.suffix[1:]))
+        _write_atomic(plot, lambda p: plot_estimate(est, p, trials=trials, fmt=plot.suffix[1:].lower()))
         written.append((plot, None, None))
     print(summary_text(args.estimator, estimator.settings, raw, trials, est, written,
                        torque_sign=args.torque_sign))
@@ -122,24 +122,11 @@ def run(args: argparse.Namespace) -> int:
 # --- pieces (public so that tests and other commands can use them) --------------------------------
 
 def decimate_trial(trial: Trial, q: int) -> Trial:
-    """Decimate ``trial`` by the whole factor ``q`` with :func:`jointbench.signal.resample_trial`.
-
-    The filter pads the record with zeros, so a signal far from zero at the record ends (an angle
-    offset of 0.15 rad, say) would ring there. The straight line through each signal's first and last
-    samples is therefore subtracted before filtering and added back on the new time base (as
-    :func:`scipy.signal.resample_poly` does with ``padtype="line"``).
-    """
-    if q == 1:
-        return trial
-    k = np.arange(trial.n) / (trial.n - 1)
-    lines = {s: (x[0], x[-1] - x[0]) for s, x in (("angle", trial.angle), ("torque", trial.torque))}
-    flat = trial.replace(**{s: getattr(trial, s) - a - b * k for s, (a, b) in lines.items()})
+    """Decimate ``trial`` by the whole factor ``q`` with :func:`jointbench.signal.resample_trial`."""
     try:
-        low = resample_trial(flat, trial.fs / q)
+        return resample_trial(trial, trial.fs / q)
     except InputError as exc:
         raise InputError(f"--decimate {q}: {exc}") from None
-    kd = np.arange(low.n) * q / (trial.n - 1)
-    return low.replace(**{s: getattr(low, s) + a + b * kd for s, (a, b) in lines.items()})
 
 
 def prediction_vaf(est: Estimate, trial: Trial) -> float:
@@ -264,7 +251,8 @@ def _check_outputs(out: Path, plot: Path | None, sources: Sequence[io.Source]) -
         raise ConfigError(f"--output: {out} is a folder; give a file name such as {out / 'estimate.csv'}")
     if plot is not None and plot.suffix.lower() not in PLOT_SUFFIXES:
         raise ConfigError(f"--plot: must end in {', '.join(PLOT_SUFFIXES)}, got {str(plot)!r}")
-    targets = [out] + ([plot] if plot else [])
+    targets = [out, out.with_name(f"{out.stem}_irf{out.suffix}"),
+               out.with_name(f"{out.stem}_frf{out.suffix}")] + ([plot] if plot else [])
     inputs = {os.path.abspath(s.path) for s in sources}
     for t in targets:
         if os.path.abspath(t) in inputs:

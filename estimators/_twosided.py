@@ -96,7 +96,8 @@ def ls_irf(name: str, pairs: list[tuple[np.ndarray, np.ndarray]], m1: int, m2: i
     ``[[R, z], [0, rho]]``, so ``R h = z`` solves ``min ||U h - y||`` with the accuracy of a QR least-squares
     solver (the condition number of ``U`` enters once, not squared as in the normal equations) while
     memory stays bounded for long or many records. ``R h = z`` is then solved by
-    :func:`scipy.linalg.lstsq`, which detects rank deficiency.
+    :func:`scipy.linalg.lstsq` (SVD): directions that the input does not excite to machine precision
+    (very narrow-band perturbations) get the minimum-norm solution instead of overflowing.
     """
     n_lags = m1 + m2 + 1
     block = max(n_lags + 1, _BLOCK_VALUES // (n_lags + 1))
@@ -117,8 +118,7 @@ def ls_irf(name: str, pairs: list[tuple[np.ndarray, np.ndarray]], m1: int, m2: i
     if n_rows < n_lags:
         raise InputError(f"{name}: {n_rows} usable samples (edges = 'valid') for {n_lags} lags; the fit is "
                          f"underdetermined: use edges = 'zero', shorter lags or longer records")
-    h = scipy.linalg.lstsq(tri[:n_lags, :n_lags], tri[:n_lags, n_lags], check_finite=False)[0]
-    return h
+    return scipy.linalg.lstsq(tri[:n_lags, :n_lags], tri[:n_lags, n_lags], check_finite=False)[0]
 
 
 def corr_irf(name: str, pairs: list[tuple[np.ndarray, np.ndarray]], m1: int, m2: int) -> np.ndarray:

@@ -51,9 +51,9 @@ class IBKIRF(Estimator):
     ----------
     settings : Settings
         ``irf_method`` ('ls' or 'corr', default 'ls'); ``lag_before``, ``lag_after`` (s, default 0.1);
-        ``remove_mean`` (default True); ``edges`` ('zero' or 'valid', 'ls' only); ``differentiator_length``
+        ``remove_mean`` (default True); ``edges`` ('zero' or 'valid', 'ls' only; default 'valid'); ``differentiator_length``
         (samples ``N``, default 0 = the first record's length, rounded up to even); ``bandlimit`` (Hz,
-        default None = off); ``bandlimit_order`` (Butterworth order, default 8).
+        default 20 Hz as in the paper; 'none' = off); ``bandlimit_order`` (Butterworth order, default 8).
 
     Notes
     -----
@@ -73,17 +73,20 @@ class IBKIRF(Estimator):
     @dataclasses.dataclass(frozen=True)
     class Settings(LagSettings):
         irf_method: Literal["ls", "corr"] = param("ls", doc="nonparametric IRF: 'ls' (eq. 14) or 'corr' (eq. 15)")
-        edges: Edges = param("zero", doc="regression rows at the record ends (irf_method 'ls' only)")
+        edges: Edges | None = param(None, doc="regression rows at the record ends, irf_method 'ls' only "
+                                              "(None = 'valid' for 'ls'; see irf2_ls)")
         differentiator_length: int = param(0, ge=0, doc="record length N (samples) of the differentiators; "
                                                         "0 = the first record's length; rounded up to even")
-        bandlimit: float | None = param(None, unit="Hz", gt=0,
-                                        doc="zero-phase Butterworth low-pass of IRF and differentiators; "
-                                            "None = off")
+        bandlimit: float | None = param(20.0, unit="Hz", gt=0,
+                                        doc="zero-phase Butterworth low-pass of IRF and differentiators "
+                                            "(the paper's 20 Hz); keep it below the perturbation's band; "
+                                            "none = off")
         bandlimit_order: int = param(8, ge=1, doc="order of the band-limiting Butterworth filter")
 
         def __post_init__(self):
-            if self.irf_method == "corr" and self.edges != "zero":
-                raise ValueError("edges = 'valid' applies to irf_method = 'ls' only")
+            if self.irf_method == "corr" and self.edges is not None:
+                raise ValueError("edges applies to irf_method = 'ls' only (the correlation method uses "
+                                 "zero-padded correlations)")
             if 0 < self.differentiator_length < 4:
                 raise ValueError(f"differentiator_length must be 0 (record length) or >= 4 samples, "
                                  f"got {self.differentiator_length}")
@@ -91,7 +94,7 @@ class IBKIRF(Estimator):
     def _fit(self, trials: list[Trial]) -> ParametricEstimate:
         s = self.settings
         fs = trials[0].fs
-        irf = estimate_irf(self.name, trials, s, s.irf_method, s.edges, f"irf2_{s.irf_method}")
+        irf = estimate_irf(self.name, trials, s, s.irf_method, s.edges or "valid", f"irf2_{s.irf_method}")
         m1, m2 = lag_samples(s, fs)
         n = s.differentiator_length or trials[0].n
         n += n % 2

@@ -1,4 +1,4 @@
-"""Inertia, damping and stiffness fitted to the spectral impedance estimate (Westwick & Perreault 2012, Sec. V-A)."""
+"""I, B, K fitted to the spectral impedance estimate (Westwick & Perreault 2012, Sec. V-A)."""
 from __future__ import annotations
 
 import dataclasses

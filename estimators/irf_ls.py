@@ -31,8 +31,9 @@ class IRFLeastSquares(Estimator):
     settings : Settings
         ``lag_before``, ``lag_after`` (s, default 0.1 each): anticipatory and causal memory;
         ``remove_mean`` (default True): subtract each record's mean from angle and torque;
-        ``edges`` ('zero' or 'valid', default 'zero'): 'zero' takes ``u = 0`` outside the record, one
-        regression row per sample (eq. 14); 'valid' keeps only rows whose lags all fall inside the record.
+        ``edges`` ('zero' or 'valid', default 'valid'): 'zero' takes ``u = 0`` outside the record, one
+        regression row per sample (eq. 14 as printed); 'valid' keeps only rows whose lags all fall inside
+        the record (the default: a recording does not start or end at rest).
 
     Notes
     -----
@@ -52,8 +53,8 @@ class IRFLeastSquares(Estimator):
 
     @dataclasses.dataclass(frozen=True)
     class Settings(LagSettings):
-        edges: Edges = param("zero", doc="'zero': u = 0 outside the record; 'valid': only rows whose "
-                                         "lags all lie inside the record")
+        edges: Edges = param("valid", doc="'valid': only rows whose lags all lie inside the record; "
+                                          "'zero': u = 0 outside the record (eq. 14 as printed)")
 
     def _fit(self, trials: list[Trial]) -> IRFEstimate:
         s = self.settings

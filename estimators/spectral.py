@@ -46,17 +46,19 @@ def welch_frf(name: str, trials: list[Trial], s: WelchSettings) -> tuple[np.ndar
         raise InputError(f"{name}: segment = {s.segment:g} s ({nseg} samples) is longer than record "
                          f"'{shortest.name}' ({shortest.n} samples, {shortest.n / fs:g} s); shorten 'segment'")
     nover = min(int(round(s.overlap * nseg)), nseg - 1)
-    kw = dict(fs=fs, window=s.window, nperseg=nseg, noverlap=nover,
-              detrend=False if s.detrend == "none" else s.detrend)
+    detrend = False if s.detrend == "none" else s.detrend
+
+    def cross(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return sps.csd(a, b, fs=fs, window=s.window, nperseg=nseg, noverlap=nover, detrend=detrend)
+
     suu = syy = suy = 0.0
     count = 0
     for t in trials:
-        u, y = t.angle, t.torque
-        w = 1 + (t.n - nseg) // (nseg - nover)
-        f, puu = sps.welch(u, **kw)
-        syy = syy + w * sps.welch(y, **kw)[1]
-        suy = suy + w * sps.csd(u, y, **kw)[1]
-        suu = suu + w * puu
+        w = 1 + (t.n - nseg) // (nseg - nover)  # segments in this record
+        f, puy = cross(t.angle, t.torque)
+        suu = suu + w * cross(t.angle, t.angle)[1].real
+        syy = syy + w * cross(t.torque, t.torque)[1].real
+        suy = suy + w * puy
         count += w
     suu, syy, suy = suu / count, syy / count, suy / count
     scale = max(float(np.mean(t.angle ** 2)) for t in trials)

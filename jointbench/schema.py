@@ -87,7 +87,8 @@ def _convert(tp: Any, value: Any, meta: Mapping[str, Any], where: str, key: str)
     if tp is Any:
         return value
     if origin in (typing.Union, types.UnionType):
-        if value is None and type(None) in args:
+        if type(None) in args and (value is None or (isinstance(value, str) and
+                                                       value.strip().lower() in ("none", "null", "off"))):
             return None
         inner = [a for a in args if a is not type(None)]
         errors = []
@@ -176,7 +177,11 @@ def describe(cls: type) -> list[tuple[str, str, str, str]]:
     for f in dataclasses.fields(cls):
         default = "required" if f.default is dataclasses.MISSING else repr(f.default)
         unit = f.metadata.get("unit")
-        tp = getattr(hints[f.name], "__name__", str(hints[f.name]))
+        t = hints[f.name]
+        if typing.get_origin(t) is Literal:
+            tp = " | ".join(map(repr, typing.get_args(t)))
+        else:
+            tp = getattr(t, "__name__", str(t)).replace("typing.", "")
         rows.append((f.name, tp + (f" [{unit}]" if unit else ""), default, f.metadata.get("doc", "")))
     return rows
 

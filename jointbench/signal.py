@@ -26,7 +26,7 @@ def decimate(x: np.ndarray, q: int, cutoff: float = 0.8) -> np.ndarray:
     if q == 1:
         return x.copy()
     taps = sps.firwin(20 * q + 1, cutoff / q)
-    return sps.resample_poly(x, 1, q, window=taps)
+    return sps.resample_poly(x, 1, q, window=taps, padtype="line")
 
 
 def resample_trial(trial: Trial, fs_new: float, cutoff: float = 0.8) -> Trial:

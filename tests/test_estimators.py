@@ -117,7 +117,7 @@ def test_recovers_elbow_impedance(name, elbow):
 def test_valid_edges_remove_end_effect_on_noise_free_record():
     tr = elbow_trial(seed=3, duration=20.0, noise=0.0)
     valid = estimators.make("irf2_ls", {"edges": "valid"}).fit(tr)
-    zero = estimators.make("irf2_ls").fit(tr)
+    zero = estimators.make("irf2_ls", {"edges": "zero"}).fit(tr)
     err = lambda e: np.abs(e.frequency_response(BAND) / true_impedance(BAND) - 1).max()  # noqa: E731
     assert err(valid) < 0.005
     assert err(zero) > err(valid)
@@ -288,6 +288,12 @@ def test_bad_input_for_settings(name, settings, match):
     tr = elbow_trial(seed=1, duration=10.0)
     with pytest.raises(InputError, match=match):
         estimators.make(name, settings).fit(tr)
+
+
+def test_valid_edges_underdetermined():
+    tr = Trial.from_arrays(np.sin(np.arange(150)), np.cos(np.arange(150)), FS)
+    with pytest.raises(InputError, match="underdetermined"):
+        estimators.make("irf2_ls", {"edges": "valid"}).fit(tr)  # 150 - 100 rows for 101 lags
 
 
 @pytest.mark.parametrize("name", REGISTRY.names())

@@ -31,7 +31,7 @@ def write_study(tmp_path: Path, edit) -> Path:
 
 def test_study_config_loads_and_names_every_part():
     s = load_study("westwick2012")
-    assert set(s.parts) == {"fig2", "fig3", "fig4", "fig5", "fig6", "table1", "fig8"}
+    assert set(s.parts) == {"fig2", "fig3", "fig4", "fig5", "fig6", "fig6_no_torque_filter", "table1", "fig8"}
     assert all(c.part in s.parts for c in s.checks)
     assert {r.id for r in s.readings} >= {"R1", "R5", "R12"}
 
