@@ -32,7 +32,7 @@ test: $(STAMP)
 
 bench: $(STAMP)
 	mkdir -p results
-	$(BIN)/python -m pytest -q tests/benchmarks --benchmark-enable --benchmark-sort=median \
+	$(BIN)/python -m pytest -q tests/benchmarks --benchmark-enable --benchmark-sort=mean --benchmark-columns=median,iqr,min,mean,rounds \
 	    --benchmark-json=results/benchmarks.json
 
 reproduce: westwick2012

@@ -168,6 +168,9 @@ class Cache:
         tmp = p.with_suffix(".tmp")
         tmp.write_text(json.dumps(res.to_json()))
         os.replace(tmp, p)
+        for old in self.folder.glob(f"{res.case.case_id}-*.json"):   # entries of older code or specs
+            if old != p:
+                old.unlink(missing_ok=True)
 
 
 def _progress(total: int, enabled: bool):
