@@ -4,8 +4,21 @@ from __future__ import annotations
 import numpy as np
 from scipy import signal as sps
 
+import dataclasses
+from typing import Callable
+
 from jointbench.errors import InputError
-from jointbench.types import Trial
+from jointbench.types import Trial, Truth
+
+
+def _map_truth(truth: Truth | None, on_signal: Callable[[np.ndarray], np.ndarray],
+               on_param: Callable[[np.ndarray], np.ndarray]) -> Truth | None:
+    """Apply ``on_signal`` to the truth's signals and ``on_param`` to its time-varying parameters."""
+    if truth is None:
+        return None
+    par = {k: (v if np.ndim(v) == 0 else on_param(np.asarray(v))) for k, v in
+           (("I", truth.I), ("B", truth.B), ("K", truth.K))}
+    return dataclasses.replace(truth, signals={k: on_signal(v) for k, v in truth.signals.items()}, **par)
 
 
 def decimate(x: np.ndarray, q: int, cutoff: float = 0.8) -> np.ndarray:
@@ -38,14 +51,8 @@ def resample_trial(trial: Trial, fs_new: float, cutoff: float = 0.8) -> Trial:
     q = int(round(q))
     if q == 1:
         return trial
-    truth = trial.truth
-    if truth is not None:
-        import dataclasses
-
-        sig = {k: decimate(v, q, cutoff) for k, v in truth.signals.items()}
-        par = {k: (v if np.ndim(v) == 0 else np.asarray(v)[::q]) for k, v in
-               (("I", truth.I), ("B", truth.B), ("K", truth.K))}
-        truth = dataclasses.replace(truth, signals=sig, **par)
+    # signals are filtered like the measurements; time-varying parameters are sampled
+    truth = _map_truth(trial.truth, lambda v: decimate(v, q, cutoff), lambda v: v[::q])
     a = decimate(trial.angle, q, cutoff)
     return Trial(time=trial.time[0] + np.arange(len(a)) / fs_new, angle=a,
                  torque=decimate(trial.torque, q, cutoff), fs=fs_new, imposed=trial.imposed,
@@ -60,14 +67,7 @@ def trim(trial: Trial, start_s: float, end_s: float) -> Trial:
         raise InputError(f"trial '{trial.name}': trimming {start_s} s + {end_s} s leaves no data "
                          f"of a {trial.duration:g} s record")
     sl = slice(i0, i1)
-    truth = trial.truth
-    if truth is not None:
-        import dataclasses
-
-        sig = {k: v[sl] for k, v in truth.signals.items()}
-        par = {k: (v if np.ndim(v) == 0 else np.asarray(v)[sl]) for k, v in
-               (("I", truth.I), ("B", truth.B), ("K", truth.K))}
-        truth = dataclasses.replace(truth, signals=sig, **par)
+    truth = _map_truth(trial.truth, lambda v: v[sl], lambda v: v[sl])
     return Trial(time=trial.time[sl], angle=trial.angle[sl], torque=trial.torque[sl], fs=trial.fs,
                  imposed=trial.imposed, truth=truth, name=trial.name)
 

@@ -111,10 +111,12 @@ class Trial:
         object.__setattr__(self, "fs", float(self.fs))
 
     @classmethod
-    def from_arrays(cls, angle, torque, fs: float, t0: float = 0.0, **kw) -> "Trial":
+    def from_arrays(cls, angle, torque, fs: float, t0: float = 0.0, imposed: Imposed = "angle",
+                    truth: Truth | None = None, name: str = "trial") -> "Trial":
         """Build a trial with a uniform time base starting at ``t0``."""
         n = np.size(angle)
-        return cls(time=t0 + np.arange(n) / fs, angle=angle, torque=torque, fs=fs, **kw)
+        return cls(time=t0 + np.arange(n) / fs, angle=angle, torque=torque, fs=fs, imposed=imposed,
+                   truth=truth, name=name)
 
     @property
     def n(self) -> int:
