@@ -61,12 +61,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=_run)
     p = sub.add_parser("list", help="list studies, estimators and protocols")
     p.set_defaults(func=_list)
-    try:
-        from benchmarks import cli_estimate
-    except ImportError:   # pragma: no cover - during development only
-        cli_estimate = None
-    if cli_estimate is not None:
-        cli_estimate.add_parser(sub)
+    from benchmarks import cli_estimate
+
+    cli_estimate.add_parser(sub)
     return parser
 
 
@@ -78,6 +75,9 @@ def main(argv: list[str] | None = None) -> int:
     except JointBenchError as exc:
         print(f"jointbench: error: {exc}", file=sys.stderr)
         return 2
+    except BrokenPipeError:   # output piped into e.g. `head`
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 1
     except KeyboardInterrupt:
         print("jointbench: interrupted (finished cases are cached; run again to resume)", file=sys.stderr)
         return 130
