@@ -22,7 +22,12 @@ def render(study: Study, comparison: pd.DataFrame, part_reports: dict, failed: l
                  f"{len(failed)} failed), {meta['wall_s']:.1f} s wall time on {meta['workers']} worker(s).")
     lines.append("")
     if meta["parts"] != list(study.parts):
-        lines.append(f"Only these parts were run: {', '.join(meta['parts'])}.")
+        lines.append(f"This run computed the parts {', '.join(meta['parts'])}"
+                     + (f"; the parts {', '.join(meta['from_cache'])} come from the cache of an earlier run "
+                        "with the same code" if meta["from_cache"] else "") + ".")
+        missing = [p for p in study.parts if p not in meta["parts"] and p not in meta["from_cache"]]
+        if missing:
+            lines.append(f"Not included (not run with this code): {', '.join(missing)}.")
         lines.append("")
     lines += ["## Checks against the published values", ""]
     if comparison.empty:

@@ -44,7 +44,12 @@ def _write(path: Path, write) -> None:
 def run_study(ref: str | Path, parts: list[str] | None = None, out_root: Path | None = None,
               serial: bool = False, workers: int | None = None, use_cache: bool = True,
               progress: bool = True, command: str = "") -> StudyRun:
-    """Run study ``ref`` (an id under ``configs/studies`` or a path) and write its outputs."""
+    """Run study ``ref`` (an id under ``configs/studies`` or a path) and write its outputs.
+
+    With ``parts``, only those parts are run; the outputs still cover every other part whose cases
+    are all in the cache for the current code (so ``make westwick2012-fig4`` after ``make
+    westwick2012`` rewrites fig4 without dropping the rest of the report).
+    """
     study = load_study(ref)
     cases = expand(study, parts)
     folder = (out_root or REPO / "results") / study.id
@@ -53,11 +58,21 @@ def run_study(ref: str | Path, parts: list[str] | None = None, out_root: Path | 
     t0 = time.perf_counter()
     results = run_cases(cases, cache, workers=workers, serial=serial, progress=progress)
     wall = time.perf_counter() - t0
+    run_parts = list(dict.fromkeys(c.part for c in cases))
+    from_cache = []
+    if parts is not None and use_cache:
+        for name in study.parts:
+            if name in run_parts:
+                continue
+            hits = [cache.get(c) for c in expand(study, [name])]
+            if all(h is not None for h in hits):
+                results += hits
+                from_cache.append(name)
     commit = git_commit()
     rows = cases_frame(results, commit)
     curves = curves_frame(results)
-    run_parts = list(dict.fromkeys(c.part for c in cases))
-    comparison = compare(study.checks, rows, set(run_parts))
+    shown = [p for p in study.parts if p in run_parts or p in from_cache]
+    comparison = compare(study.checks, rows, set(shown))
     _write(folder / "cases.csv", lambda p: rows.to_csv(p, index=False))
     _write(folder / "curves.csv.gz", lambda p: curves.to_csv(p, index=False, compression="gzip"))
     _write(folder / "comparison.csv", lambda p: comparison.to_csv(p, index=False))
@@ -69,7 +84,7 @@ def run_study(ref: str | Path, parts: list[str] | None = None, out_root: Path | 
     elif log.exists():
         log.unlink()
     part_reports = {}
-    for name in run_parts:
+    for name in shown:
         part = study.parts[name]
         if part.protocol not in figures.REGISTRY:
             part_reports[name] = None
@@ -86,7 +101,7 @@ def run_study(ref: str | Path, parts: list[str] | None = None, out_root: Path | 
             traceback.print_exc()
     meta = {"commit": commit, "command": command or f"jointbench run {study.id}", "n_cases": len(cases),
             "n_cached": n_cached, "wall_s": wall, "workers": 1 if serial else (workers or os.cpu_count()),
-            "parts": run_parts}
+            "parts": run_parts, "from_cache": from_cache}
     text = report.render(study, comparison, part_reports, failed, meta)
     _write(folder / "report.md", lambda p: p.write_text(text))
     return StudyRun(study, folder, results, rows, comparison)

@@ -124,3 +124,16 @@ def test_protocols_are_registered():
     assert {"westwick2012.differentiators", "westwick2012.sampling_rate", "westwick2012.input_bandlimit",
             "westwick2012.sampling_rate_experiment", "westwick2012.input_noise",
             "parametric_fit"} <= set(protocols.REGISTRY.names())
+
+
+def test_partial_run_keeps_other_parts_from_cache(tmp_path):
+    out = tmp_path / "out"
+    run_study("westwick2012", parts=["fig2", "fig3"], out_root=out, serial=True, progress=False)
+    run = run_study("westwick2012", parts=["fig2"], out_root=out, serial=True, progress=False)
+    comp = pd.read_csv(run.folder / "comparison.csv")
+    assert {"fig2", "fig3"} == set(comp["part"])          # fig3 served from the cache
+    text = (run.folder / "report.md").read_text()
+    assert "come from the cache" in text and "Not included" in text
+    fresh = run_study("westwick2012", parts=["fig2"], out_root=out, serial=True, progress=False,
+                      use_cache=False)
+    assert set(fresh.comparison["part"]) == {"fig2"}
