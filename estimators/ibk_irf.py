@@ -118,5 +118,6 @@ class IBKIRF(Estimator):
         if rank < 3:
             raise InputError(f"{self.name}: {m1 + m2 + 1} lag(s) cannot separate I, B and K; lengthen the lags")
         I, B, K = (float(v) for v in x / scale)
-        basis = IRFEstimate(lags=irf.lags, h=h, fs=fs, time=irf.time, estimator=irf.estimator)
+        label = irf.estimator if s.bandlimit is None else f"{irf.estimator}, band-limited to {s.bandlimit:g} Hz"
+        basis = IRFEstimate(lags=irf.lags, h=h, fs=fs, time=irf.time, estimator=label)
         return ParametricEstimate(I=I, B=B, K=K, fs=fs, time=trials[0].time, estimator=self.name, basis=basis)
