@@ -34,10 +34,11 @@ def render(study: Study, comparison: pd.DataFrame, part_reports: dict, failed: l
         lines.append("_(no check belongs to the parts run)_")
     else:
         n_pass = int((comparison["status"] == "pass").sum())
-        lines.append(f"{n_pass} of {len(comparison)} checks pass. `reproduced` is the {', '.join(sorted(set(comparison['aggregate'])))} "
-                     "over seeds; `spread` is min to max over seeds.")
+        lines.append(f"{n_pass} of {len(comparison)} checks pass. `reproduced` combines the seeds as `over` "
+                     "says; `spread` is min to max over seeds; a pass needs low <= reproduced <= high.")
         lines.append("")
-        t = comparison[["check", "description", "published", "reproduced", "low", "high", "status", "spread"]].copy()
+        t = comparison[["check", "description", "published", "reproduced", "low", "high", "status",
+                        "aggregate", "spread"]].rename(columns={"aggregate": "over"})
         t["status"] = t["status"].map(_status)
         lines.append(markdown(t))
         misses = comparison[comparison["status"] != "pass"]
