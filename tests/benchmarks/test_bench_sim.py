@@ -5,18 +5,7 @@ import pytest
 
 from sims import Experiment, simulate
 from sims.backend_lti import LTIBackend
-
-SPEC = {
-    "joint": {"model": "second_order", "I": 0.171, "B": 1.22, "K": 53.5},
-    "apparatus": {"kind": "position_servo", "stiffness": 30000},
-    "perturbation": {"kind": "filtered_noise", "cutoff": "10 Hz", "order": 2, "rms": "0.02 rad"},
-    "voluntary": {"mean": 1.0, "rms": 0.3, "cutoff": "1 Hz"},
-    "sensors": {"angle": {"quantization": "6.28e-5 rad"},
-                "torque": {"filter": {"kind": "bessel", "order": 5, "cutoff": "500 Hz"}, "noise_rms": 0.01}},
-    "fs_sim": "5 kHz",
-    "duration": "30 s",
-    "acquisition": {"detrend": True, "fs": "500 Hz", "trim": "0.5 s"},
-}
+from tests.test_sims import SPEC   # the paper's experiment: 30 s at 5 kHz, servo, sensors, to 500 Hz
 
 
 @pytest.fixture(scope="module")
