@@ -147,6 +147,7 @@ class Cache:
 
     def __init__(self, folder: Path, fingerprint: str, enabled: bool = True):
         self.folder, self.fingerprint, self.enabled = folder, fingerprint, enabled
+        self.hits = 0     # entries served by get()
 
     def _path(self, case: Case) -> Path:
         return self.folder / f"{case.case_id}-{case.key(self.fingerprint)}.json"
@@ -156,9 +157,11 @@ class Cache:
         if not self.enabled or not p.is_file():
             return None
         try:
-            return CaseResult.from_json(json.loads(p.read_text()))
+            res = CaseResult.from_json(json.loads(p.read_text()))
         except (ValueError, TypeError, KeyError):
             return None   # a damaged entry is recomputed
+        self.hits += 1
+        return res
 
     def put(self, res: CaseResult) -> None:
         if not self.enabled or res.status != "ok":

@@ -54,10 +54,10 @@ def run_study(ref: str | Path, parts: list[str] | None = None, out_root: Path | 
     cases = expand(study, parts)
     folder = (out_root or REPO / "results") / study.id
     cache = Cache(folder / "cache", code_fingerprint(), use_cache)
-    n_cached = sum(cache.get(c) is not None for c in cases)
     t0 = time.perf_counter()
     results = run_cases(cases, cache, workers=workers, serial=serial, progress=progress)
     wall = time.perf_counter() - t0
+    n_cached = cache.hits
     run_parts = list(dict.fromkeys(c.part for c in cases))
     from_cache = []
     if parts is not None and use_cache:
