@@ -44,8 +44,13 @@ class Estimate(ABC):
         """Impulse or frequency response as a table, or ``None``."""
         return None
 
-    def frequency_response(self, f: np.ndarray) -> np.ndarray:
-        """Complex impedance at frequencies ``f`` (Hz)."""
+    def frequency_response(self, f: np.ndarray, t: np.ndarray | float | None = None) -> np.ndarray:
+        """Complex frequency response (input -> output) at frequencies ``f`` (Hz).
+
+        Time-varying estimates return the frozen response at time(s) ``t`` (s): shape ``(len(t), len(f))``
+        for an array ``t``, ``(len(f),)`` for a scalar; ``t=None`` is only allowed when the estimate is
+        time-invariant (then ``t`` is ignored).
+        """
         raise NotImplementedError(f"{type(self).__name__} has no frequency response")
 
     def summary(self) -> dict[str, float | str]:
@@ -81,7 +86,7 @@ class IRFEstimate(Estimate):
         full = np.convolve(u, self.h)
         return full[m1:m1 + len(u)]
 
-    def frequency_response(self, f: np.ndarray) -> np.ndarray:
+    def frequency_response(self, f: np.ndarray, t=None) -> np.ndarray:
         w = 2 * np.pi * np.asarray(f, float)[..., None] / self.fs
         return np.exp(-1j * w * self.lags) @ self.h
 
@@ -108,7 +113,7 @@ class FRFEstimate(Estimate):
     time: np.ndarray
     estimator: str = "frf"
 
-    def frequency_response(self, f: np.ndarray) -> np.ndarray:
+    def frequency_response(self, f: np.ndarray, t=None) -> np.ndarray:
         f = np.asarray(f, float)
         return np.interp(f, self.freq, self.H.real) + 1j * np.interp(f, self.freq, self.H.imag)
 
@@ -165,7 +170,7 @@ class ParametricEstimate(Estimate):
         p = {k: self._on(getattr(self, k), t) for k in ("I", "B", "K")}
         return p["I"] * ddu + p["B"] * du + p["K"] * u
 
-    def frequency_response(self, f: np.ndarray) -> np.ndarray:
+    def frequency_response(self, f: np.ndarray, t=None) -> np.ndarray:
         if np.ndim(self.I) or np.ndim(self.B) or np.ndim(self.K):
             raise NotImplementedError("time-varying parameters have no single frequency response")
         w = 2 * np.pi * np.asarray(f, float)
