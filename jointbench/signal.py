@@ -16,8 +16,9 @@ def _map_truth(truth: Truth | None, on_signal: Callable[[np.ndarray], np.ndarray
     """Apply ``on_signal`` to the truth's signals and ``on_param`` to its time-varying parameters."""
     if truth is None:
         return None
-    par = {k: (v if np.ndim(v) == 0 else on_param(np.asarray(v))) for k, v in
-           (("I", truth.I), ("B", truth.B), ("K", truth.K))}
+    par = {k: (v if np.ndim(v) < (2 if k in ("num", "den") else 1) else on_param(np.asarray(v)))
+           for k, v in (("I", truth.I), ("B", truth.B), ("K", truth.K), ("num", truth.num),
+                        ("den", truth.den)) if v is not None}
     return dataclasses.replace(truth, signals={k: on_signal(v) for k, v in truth.signals.items()}, **par)
 
 
@@ -90,3 +91,39 @@ def bandlimit_fb(h: np.ndarray, fs: float, cutoff_hz: float, order: int = 8,
     x = np.concatenate([np.zeros(pad), np.asarray(h, float), np.zeros(pad)])
     y = sps.sosfilt(sos, sps.sosfilt(sos, x)[::-1])[::-1]
     return y[pad:pad + len(h)]
+
+
+def decimate_fft(x: np.ndarray, n_out: int) -> np.ndarray:
+    """Decimate in the frequency domain: keep the DFT bins below the new Nyquist frequency.
+
+    The record (length N, along axis 0) is treated as one period: its DFT is cut to the bins
+    ``|k| < n_out / 2`` and inverted on ``n_out`` points, so the new rate is ``fs * n_out / N`` and
+    the record length in seconds is unchanged. Frequencies on the DFT grid below the new Nyquist rate
+    pass unchanged (no filter ripple or phase); the price is that the record's ends are joined, so a
+    record that does not start and end at rest must have its ends discarded afterwards.
+
+    Parameters
+    ----------
+    x : ndarray
+        Signal(s), time along axis 0.
+    n_out : int
+        Number of output samples (< N).
+
+    References
+    ----------
+    van de Ruit et al. 2018, Sec. IV-E ("decimated in the frequency domain to about 44 Hz").
+    """
+    x = np.asarray(x, float)
+    n = x.shape[0]
+    if int(n_out) != n_out or not 2 <= n_out <= n:
+        raise InputError(f"frequency-domain decimation: output length must be a whole number in "
+                         f"[2, {n}], got {n_out}")
+    n_out = int(n_out)
+    if n_out == n:
+        return x.copy()
+    X = np.fft.rfft(x, axis=0)
+    keep = n_out // 2 + 1
+    Y = X[:keep].copy()
+    if n_out % 2 == 0:
+        Y[-1] = Y[-1].real  # the new Nyquist bin of a real signal: keep its real part only (symmetric)
+    return np.fft.irfft(Y, n_out, axis=0) * (n_out / n)

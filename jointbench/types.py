@@ -46,6 +46,8 @@ class Truth:
     B: float | np.ndarray
     K: float | np.ndarray
     signals: Mapping[str, np.ndarray] = dataclasses.field(default_factory=dict)
+    num: np.ndarray | None = None
+    den: np.ndarray | None = None
 
     def at(self, name: str, t: np.ndarray, time: np.ndarray) -> np.ndarray:
         """Parameter ``name`` ('I', 'B' or 'K') at times ``t`` (interpolated when time-varying)."""
@@ -53,6 +55,52 @@ class Truth:
         if np.ndim(v) == 0:
             return np.full(np.shape(t), float(v))
         return np.interp(t, time, v)
+
+    def frozen_response(self, f: np.ndarray, t: np.ndarray | float | None = None,
+                        time: np.ndarray | None = None) -> np.ndarray:
+        """The true frozen frequency response from the trial's input to its output.
+
+        ``num`` and ``den`` hold the coefficients (highest power of s first) of the rational transfer
+        function ``num(s) / den(s)`` from ``Trial.input`` to ``Trial.output``: shape ``(p,)`` when
+        constant, ``(n, p)`` (one row per trial sample) when time-varying. The frozen response at time
+        ``t`` uses the coefficients at ``t`` (linear interpolation on ``time``).
+
+        Parameters
+        ----------
+        f : array_like
+            Frequencies (Hz).
+        t : float or array_like, optional
+            Times (s); needed when the coefficients vary in time.
+        time : ndarray, optional
+            The trial's time base (needed with ``t`` for time-varying coefficients).
+
+        Returns
+        -------
+        ndarray
+            Shape ``(len(f),)`` for a scalar or absent ``t``, ``(len(t), len(f))`` for an array ``t``.
+        """
+        if self.num is None or self.den is None:
+            raise ValueError("this truth has no frozen transfer function (num, den)")
+        s = 2j * np.pi * np.atleast_1d(np.asarray(f, float))
+        scalar_t = t is None or np.ndim(t) == 0
+        tt = np.atleast_1d(np.asarray(0.0 if t is None else t, float))
+
+        def coef(c: np.ndarray) -> np.ndarray:
+            c = np.asarray(c, float)
+            if c.ndim == 1:
+                return np.broadcast_to(c, (len(tt), len(c)))
+            if t is None or time is None:
+                raise ValueError("time-varying num/den: give the times t and the trial's time base")
+            return np.column_stack([np.interp(tt, time, c[:, j]) for j in range(c.shape[1])])
+
+        def poly(c: np.ndarray) -> np.ndarray:
+            out = np.zeros((c.shape[0], len(s)), complex)
+            for j in range(c.shape[1]):
+                out = out * s + c[:, j:j + 1]
+            return out
+
+        H = poly(coef(self.num)) / poly(coef(self.den))
+        return H[0] if scalar_t else H
 
 
 @dataclasses.dataclass(frozen=True, eq=False)

@@ -10,10 +10,11 @@ from jointbench.registry import Registry, import_submodules
 JOINTS = Registry("joint model")
 PERTURBATIONS = Registry("perturbation")
 BACKENDS = Registry("simulation backend")
+PROFILES = Registry("time-variation profile")
 
 # `simulate` and `Experiment` are defined in sims/experiment.py and re-exported here.
 import_submodules(__name__, __path__)
 
 from sims.experiment import Experiment, simulate  # noqa: E402
 
-__all__ = ["BACKENDS", "Experiment", "JOINTS", "PERTURBATIONS", "simulate"]
+__all__ = ["BACKENDS", "Experiment", "JOINTS", "PERTURBATIONS", "PROFILES", "simulate"]

@@ -14,13 +14,13 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from typing import Any, Callable, Mapping
+from typing import Any, Callable, Literal, Mapping
 
 import numpy as np
 
 from jointbench.errors import ConfigError
 from jointbench.schema import param, parse
-from jointbench.signal import decimate
+from jointbench.signal import decimate, decimate_fft
 from jointbench.types import Trial, Truth
 from sims import BACKENDS, JOINTS, PERTURBATIONS
 from sims.apparatus import APPARATUS_KINDS, Apparatus, PositionServo
@@ -44,20 +44,24 @@ class Acquisition:
     detrend : bool
         Remove a least-squares straight line over the whole record (at the simulation rate).
     fs : float or None
-        Acquired rate (Hz); must divide ``fs_sim`` by a whole factor q. Decimation uses
-        :func:`jointbench.signal.decimate` (zero-phase FIR anti-alias filter). None = ``fs_sim``.
+        Acquired rate (Hz). None = ``fs_sim``.
     trim : float
         Seconds removed at both ends of the acquired record (filter and start-up transients).
+    decimation : {'fir', 'fft'}
+        'fir': ``fs`` must divide ``fs_sim`` by a whole factor q; :func:`jointbench.signal.decimate`
+        (zero-phase FIR anti-alias filter). 'fft': :func:`jointbench.signal.decimate_fft` (keep the DFT
+        bins below the new Nyquist rate); ``fs · duration`` must be a whole number of samples.
 
     References
     ----------
     Westwick & Perreault 2012, Sec. IV ("detrended, and then decimated to 500 Hz. Both ends of the
-    signals were trimmed").
+    signals were trimmed"); van de Ruit et al. 2018, Sec. IV-E (decimated in the frequency domain).
     """
 
     detrend: bool = True
     fs: float | None = param(None, unit="Hz", gt=0, doc="acquired rate; default fs_sim")
     trim: float = param(0.0, unit="s", ge=0, doc="seconds dropped at each end")
+    decimation: Literal["fir", "fft"] = "fir"
 
 
 @dataclasses.dataclass(frozen=True)
@@ -209,8 +213,19 @@ class Experiment:
 
     @property
     def decimation(self) -> int:
-        """Whole decimation factor fs_sim / fs."""
+        """Whole decimation factor fs_sim / fs (FIR decimation only)."""
         return int(round(self.fs_sim / self.fs))
+
+    @property
+    def n_acquired(self) -> int:
+        """Samples after decimation, before trimming."""
+        if self.acquisition.decimation == "fft":
+            return int(round(self.duration * self.fs))
+        return -(-self.n_sim // self.decimation)
+
+    def acquired_times(self) -> np.ndarray:
+        """Times (s, from the start of the simulation) of the acquired, trimmed samples."""
+        return (self.trim_samples + np.arange(self.n)) / self.fs
 
     @property
     def trim_samples(self) -> int:
@@ -220,15 +235,15 @@ class Experiment:
     @property
     def n(self) -> int:
         """Number of samples in the acquired trial."""
-        return -(-self.n_sim // self.decimation) - 2 * self.trim_samples
+        return self.n_acquired - 2 * self.trim_samples
 
     def _validate(self) -> None:
         w = self.where
         for key, v, unit in (("fs_sim", self.fs_sim, "Hz"), ("duration", self.duration, "s")):
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and v > 0):
                 raise ConfigError(f"{w}: key '{key}': must be a finite number > 0 {unit}, got {v!r}")
-        for key, obj, need in (("joint", self.joint, "parameters"), ("perturbation", self.perturbation, "generate"),
-                               ("apparatus", self.apparatus, "measured_torque")):
+        for key, obj, need in (("joint", self.joint, "coefficients_at"), ("perturbation", self.perturbation, "generate"),
+                               ("apparatus", self.apparatus, "coupling")):
             if not hasattr(obj, need):
                 raise ConfigError(f"{w}: key '{key}': expected a {key} model, got {obj!r}")
         if self.n_sim < 2:
@@ -239,15 +254,28 @@ class Experiment:
             raise ConfigError(f"{w}: acquisition: key 'fs': {fs:g} Hz is above fs_sim = {self.fs_sim:g} Hz; "
                               f"acquisition can only decimate")
         q = self.fs_sim / fs
-        if abs(q - round(q)) > 1e-9 * q:
+        if self.acquisition.decimation == "fft":
+            m = self.duration * fs
+            if abs(m - round(m)) > 1e-9 * m:
+                raise ConfigError(f"{w}: acquisition: key 'fs': fft decimation needs a whole number of samples "
+                                  f"in {self.duration:g} s; {fs:g} Hz gives {m:.6g}")
+        elif abs(q - round(q)) > 1e-9 * q:
             lo, hi = self.fs_sim / math.ceil(q), self.fs_sim / math.floor(q)
             raise ConfigError(f"{w}: acquisition: key 'fs': {fs:g} Hz does not divide fs_sim = {self.fs_sim:g} Hz "
                               f"(decimation factor {q:.6g} is not a whole number); e.g. {lo:g} or {hi:g} Hz")
         if self.n < 2:
-            n_acq = -(-self.n_sim // self.decimation)
+            n_acq = self.n_acquired
             raise ConfigError(f"{w}: acquisition: key 'trim': dropping {self.acquisition.trim:g} s at both ends "
                               f"leaves {max(self.n, 0)} of {n_acq} samples ({self.duration:g} s at {fs:g} Hz); "
                               f"need at least 2")
+        contact = getattr(self.joint, "contact", None)
+        if contact is not None and not getattr(self.apparatus, "angle_is_drive", False):
+            raise ConfigError(f"{w}: key 'apparatus': joint model '{self.joint.model}' has a hand contact and "
+                              f"needs apparatus kind 'handle', got '{self.apparatus.kind}'")
+        try:
+            self.apparatus.coupling(self.joint)
+        except ConfigError as exc:
+            raise ConfigError(f"{w}: key 'apparatus': {exc}") from None
         self.perturbation.check(self.fs_sim, self.duration, f"{w}: perturbation")
         self.voluntary.check(self.fs_sim, f"{w}: voluntary")
         self.sensors.check(self.fs_sim, f"{w}: sensors")
@@ -261,7 +289,10 @@ class Experiment:
         x = np.asarray(x, float)
         if self.acquisition.detrend:
             x = _detrend_linear(x)
-        x = decimate(x, self.decimation)
+        if self.acquisition.decimation == "fft":
+            x = decimate_fft(x, self.n_acquired)
+        else:
+            x = decimate(x, self.decimation)
         i = self.trim_samples
         return x[i:len(x) - i]
 
@@ -276,11 +307,12 @@ def _detrend_linear(x: np.ndarray) -> np.ndarray:
 
 
 def _measure(sensor: Sensor, filtered: np.ndarray, rng: np.random.Generator,
-             acquire: Callable[[np.ndarray], np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+             acquire: Callable[[np.ndarray], np.ndarray], fs_sim: float) -> tuple[np.ndarray, np.ndarray]:
     """One channel after its analog filter: (measured, noise-free measured), both acquired.
 
-    Noise is white at the simulation rate, drawn from the channel's own stream and scaled so that its
-    rms (or the SNR) is exact in the acquired record; quantization acts before acquisition.
+    Noise is white at the simulation rate (coloured by the sensor's ``noise_filter`` if any), drawn from
+    the channel's own stream and scaled so that its rms (or the SNR) is exact in the acquired record;
+    quantization acts before acquisition.
     """
     clean = acquire(filtered)
     if not sensor.noisy:
@@ -288,6 +320,8 @@ def _measure(sensor: Sensor, filtered: np.ndarray, rng: np.random.Generator,
             return acquire(sensor.quantize(filtered)), clean
         return clean.copy(), clean
     w = rng.standard_normal(len(filtered))
+    if sensor.noise_filter is not None:
+        w = sensor.noise_filter.apply(w, fs_sim)
     w_acq = acquire(w)
     gain = sensor.noise_gain(clean, w_acq)
     if sensor.quantization:
@@ -295,8 +329,42 @@ def _measure(sensor: Sensor, filtered: np.ndarray, rng: np.random.Generator,
     return clean + gain * w_acq, clean  # acquisition is linear: the same as acquiring filtered + gain * w
 
 
-def simulate(experiment: Experiment, seed: int | np.random.SeedSequence, backend: str | Any = "lti", *,
-             name: str = "trial") -> Trial:
+def _streams(seed: int | np.random.SeedSequence, replicate: int) -> dict[str, np.random.Generator]:
+    """One generator per entry of :data:`STREAMS`; ``replicate`` > 0 redraws only the noise streams."""
+    ss = seed if isinstance(seed, np.random.SeedSequence) else np.random.SeedSequence(seed)
+    children = ss.spawn(len(STREAMS))
+    if replicate:
+        # a child slot far from the primary streams' (0 ... len(STREAMS) - 1), one per replicate
+        noise = np.random.SeedSequence(ss.entropy, spawn_key=tuple(ss.spawn_key) + (1000 + replicate,))
+        children[2:4] = noise.spawn(2)
+    return dict(zip(STREAMS, (np.random.default_rng(c) for c in children)))
+
+
+def _pick_backend(exp: Experiment) -> str:
+    """``lti`` (exact, fastest) when it applies, else ``ltv``."""
+    c = exp.apparatus.coupling(exp.joint)
+    simple = (getattr(exp.joint, "time_invariant", False) and hasattr(exp.joint, "state_space")
+              and c.g_d == 0 and c.b_a == 0 and not exp.voluntary.moving)
+    return "lti" if simple else "ltv"
+
+
+def _truth(exp: Experiment, signals: dict[str, np.ndarray]) -> Truth:
+    """Parameters at the acquired sample times and the frozen input -> output transfer function."""
+    t = exp.acquired_times()
+    I, B, K = exp.joint.coefficients_at(t)
+    Z = np.column_stack([I, B, K])
+    if exp.joint.time_invariant:
+        I, B, K = float(I[0]), float(B[0]), float(K[0])
+        Z = Z[:1]
+    num, den = exp.apparatus.coupling(exp.joint).frozen_response(Z, exp.apparatus.imposed,
+                                                                 exp.apparatus.angle_is_drive)
+    if exp.joint.time_invariant:
+        num, den = num[0], den[0]
+    return Truth(I=I, B=B, K=K, signals=signals, num=num, den=den)
+
+
+def simulate(experiment: Experiment, seed: int | np.random.SeedSequence, backend: str | Any | None = None, *,
+             name: str = "trial", replicate: int = 0) -> Trial:
     """Simulate one trial of ``experiment``.
 
     Steps: perturbation and voluntary torque at fs_sim -> backend (limb + apparatus) -> sensor models
@@ -310,50 +378,69 @@ def simulate(experiment: Experiment, seed: int | np.random.SeedSequence, backend
         All randomness comes from ``SeedSequence(seed).spawn(4)``, one independent stream per source in
         the order of :data:`STREAMS` (perturbation, voluntary torque, angle noise, torque noise): changing
         one source's level changes no other source. Same experiment and seed -> bit-identical arrays.
-    backend : str or object
-        Name in :data:`sims.BACKENDS` (default ``"lti"``) or an object with the backend's ``run`` method.
+    backend : str or object, optional
+        Name in :data:`sims.BACKENDS` or an object with the backend's ``run`` method. Default: ``"lti"``
+        for a time-invariant joint on a spring-only apparatus without voluntary movement, else ``"ltv"``.
     name : str
         Name of the trial.
+    replicate : int
+        0 for the trial itself; 1, 2, ... for further trials with the same perturbation and voluntary
+        torque but new sensor-noise realisations (e.g. the validation trial of van de Ruit et al. 2018).
 
     Returns
     -------
     Trial
         ``time`` from 0 at the first kept sample, measured ``angle`` and ``torque`` at
-        ``experiment.fs``, ``imposed`` = 'angle' (position servo) or 'torque' (torque drive), and
-        ``truth`` = Truth(I, B, K, signals) whose signals all went through the same acquisition as the
+        ``experiment.fs``, ``imposed`` = 'angle' (position servo, handle) or 'torque' (torque drive), and
+        ``truth`` = Truth(I, B, K, signals, num, den): I, B, K are numbers, or arrays at the trial's
+        samples when the joint varies in time; ``num``/``den`` the frozen transfer function from the
+        trial's input to its output; the signals all went through the same acquisition as the
         measurements and align with them sample by sample:
 
-        - ``"angle"``: the joint angle through the angle sensor's filter (if any), without noise or
-          quantization (with no filter: the true joint angle);
+        - ``"angle"``: the measured angle through the angle sensor's filter (if any), without noise or
+          quantization;
         - ``"torque"``: the impedance torque I theta'' + B theta' + K theta through the torque sensor's
-          filter, without noise. For a position servo this is the measured torque without the
+          filter, without noise. For a position servo or handle this is the measured torque without the
           voluntary torque and without sensor noise (eq. 8: T_m = T_imp - T_v);
         - ``"command"``: the perturbation signal (position command, or applied torque);
-        - ``"voluntary"``: the voluntary torque T_v through the torque sensor's filter.
+        - ``"voluntary"``: the voluntary torque T_v through the torque sensor's filter;
+        - ``"movement"`` (with a voluntary movement): the intended trajectory theta_n.
 
     References
     ----------
-    Westwick & Perreault 2012, Fig. 1, eqs. 3-8 and Sec. IV.
+    Westwick & Perreault 2012, Fig. 1, eqs. 3-8 and Sec. IV; Xu & Hollerbach 1998, eq. 7; van de Ruit
+    et al. 2018, eqs. 11-13.
     """
     exp = experiment
     if not isinstance(exp, Experiment):
         raise TypeError(f"simulate() needs an Experiment, got {type(exp).__name__}")
     if seed is None:
         raise TypeError("simulate() needs a seed (an int >= 0 or a SeedSequence); None is not reproducible")
-    ss = seed if isinstance(seed, np.random.SeedSequence) else np.random.SeedSequence(seed)
-    rng = dict(zip(STREAMS, (np.random.default_rng(s) for s in ss.spawn(len(STREAMS)))))
+    if isinstance(replicate, bool) or not isinstance(replicate, int) or replicate < 0:
+        raise ValueError(f"simulate(): replicate must be a whole number >= 0, got {replicate!r}")
+    rng = _streams(seed, replicate)
+    backend = _pick_backend(exp) if backend is None else backend
     runner = BACKENDS.get(backend)() if isinstance(backend, str) else backend
 
     fs, n = exp.fs_sim, exp.n_sim
     drive = exp.perturbation.generate(n, fs, rng["perturbation"])
     tv = exp.voluntary.generate(n, fs, rng["voluntary"])
-    resp = runner.run(exp.joint, exp.apparatus, drive, tv, fs)
+    extra = {}
+    if exp.voluntary.moving:
+        t = np.arange(n) / fs
+        pos, vel, acc = exp.voluntary.movement(t)
+        I, B, K = exp.joint.coefficients_at(t)
+        c = exp.apparatus.coupling(exp.joint)
+        tv = tv + I * acc + (B + c.b_a) * vel + (K + c.k_a) * pos
+        extra = {"x0": (float(pos[0]), float(vel[0]))}
+    resp = runner.run(exp.joint, exp.apparatus, drive, tv, fs, **extra)
 
-    angle, angle_clean = _measure(exp.sensors.angle, exp.sensors.angle.filtered(resp.angle, fs),
-                                  rng["angle_noise"], exp.acquire)
+    angle_true = drive if exp.apparatus.angle_is_drive else resp.angle
+    angle, angle_clean = _measure(exp.sensors.angle, exp.sensors.angle.filtered(angle_true, fs),
+                                  rng["angle_noise"], exp.acquire, fs)
     # one pass of the torque sensor's filter over the measured, impedance and voluntary torques
     torques = exp.sensors.torque.filtered(np.column_stack([resp.torque_measured, resp.torque_impedance, tv]), fs)
-    torque, _ = _measure(exp.sensors.torque, torques[:, 0], rng["torque_noise"], exp.acquire)
+    torque, _ = _measure(exp.sensors.torque, torques[:, 0], rng["torque_noise"], exp.acquire, fs)
     truth_torques = exp.acquire(torques[:, 1:] if exp.voluntary.active else torques[:, 1])
     signals = {
         "angle": angle_clean,
@@ -361,6 +448,7 @@ def simulate(experiment: Experiment, seed: int | np.random.SeedSequence, backend
         "command": exp.acquire(drive),
         "voluntary": np.ascontiguousarray(truth_torques[:, 1]) if exp.voluntary.active else np.zeros(len(angle)),
     }
-    I, B, K = exp.joint.parameters()
-    return Trial.from_arrays(angle, torque, exp.fs, imposed=exp.apparatus.imposed,
-                             truth=Truth(I=I, B=B, K=K, signals=signals), name=name)
+    if exp.voluntary.moving:
+        signals["movement"] = exp.acquire(exp.voluntary.movement(np.arange(n) / fs)[0])
+    return Trial.from_arrays(angle, torque, exp.fs, imposed=exp.apparatus.imposed, truth=_truth(exp, signals),
+                             name=name)

@@ -44,6 +44,7 @@ class SecondOrderJoint:
 
     model: ClassVar[str] = "second_order"
     time_invariant: ClassVar[bool] = True
+    contact: ClassVar[None] = None
 
     def __post_init__(self):
         for name, ok, text in (("I", self.I > 0, "> 0"), ("B", self.B >= 0, ">= 0"), ("K", self.K > 0, "> 0")):
@@ -54,6 +55,11 @@ class SecondOrderJoint:
     def coefficients(self) -> tuple[float, float, float]:
         """``(I, B, K)``, the coefficients of the impedance ``I s² + B s + K``."""
         return float(self.I), float(self.B), float(self.K)
+
+    def coefficients_at(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(I, B, K)`` as arrays shaped like ``t`` (constant)."""
+        shape = np.shape(t)
+        return tuple(np.full(shape, v) for v in self.coefficients())
 
     def parameters(self) -> tuple[float, float, float]:
         """``(I, B, K)`` as stored in :class:`jointbench.Truth` (constants for this model)."""

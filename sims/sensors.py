@@ -36,12 +36,20 @@ class SensorFilter:
 
     References
     ----------
-    Westwick & Perreault 2012, Sec. IV ("fifth-order Bessel filters with 500-Hz cutoff frequencies").
+    Westwick & Perreault 2012, Sec. IV ("fifth-order Bessel filters with 500-Hz cutoff frequencies");
+    Xu & Hollerbach 1998, Sec. IV (8-pole linear-phase 150 Hz anti-aliasing filter, delay corrected).
     """
 
     cutoff: float = param(unit="Hz", gt=0, doc="-3 dB frequency")
     kind: Literal["bessel", "butter"] = "bessel"
     order: int = param(5, ge=1, le=12, doc="filter order")
+    delay_correction: bool = param(False, doc="advance the output by the filter's low-frequency delay")
+
+    def delay(self, fs: float) -> float:
+        """The filter's group delay at low frequency (1 % of the cutoff), in seconds."""
+        b, a = sps.sos2tf(self.sos(fs))
+        _, gd = sps.group_delay((b, a), w=[0.01 * self.cutoff], fs=fs)
+        return float(gd[0]) / fs
 
     def sos(self, fs: float) -> np.ndarray:
         """Second-order sections of the filter at sampling rate ``fs``."""
@@ -50,8 +58,20 @@ class SensorFilter:
         return sps.butter(self.order, self.cutoff, btype="low", fs=fs, output="sos")
 
     def apply(self, x: np.ndarray, fs: float) -> np.ndarray:
-        """Filter ``x`` causally from rest (along axis 0: columns of a 2-D array are separate signals)."""
-        return sps.sosfilt(self.sos(fs), x, axis=0)
+        """Filter ``x`` causally from rest (along axis 0: columns of a 2-D array are separate signals).
+
+        With ``delay_correction`` the output is then advanced by :meth:`delay` (a fractional shift by a
+        linear phase in the frequency domain; the last ``delay`` seconds wrap around and must be trimmed),
+        the digital correction of a linear-phase anti-aliasing filter's pure delay.
+        """
+        y = sps.sosfilt(self.sos(fs), x, axis=0)
+        if not self.delay_correction:
+            return y
+        n = y.shape[0]
+        f = np.fft.rfftfreq(n, 1.0 / fs)
+        shift = np.exp(2j * np.pi * f * self.delay(fs))
+        Y = np.fft.rfft(y, axis=0)
+        return np.fft.irfft(Y * (shift if y.ndim == 1 else shift[:, None]), n, axis=0)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -66,7 +86,13 @@ class Sensor:
         Rms of the additive white Gaussian noise in the acquired record (channel unit).
     noise_snr_db : float or None
         Or the noise level as 10·log10(var(signal) / var(noise)) over the acquired record, where the
-        signal is the channel's noise-free measurement. At most one of ``noise_rms`` and ``noise_snr_db``.
+        signal is the channel's noise-free measurement.
+    noise_variance_ratio : float or None
+        Or var(noise) / var(signal) over the acquired record (the NSR of Xu & Hollerbach 1998, Fig. 3).
+        At most one of the three noise settings.
+    noise_filter : SensorFilter or None
+        Colours the noise: white noise through this filter (causal, from rest) before scaling, e.g. the
+        2nd-order 15 Hz Butterworth of van de Ruit et al. 2018, Sec. IV-C.
     quantization : float
         Quantization step (channel unit); 0 = off.
 
@@ -81,11 +107,15 @@ class Sensor:
     filter: SensorFilter | None = None
     noise_rms: float | None = param(None, ge=0, doc="rms of the additive white noise (acquired record)")
     noise_snr_db: float | None = param(None, unit="dB", doc="SNR of the acquired record (dB)")
+    noise_variance_ratio: float | None = param(None, ge=0, doc="var(noise) / var(signal), acquired record")
+    noise_filter: SensorFilter | None = None
     quantization: float = param(0.0, ge=0, doc="quantization step; 0 = off")
 
     def __post_init__(self):
-        if self.noise_rms is not None and self.noise_snr_db is not None:
-            raise ConfigError("give at most one of 'noise_rms' and 'noise_snr_db', not both")
+        given = [k for k in ("noise_rms", "noise_snr_db", "noise_variance_ratio") if getattr(self, k) is not None]
+        if len(given) > 1:
+            raise ConfigError(f"give at most one of 'noise_rms', 'noise_snr_db' and 'noise_variance_ratio', "
+                              f"got {' and '.join(given)}")
         if self.noise_snr_db is not None and not math.isfinite(self.noise_snr_db):
             raise ConfigError(f"key 'noise_snr_db': must be finite, got {self.noise_snr_db} "
                               f"(leave it out for no noise)")
@@ -93,13 +123,14 @@ class Sensor:
     @property
     def noisy(self) -> bool:
         """True when the channel adds noise."""
-        return bool(self.noise_rms) or self.noise_snr_db is not None
+        return bool(self.noise_rms) or self.noise_snr_db is not None or bool(self.noise_variance_ratio)
 
     def check(self, fs: float, where: str) -> None:
         """Raise :class:`ConfigError` if the filter cannot be realised at ``fs``."""
-        if self.filter is not None and not self.filter.cutoff < fs / 2:
-            raise ConfigError(f"{where}: filter: key 'cutoff': must be below fs_sim / 2 = {fs / 2:g} Hz, "
-                              f"got {self.filter.cutoff:g} Hz")
+        for key, flt in (("filter", self.filter), ("noise_filter", self.noise_filter)):
+            if flt is not None and not flt.cutoff < fs / 2:
+                raise ConfigError(f"{where}: {key}: key 'cutoff': must be below fs_sim / 2 = {fs / 2:g} Hz, "
+                                  f"got {flt.cutoff:g} Hz")
 
     def filtered(self, x: np.ndarray, fs: float) -> np.ndarray:
         """The analog filter's output (``x`` itself when there is no filter); 2-D: one signal per column."""
@@ -115,8 +146,10 @@ class Sensor:
         unit_noise_acquired : ndarray
             The channel's unit-variance white noise after the same acquisition.
         """
-        if self.noise_snr_db is not None:
-            target = float(np.var(clean_acquired)) / 10.0 ** (self.noise_snr_db / 10.0)
+        if self.noise_snr_db is not None or self.noise_variance_ratio is not None:
+            ratio = (self.noise_variance_ratio if self.noise_variance_ratio is not None
+                     else 10.0 ** (-self.noise_snr_db / 10.0))
+            target = float(np.var(clean_acquired)) * ratio
             have = float(np.var(unit_noise_acquired))
         else:
             target = float(self.noise_rms or 0.0) ** 2

@@ -83,7 +83,7 @@ def test_joint_properties():
     ({"joint": {"model": "second_order", "I": 0.1, "B": -1, "K": 50}}, ["'B'", ">= 0"]),
     ({"acquisition": {"fs": "300 Hz"}}, ["acquisition", "'fs'", "does not divide", "5000"]),
     ({"acquisition": {"fs": "10 kHz"}}, ["'fs'", "above fs_sim"]),
-    ({"perturbation": {"kind": "prbs", "cutoff": 5}}, ["'kind'", "unknown perturbation 'prbs'", "filtered_noise"]),
+    ({"perturbation": {"kind": "chirp", "cutoff": 5}}, ["'kind'", "unknown perturbation 'chirp'", "filtered_noise"]),
     ({"perturbation": {"cutoff": 5}}, ["missing key 'kind'", "filtered_noise"]),
     ({"joint": {"model": "third_order"}}, ["'model'", "third_order", "second_order"]),
     ({"apparatus": {"kind": "spring"}}, ["'kind'", "position_servo, torque_drive"]),

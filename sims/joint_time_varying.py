@@ -1,0 +1,91 @@
+"""Joint model ``time_varying``: inertia-damper-spring whose stiffness and damping follow profiles.
+
+``I theta'' + B(t) theta' + K(t) theta = torque``, with ``I`` constant, ``K(t)`` any profile of
+:mod:`sims.profile` and ``B(t)`` either its own profile or ``2 zeta sqrt(K(t) I)`` for a constant damping
+ratio zeta ("the damping varies like the stiffness while the damping ratio is constant").
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Any, ClassVar
+
+import numpy as np
+
+from jointbench.errors import ConfigError
+from jointbench.schema import param
+from sims import JOINTS
+from sims.profile import parse_profile
+
+
+def _checked_profiles(obj: Any, names: tuple[str, ...]) -> None:
+    """Turn the named fields (numbers or ``{shape: ...}`` mappings) into profile objects, in place."""
+    for name in names:
+        v = getattr(obj, name)
+        if v is not None:
+            object.__setattr__(obj, name, parse_profile(v, f"key '{name}'"))
+
+
+def _positive(name: str, values: np.ndarray, strict: bool) -> None:
+    bad = ~(values > 0) if strict else ~(values >= 0)
+    if np.any(bad):
+        raise ConfigError(f"key '{name}': the profile reaches {float(np.min(values)):g}; it must stay "
+                          f"{'> 0' if strict else '>= 0'} at all times")
+
+
+@JOINTS.register("time_varying", tags=("ltv",))
+@dataclasses.dataclass(frozen=True)
+class TimeVaryingJoint:
+    """Second-order joint with time-varying stiffness and damping.
+
+    YAML: ``{model: time_varying, I: 0.06, K: {shape: sine, mean: 40, amplitude: 15, frequency: 0.5 Hz},
+    damping_ratio: 0.3}`` or with ``B: <number or profile>`` instead of ``damping_ratio``.
+
+    Parameters
+    ----------
+    I : float
+        Inertia (kg·m²), constant, > 0.
+    K : float or profile
+        Stiffness (N·m/rad), must stay > 0.
+    B : float or profile, optional
+        Damping (N·m·s/rad), must stay >= 0. Exactly one of ``B`` and ``damping_ratio``.
+    damping_ratio : float, optional
+        Constant damping ratio zeta: ``B(t) = 2 zeta sqrt(K(t) I)``.
+
+    References
+    ----------
+    Xu & Hollerbach 1998, eq. 7 and Sec. IV-A (elbow model, K(t) = 40 + 15 sin 2π f_v t, constant
+    damping ratio); Sec. IV-B (calibration arm with damping switched during the trial).
+    """
+
+    I: float = param(unit="kg.m2", gt=0, doc="inertia (constant)")
+    K: Any = dataclasses.field(default=None, metadata={"doc": "stiffness: number or profile {shape: ...}"})
+    B: Any = dataclasses.field(default=None, metadata={"doc": "damping: number or profile (or damping_ratio)"})
+    damping_ratio: float | None = param(None, ge=0, doc="constant damping ratio; B = 2 zeta sqrt(K I)")
+
+    model: ClassVar[str] = "time_varying"
+    contact: ClassVar[None] = None
+
+    def __post_init__(self):
+        if self.K is None:
+            raise ConfigError("missing required key 'K'")
+        if (self.B is None) == (self.damping_ratio is None):
+            raise ConfigError("give exactly one of 'B' (number or profile) and 'damping_ratio'")
+        if not math.isfinite(self.I):
+            raise ConfigError(f"key 'I': must be finite, got {self.I}")
+        _checked_profiles(self, ("K", "B"))
+        t = np.linspace(0.0, 600.0, 600001)  # 10 min on a 1 ms grid: catches profiles that go negative
+        _positive("K", self.K.at(t), strict=True)
+        if self.B is not None:
+            _positive("B", self.B.at(t), strict=False)
+
+    @property
+    def time_invariant(self) -> bool:
+        return self.K.constant and (self.B is None or self.B.constant)
+
+    def coefficients_at(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(I, B, K)`` at times ``t`` (s), as arrays shaped like ``t``."""
+        t = np.asarray(t, float)
+        K = self.K.at(t)
+        B = self.B.at(t) if self.B is not None else 2.0 * self.damping_ratio * np.sqrt(K * self.I)
+        return np.full(t.shape, float(self.I)), B, K

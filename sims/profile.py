@@ -1,0 +1,182 @@
+"""Time-variation profiles of a joint parameter: constant, sine, square wave, piecewise (steps or ramps).
+
+A profile is a small frozen dataclass with ``at(t)`` (the values at times t). In a config a parameter is either a plain
+number (constant) or a mapping with a ``shape`` key, e.g.::
+
+    K: {shape: sine, mean: 40, amplitude: 15, frequency: 0.5 Hz}
+    k: {shape: square, mean: 5.6, amplitude: 0.9, period: 20 s}
+    B: {shape: piecewise, times: [0, 15, 30], values: [1.13, 10.1, 1.13]}
+
+Profiles are shared by every time-varying joint model (Xu & Hollerbach 1998 elbow and calibration arm,
+van de Ruit et al. 2018 wrist).
+"""
+from __future__ import annotations
+
+import dataclasses
+from typing import Any, ClassVar, Literal, Mapping
+
+import numpy as np
+
+from jointbench.errors import ConfigError
+from jointbench.schema import param, parse
+from sims import PROFILES
+
+
+def _period(frequency: float | None, period: float | None, where: str) -> float:
+    if (frequency is None) == (period is None):
+        raise ConfigError(f"{where}: give exactly one of 'frequency' (Hz) and 'period' (s)")
+    return float(period) if period is not None else 1.0 / float(frequency)
+
+
+@PROFILES.register("constant")
+@dataclasses.dataclass(frozen=True)
+class Constant:
+    """``x(t) = value``."""
+
+    value: float = param(doc="the constant value")
+
+    shape: ClassVar[str] = "constant"
+
+    def at(self, t: np.ndarray) -> np.ndarray:
+        return np.full(np.shape(t), float(self.value))
+
+    @property
+    def mean(self) -> float:
+        return float(self.value)
+
+    @property
+    def constant(self) -> bool:
+        return True
+
+
+@PROFILES.register("sine")
+@dataclasses.dataclass(frozen=True)
+class Sine:
+    """``x(t) = mean + amplitude · sin(2π t / period + phase)``.
+
+    References
+    ----------
+    Xu & Hollerbach 1998, Sec. IV-A (K(t) = 40 + 15 sin 2π f_v t); van de Ruit et al. 2018, Sec. IV-C
+    (sinusoidal stiffness, period 20 s).
+    """
+
+    mean: float = param(doc="mean value")
+    amplitude: float = param(doc="amplitude (half the peak-to-peak range)")
+    frequency: float | None = param(None, unit="Hz", gt=0, doc="frequency of the variation")
+    period: float | None = param(None, unit="s", gt=0, doc="or its period")
+    phase: float = param(0.0, unit="rad", doc="phase at t = 0")
+
+    shape: ClassVar[str] = "sine"
+
+    def __post_init__(self):
+        _period(self.frequency, self.period, "sine")
+
+    def at(self, t: np.ndarray) -> np.ndarray:
+        T = _period(self.frequency, self.period, "sine")
+        return self.mean + self.amplitude * np.sin(2 * np.pi * np.asarray(t, float) / T + self.phase)
+
+    @property
+    def constant(self) -> bool:
+        return self.amplitude == 0
+
+
+@PROFILES.register("square")
+@dataclasses.dataclass(frozen=True)
+class Square:
+    """``x(t) = mean + amplitude · sign(sin(2π t / period + phase))`` (high first for phase 0).
+
+    The value at a switching instant is the new level (the sign of 0 is taken as +1).
+
+    References
+    ----------
+    Xu & Hollerbach 1998, Sec. IV-A (square-wave variation); van de Ruit et al. 2018, Sec. IV-C (square
+    waves of period 10, 20 and 30 s).
+    """
+
+    mean: float = param(doc="mean value")
+    amplitude: float = param(doc="half the step height")
+    frequency: float | None = param(None, unit="Hz", gt=0, doc="frequency of the variation")
+    period: float | None = param(None, unit="s", gt=0, doc="or its period")
+    phase: float = param(0.0, unit="rad", doc="phase at t = 0")
+
+    shape: ClassVar[str] = "square"
+
+    def __post_init__(self):
+        _period(self.frequency, self.period, "square")
+
+    def at(self, t: np.ndarray) -> np.ndarray:
+        T = _period(self.frequency, self.period, "square")
+        # position within the cycle, robust at the switching instants (no sin() rounding)
+        c = np.mod(np.asarray(t, float) / T + self.phase / (2 * np.pi), 1.0)
+        return self.mean + self.amplitude * np.where(c < 0.5, 1.0, -1.0)
+
+    @property
+    def constant(self) -> bool:
+        return self.amplitude == 0
+
+
+@PROFILES.register("piecewise")
+@dataclasses.dataclass(frozen=True)
+class Piecewise:
+    """Values given at times: held until the next time (``interpolate: step``) or joined by straight
+    lines (``linear``). Before the first time the first value holds, after the last the last.
+
+    References
+    ----------
+    Xu & Hollerbach 1998, Sec. IV-B (calibration arm whose damping is switched during the trial).
+    """
+
+    times: list[float] = param(unit="s", doc="increasing times (s)")
+    values: list[float] = param(doc="values at those times")
+    interpolate: Literal["step", "linear"] = "step"
+
+    shape: ClassVar[str] = "piecewise"
+
+    def __post_init__(self):
+        t = np.asarray(self.times, float)
+        v = np.asarray(self.values, float)
+        if t.ndim != 1 or len(t) < 1 or len(t) != len(v):
+            raise ConfigError(f"piecewise: 'times' and 'values' need the same number (>= 1) of entries, "
+                              f"got {len(t)} and {len(v)}")
+        if np.any(np.diff(t) <= 0):
+            raise ConfigError(f"piecewise: 'times' must increase strictly, got {list(self.times)}")
+        if not (np.all(np.isfinite(t)) and np.all(np.isfinite(v))):
+            raise ConfigError("piecewise: 'times' and 'values' must be finite")
+
+    def at(self, t: np.ndarray) -> np.ndarray:
+        tt = np.asarray(t, float)
+        knots, vals = np.asarray(self.times, float), np.asarray(self.values, float)
+        if self.interpolate == "linear":
+            return np.interp(tt, knots, vals)
+        i = np.clip(np.searchsorted(knots, tt, side="right") - 1, 0, len(knots) - 1)
+        return vals[i]
+
+    @property
+    def constant(self) -> bool:
+        return bool(np.all(np.asarray(self.values) == self.values[0]))
+
+
+Profile = Constant | Sine | Square | Piecewise
+
+
+def parse_profile(data: Any, where: str) -> Any:
+    """A profile from a plain number (constant) or a mapping ``{shape: name, ...}``.
+
+    Raises
+    ------
+    ConfigError
+        Unknown shape or key, bad value; the message names ``where``.
+    """
+    if isinstance(data, (int, float, str)) and not isinstance(data, bool):
+        return parse(Constant, {"value": data}, where)
+    if isinstance(data, (Constant, Sine, Square, Piecewise)):
+        return data
+    if not isinstance(data, Mapping) or "shape" not in data:
+        raise ConfigError(f"{where}: expected a number or a mapping with key 'shape' "
+                          f"(one of: {', '.join(PROFILES.names())}), got {data!r}")
+    shape = data["shape"]
+    if shape not in PROFILES:
+        raise ConfigError(f"{where}: key 'shape': unknown profile {shape!r}; known: {', '.join(PROFILES.names())}")
+    rest = {k: v for k, v in data.items() if k != "shape"}
+    return parse(PROFILES.get(shape), rest, f"{where} ({shape})")
+

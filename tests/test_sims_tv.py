@@ -1,0 +1,292 @@
+"""Time-varying simulation: profiles, joints, the ``ltv`` backend against independent solutions,
+PRBS and multisine perturbations, coloured noise, delay correction, replicates, fft decimation."""
+import numpy as np
+import pytest
+from scipy import signal as sps
+from scipy.integrate import solve_ivp
+
+from jointbench.errors import ConfigError
+from jointbench.signal import decimate_fft
+from sims import JOINTS, PERTURBATIONS, PROFILES, Experiment, simulate
+from sims.apparatus import Handle, PositionServo, TorqueDrive
+from sims.backend_lti import LTIBackend
+from sims.backend_ltv import LTVBackend, affine_scan, step_matrices
+from sims.joint_second_order import SecondOrderJoint
+from sims.joint_time_varying import TimeVaryingJoint
+from sims.joint_wrist_contact import WristContactJoint
+from sims.perturbation_multisine import Multisine
+from sims.perturbation_prbs import PRBS
+from sims.profile import parse_profile
+from sims.sensors import SensorFilter
+
+XU = {
+    "joint": {"model": "time_varying", "I": 0.06, "damping_ratio": 0.3,
+              "K": {"shape": "sine", "mean": 40, "amplitude": 15, "frequency": "0.5 Hz"}},
+    "apparatus": {"kind": "torque_drive"},
+    "perturbation": {"kind": "prbs", "amplitude": 4, "clock": "10 ms"},
+    "fs_sim": "5 kHz", "duration": "6 s",
+    "acquisition": {"detrend": False, "fs": "1 kHz", "trim": "0.5 s"},
+}
+WRIST = {
+    "joint": {"model": "wrist_contact", "I": "3 g.m2", "b": 0.035, "b_c": 10, "k_c": 100,
+              "k": {"shape": "square", "mean": 5.6, "amplitude": 0.9, "period": "10 s"}},
+    "apparatus": {"kind": "handle"},
+    "perturbation": {"kind": "multisine", "quiet": "1 s"},
+    "fs_sim": "2500 Hz", "duration": "12 s",
+    "sensors": {"torque": {"noise_snr_db": 10, "noise_filter": {"kind": "butter", "order": 2, "cutoff": 15}}},
+    "acquisition": {"detrend": False, "fs": "44 Hz", "decimation": "fft", "trim": "1 s"},
+}
+
+
+def exp(base, **changes):
+    d = {k: (dict(v) if isinstance(v, dict) else v) for k, v in base.items()}
+    for k, v in changes.items():
+        d[k] = v
+    return Experiment.from_mapping(d, "test")
+
+
+# --------------------------------------------------------------------------------------------- profiles
+def test_profiles_values():
+    t = np.array([0.0, 0.25, 0.5, 0.75, 1.0])
+    assert np.allclose(parse_profile(3, "x").at(t), 3.0)
+    s = parse_profile({"shape": "sine", "mean": 40, "amplitude": 15, "period": "1 s"}, "x")
+    assert np.allclose(s.at(t), [40, 55, 40, 25, 40])
+    q = parse_profile({"shape": "square", "mean": 5, "amplitude": 1, "frequency": 1}, "x")
+    assert list(q.at(t)) == [6, 6, 4, 4, 6]
+    p = parse_profile({"shape": "piecewise", "times": [0, 0.5], "values": [1.13, 10.1]}, "x")
+    assert list(p.at(t)) == [1.13, 1.13, 10.1, 10.1, 10.1]
+    lin = parse_profile({"shape": "piecewise", "times": [0, 1], "values": [0, 2], "interpolate": "linear"}, "x")
+    assert np.allclose(lin.at(t), 2 * t)
+    assert set(PROFILES.names()) >= {"constant", "sine", "square", "piecewise"}
+
+
+@pytest.mark.parametrize("data, words", [
+    ({"shape": "saw"}, "unknown profile"),
+    ({"shape": "sine", "mean": 1, "amplitude": 1}, "exactly one of 'frequency'"),
+    ({"shape": "sine", "mean": 1, "amplitude": 1, "period": 1, "freq": 2}, "unknown key 'freq'"),
+    ({"shape": "piecewise", "times": [0, 0], "values": [1, 2]}, "increase strictly"),
+    ({"shape": "piecewise", "times": [0, 1], "values": [1]}, "same number"),
+    ([1, 2], "expected a number or a mapping"),
+])
+def test_bad_profiles(data, words):
+    with pytest.raises(ConfigError, match=words):
+        parse_profile(data, "test")
+
+
+def test_joint_rejects_negative_stiffness_and_double_damping():
+    with pytest.raises(ConfigError, match="'K'.*> 0"):
+        TimeVaryingJoint(I=0.06, K={"shape": "sine", "mean": 10, "amplitude": 15, "period": 1}, B=1.0)
+    with pytest.raises(ConfigError, match="exactly one of 'B'"):
+        TimeVaryingJoint(I=0.06, K=40, B=1.0, damping_ratio=0.3)
+    with pytest.raises(ConfigError, match="needs apparatus kind 'handle'"):
+        exp(WRIST, apparatus={"kind": "position_servo"})
+    with pytest.raises(ConfigError, match="needs a joint model with a contact"):
+        exp(XU, apparatus={"kind": "handle"})
+
+
+def test_damping_ratio_gives_b_from_k():
+    j = TimeVaryingJoint(I=0.06, K={"shape": "sine", "mean": 40, "amplitude": 15, "period": 2}, damping_ratio=0.3)
+    t = np.linspace(0, 2, 9)
+    I, B, K = j.coefficients_at(t)
+    assert np.allclose(B, 0.6 * np.sqrt(K * 0.06)) and not j.time_invariant
+
+
+# ------------------------------------------------------------------------------------------ ltv backend
+def test_step_matrices_equal_expm():
+    import scipy.linalg
+    p, q, h = np.array([-900.0, -35000.0]), np.array([-3.0, -3345.0]), 1 / 2500
+    E, J1, J2 = step_matrices(p, q, h)
+    for i in range(2):
+        M = np.zeros((6, 6))
+        M[:2, :2] = np.array([[0, 1], [p[i], q[i]]]) * h
+        M[:2, 2:4] = np.eye(2) * h
+        M[2:4, 4:] = np.eye(2)
+        X = scipy.linalg.expm(M)
+        for got, ref in ((E, X[:2, :2]), (J1, X[:2, 2:4]), (J2, X[:2, 4:] * h)):
+            assert np.allclose(np.reshape([c[i] for c in got], (2, 2)), ref, rtol=1e-12, atol=1e-14 * abs(ref).max())
+
+
+def test_affine_scan_equals_loop():
+    rng = np.random.default_rng(0)
+    n = 777
+    E = tuple(rng.uniform(-0.5, 0.5, n - 1) for _ in range(4))
+    v0, v1 = rng.standard_normal(n - 1), rng.standard_normal(n - 1)
+    x, y = affine_scan(E, v0, v1, (0.3, -0.2))
+    xs, ys = [0.3], [-0.2]
+    for k in range(n - 1):
+        a, b = xs[-1], ys[-1]
+        xs.append(E[0][k] * a + E[1][k] * b + v0[k])
+        ys.append(E[2][k] * a + E[3][k] * b + v1[k])
+    assert np.allclose(x, xs, atol=1e-12) and np.allclose(y, ys, atol=1e-12)
+
+
+@pytest.mark.parametrize("apparatus", [PositionServo(30000.0), TorqueDrive()])
+def test_ltv_equals_lti_for_a_constant_joint(apparatus):
+    fs, n = 5000.0, 10000
+    rng = np.random.default_rng(1)
+    d = sps.sosfilt(sps.butter(2, 10, fs=fs, output="sos"), rng.standard_normal(n))
+    tv = sps.sosfilt(sps.butter(2, 1, fs=fs, output="sos"), rng.standard_normal(n))
+    d[0] = tv[0] = 0.0
+    joint = SecondOrderJoint(I=0.171, B=1.22, K=53.5)
+    a = LTIBackend().run(joint, apparatus, d, tv, fs)
+    b = LTVBackend().run(joint, apparatus, d, tv, fs)
+    for x, y in ((a.angle, b.angle), (a.velocity, b.velocity), (a.torque_measured, b.torque_measured)):
+        assert np.max(np.abs(x - y)) <= 1e-9 * np.max(np.abs(x))
+
+
+def _drive(t):
+    return 2.0 * np.sin(2 * np.pi * 1.3 * t) + np.sin(2 * np.pi * 7.1 * t + 1) + 0.5 * np.cos(2 * np.pi * 17 * t)
+
+
+def test_ltv_time_varying_elbow_matches_solve_ivp():
+    """Independent solution: adaptive Runge-Kutta (DOP853) with the same linearly interpolated input."""
+    fs, n = 5000.0, 10000
+    t = np.arange(n) / fs
+    joint = TimeVaryingJoint(I=0.06, K={"shape": "sine", "mean": 40, "amplitude": 15, "frequency": 2.0},
+                             damping_ratio=0.3)
+    d = _drive(t)
+    r = LTVBackend().run(joint, TorqueDrive(), d, np.zeros(n), fs)
+
+    def f(tt, x):
+        I, B, K = joint.coefficients_at(np.array(tt))
+        return [x[1], (np.interp(tt, t, d) - B * x[1] - K * x[0]) / I]
+
+    ref = solve_ivp(f, (0, t[-1]), [0.0, 0.0], t_eval=t, method="DOP853", rtol=1e-11, atol=1e-13, max_step=1 / fs)
+    assert np.max(np.abs(r.angle - ref.y[0])) <= 1e-5 * np.max(np.abs(ref.y[0]))
+
+
+def test_ltv_wrist_with_contact_matches_fine_rk4():
+    """Independent solution: classical RK4 at 40 substeps per sample (the contact pole is at -3.3e3 1/s)."""
+    fs, n, sub = 2500.0, 2500, 40
+    t = np.arange(n) / fs
+    joint = WristContactJoint(I=0.003, b=0.035, k={"shape": "sine", "mean": 5.6, "amplitude": 0.9, "period": 0.5},
+                              b_c=10, k_c=100)
+    u = 0.01 * _drive(t)
+    r = LTVBackend().run(joint, Handle(), u, np.zeros(n), fs)
+
+    def f(tt, x, i):
+        k = 5.6 + 0.9 * np.sin(2 * np.pi * tt / 0.5)
+        ud = (u[i + 1] - u[i]) * fs                  # the drive is linear between samples
+        ui = u[i] + ud * (tt - t[i])
+        y = 10 * (ud - x[1]) + 100 * (ui - x[0])
+        return np.array([x[1], (y - 0.035 * x[1] - k * x[0]) / 0.003])
+
+    x, h, ref = np.zeros(2), 1 / fs / sub, [0.0]
+    for i in range(n - 1):
+        for j in range(sub):
+            tt = t[i] + j * h
+            k1 = f(tt, x, i)
+            k2 = f(tt + h / 2, x + h / 2 * k1, i)
+            k3 = f(tt + h / 2, x + h / 2 * k2, i)
+            k4 = f(tt + h, x + h * k3, i)
+            x = x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+        ref.append(x[0])
+    assert np.max(np.abs(r.angle - ref)) <= 1e-5 * np.max(np.abs(ref))
+    # the handle torque is the contact torque, and equals the limb's impedance torque (no voluntary torque)
+    assert np.allclose(r.torque_measured, r.torque_impedance, atol=1e-9 * np.abs(r.torque_measured).max())
+
+
+# ------------------------------------------------------------------------------------------- simulate
+def test_voluntary_movement_is_the_unperturbed_trajectory():
+    e = exp(XU, perturbation={"kind": "prbs", "amplitude": 1e-9},
+            voluntary={"movement_amplitude": "0.5 rad", "movement_frequency": "0.5 Hz"})
+    tr = simulate(e, 0)
+    assert np.max(np.abs(tr.truth.signals["angle"] - tr.truth.signals["movement"])) < 1e-6
+    assert np.ptp(tr.angle) == pytest.approx(1.0, rel=1e-3)
+
+
+def test_time_varying_truth_and_frozen_response():
+    tr = simulate(exp(XU), 3)
+    assert tr.imposed == "torque" and np.shape(tr.truth.K) == (tr.n,)
+    assert np.allclose(tr.truth.K, 40 + 15 * np.sin(2 * np.pi * 0.5 * (tr.time + 0.5)))
+    H = tr.truth.frozen_response([1.0, 2.0], tr.time[:3], tr.time)
+    s = 2j * np.pi * np.array([1.0, 2.0])
+    ref = 1 / (0.06 * s ** 2 + tr.truth.B[:3, None] * s + tr.truth.K[:3, None])
+    assert np.allclose(H, ref)
+    w = simulate(exp(WRIST), 3)
+    k = w.truth.K[10]
+    Z = 0.003 * s ** 2 + 0.035 * s + k
+    C = 10 * s + 100
+    assert np.allclose(w.truth.frozen_response([1.0, 2.0], w.time[10], w.time), C * Z / (Z + C))
+
+
+def test_wrist_trial_shape_noise_and_replicate():
+    e = exp(WRIST)
+    a, b, a2 = simulate(e, 5), simulate(e, 5, replicate=1), simulate(e, 5)
+    assert a.fs == 44.0 and a.n == 44 * 10
+    assert np.array_equal(a.angle, a2.angle) and np.array_equal(a.torque, a2.torque)
+    assert np.array_equal(a.angle, b.angle)                              # same input ...
+    assert np.array_equal(a.truth.signals["torque"], b.truth.signals["torque"])
+    assert not np.allclose(a.torque, b.torque)                           # ... other noise
+    for tr in (a, b):
+        noise = tr.torque - tr.truth.signals["torque"]
+        assert 10 * np.log10(np.var(tr.truth.signals["torque"]) / np.var(noise)) == pytest.approx(10, abs=1e-9)
+    # the noise is coloured: little of it above 15 Hz
+    N = np.abs(np.fft.rfft(a.torque - a.truth.signals["torque"])) ** 2
+    f = np.fft.rfftfreq(a.n, 1 / 44)
+    assert N[f > 18].mean() < 0.5 * N[f < 5].mean()   # |H|² ≈ 0.2 at 20 Hz
+
+
+def test_noise_variance_ratio():
+    e = exp(XU, sensors={"angle": {"noise_variance_ratio": 0.2}})
+    tr = simulate(e, 1)
+    clean = tr.truth.signals["angle"]
+    assert np.var(tr.angle - clean) / np.var(clean) == pytest.approx(0.2, rel=1e-9)
+    with pytest.raises(ConfigError, match="at most one"):
+        exp(XU, sensors={"angle": {"noise_variance_ratio": 0.2, "noise_snr_db": 3}})
+
+
+def test_delay_correction_removes_the_bessel_delay():
+    flt = SensorFilter(cutoff=150.0, kind="bessel", order=8, delay_correction=True)
+    fs = 5000.0
+    assert 2e-3 < flt.delay(fs) < 5e-3   # about 3.4 ms for 8 poles at 150 Hz
+    t = np.arange(20000) / fs
+    x = np.sin(2 * np.pi * 3 * t) + 0.5 * np.sin(2 * np.pi * 20 * t)
+    y = flt.apply(x, fs)
+    raw = SensorFilter(cutoff=150.0, kind="bessel", order=8).apply(x, fs)
+    mid = slice(5000, 15000)
+    assert np.max(np.abs(y - x)[mid]) < 5e-3 < 0.1 < np.max(np.abs(raw - x)[mid])  # Bessel droop remains
+
+
+def test_prbs_levels_clock_and_autocorrelation():
+    p = PRBS(amplitude=4, clock=0.01)
+    fs = 1000.0
+    x = p.generate(45000, fs, np.random.default_rng(0))
+    assert set(np.unique(x)) == {-4.0, 4.0}
+    assert np.all(np.diff(x)[np.arange(45000 - 1) % 10 != 9] == 0)       # switches only on the clock
+    z = x - x.mean()
+    r = np.correlate(z, z, "full")[len(z) - 1:] / np.dot(z, z)
+    assert np.max(np.abs(r[10:1000])) < 0.1
+    assert "prbs" in PERTURBATIONS and "multisine" in PERTURBATIONS
+    assert {"time_varying", "wrist_contact"} <= set(JOINTS.names())
+
+
+def test_multisine_has_exactly_the_requested_lines_and_rms():
+    m = Multisine()
+    fs, n = 2500.0, 125000
+    u = m.generate(n, fs, np.random.default_rng(0))
+    act = u[int(5 * fs):n - int(5 * fs)]
+    assert np.sqrt(np.mean(act ** 2)) == pytest.approx(0.02, rel=1e-9)
+    assert np.all(u[:int(5 * fs)] == 0) and np.all(u[n - int(5 * fs):] == 0)
+    U = np.abs(np.fft.rfft(act)) / len(act)
+    f = np.fft.rfftfreq(len(act), 1 / fs)
+    excited = np.flatnonzero(U > 1e-9)
+    assert np.allclose(f[excited], np.arange(0.1, 19.31, 0.8)) and len(excited) == 25
+    a = 2 * U[excited]
+    assert np.allclose(a[f[excited] <= 6], a[0]) and a[-1] == pytest.approx(a[0] * 6 / 19.3, rel=1e-9)
+
+
+def test_decimate_fft_keeps_lines_exactly():
+    t = np.arange(125000) / 2500
+    x = np.sin(2 * np.pi * 0.8 * t) + 0.3 * np.cos(2 * np.pi * 19.3 * t) + 0.1 * np.sin(2 * np.pi * 300 * t)
+    y = decimate_fft(x, 2200)
+    t2 = np.arange(2200) / 44
+    assert np.allclose(y, np.sin(2 * np.pi * 0.8 * t2) + 0.3 * np.cos(2 * np.pi * 19.3 * t2), atol=1e-12)
+
+
+@pytest.mark.parametrize("base", [XU, WRIST])
+def test_time_varying_simulation_is_deterministic(base):
+    e = exp(base)
+    a, b = simulate(e, 11), simulate(e, 11)
+    assert np.array_equal(a.angle, b.angle) and np.array_equal(a.torque, b.torque)
+    assert not np.array_equal(a.torque, simulate(e, 12).torque)
