@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 import itertools
+import math
 from pathlib import Path
 from typing import Any, Mapping
 
@@ -68,6 +69,12 @@ class Check:
     select: Mapping[str, Any]
     aggregate: str = "median"
     if_missed: str = ""
+    kind: str = "value"
+    over: str = ""
+    direction: str = "decreasing"
+    slack: float = 0.0
+    versus: Mapping[str, Any] | None = None
+    by: str = ""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -106,8 +113,15 @@ _PART_KEYS = {"protocol": True, "description": True, "params": False, "experimen
 _STUDY_KEYS = {"study": True, "title": True, "paper": True, "published": True, "readings": False,
                "parts": True}
 _CHECK_KEYS = {"id": True, "part": True, "description": True, "source": True, "published": True,
-               "low": True, "high": True, "select": True, "aggregate": False, "if_missed": False}
+               "low": False, "high": False, "select": True, "aggregate": False, "if_missed": False,
+               "kind": False, "over": False, "direction": False, "slack": False, "versus": False, "by": False}
 AGGREGATES = ("median", "mean", "min", "max")
+#: check kind -> keys it needs (besides the common ones) and keys it allows
+CHECK_KINDS = {
+    "value": ({"low", "high"}, {"low", "high", "aggregate"}),
+    "trend": ({"over"}, {"over", "direction", "slack", "aggregate"}),
+    "difference": ({"versus"}, {"versus", "by", "low", "high", "aggregate"}),
+}
 
 
 def _resolve_joint(experiment: Mapping, where: str, models_dir: Path) -> dict:
@@ -176,20 +190,39 @@ def load_checks(path: Path, parts: Mapping[str, Part]) -> tuple[Check, ...]:
         seen.add(c["id"])
         if c["part"] not in parts:
             raise ConfigError(f"{where}: key 'part': unknown part {c['part']!r}; parts: {', '.join(parts)}")
+        kind = c.get("kind", "value")
+        if kind not in CHECK_KINDS:
+            raise ConfigError(f"{where}: key 'kind': {kind!r} not allowed; allowed: {', '.join(CHECK_KINDS)}")
+        needs, allows = CHECK_KINDS[kind]
+        for key in sorted(needs - set(c)):
+            raise ConfigError(f"{where}: check kind '{kind}' needs key {key!r}")
+        extra = sorted((set(c) & (set().union(*(v[1] for v in CHECK_KINDS.values())))) - allows)
+        if extra:
+            raise ConfigError(f"{where}: key {extra[0]!r} does not apply to check kind '{kind}'; "
+                              f"it takes: {', '.join(sorted(allows))}")
         agg = c.get("aggregate", "median")
         if agg not in AGGREGATES:
             raise ConfigError(f"{where}: key 'aggregate': {agg!r} not allowed; allowed: {', '.join(AGGREGATES)}")
         try:
-            low, high = float(c["low"]), float(c["high"])
+            low, high = float(c.get("low", -math.inf)), float(c.get("high", math.inf))
+            slack = float(c.get("slack", 0.0))
         except (TypeError, ValueError):
-            raise ConfigError(f"{where}: keys 'low'/'high' must be numbers") from None
+            raise ConfigError(f"{where}: keys 'low', 'high' and 'slack' must be numbers") from None
         if low > high:
             raise ConfigError(f"{where}: low {low} > high {high}")
-        if not isinstance(c["select"], Mapping) or "metric" not in c["select"]:
-            raise ConfigError(f"{where}: key 'select': a mapping with at least 'metric'")
+        if slack < 0:
+            raise ConfigError(f"{where}: key 'slack': must be >= 0, got {slack}")
+        direction = c.get("direction", "decreasing")
+        if direction not in ("decreasing", "increasing"):
+            raise ConfigError(f"{where}: key 'direction': {direction!r}; allowed: decreasing, increasing")
+        for key in ("select", "versus"):
+            if key in c and (not isinstance(c[key], Mapping) or "metric" not in c[key]):
+                raise ConfigError(f"{where}: key {key!r}: a mapping with at least 'metric'")
         out.append(Check(id=str(c["id"]), part=c["part"], description=str(c["description"]),
                          source=str(c["source"]), published=c["published"], low=low, high=high,
-                         select=dict(c["select"]), aggregate=agg, if_missed=str(c.get("if_missed", ""))))
+                         select=dict(c["select"]), aggregate=agg, if_missed=str(c.get("if_missed", "")),
+                         kind=kind, over=str(c.get("over", "")), direction=direction, slack=slack,
+                         versus=dict(c["versus"]) if "versus" in c else None, by=str(c.get("by", ""))))
     return tuple(out)
 
 

@@ -59,26 +59,79 @@ def select(rows: pd.DataFrame, part: str, where: dict) -> pd.DataFrame:
     return sel
 
 
+def _grouped(sel: pd.DataFrame, column: str, aggregate: str) -> pd.Series:
+    """Aggregate of the finite values per value of ``column`` (numeric order when numeric)."""
+    sel = sel[np.isfinite(sel["value"].to_numpy(float))]
+    if not column:
+        return pd.Series({"": getattr(np, aggregate)(sel["value"].to_numpy(float))}) if len(sel) else pd.Series()
+    if column not in sel.columns:
+        return pd.Series(dtype=float)
+    g = sel.groupby(sel[column].astype(str), sort=False)["value"].agg(lambda v: getattr(np, aggregate)(v.to_numpy(float)))
+    num = pd.to_numeric(pd.Series(g.index, index=g.index), errors="coerce")
+    order = num.sort_values().index if num.notna().all() else sorted(g.index)
+    return g.loc[list(order)]
+
+
+def _trend(c: Check, rows: pd.DataFrame) -> tuple[float, str, int]:
+    """Largest move against ``c.direction`` between consecutive aggregates over ``c.over``."""
+    sel = select(rows, c.part, c.select)
+    m = _grouped(sel, c.over, c.aggregate)
+    if len(m) < 2:
+        return np.nan, "", len(sel)
+    d = np.diff(m.to_numpy(float))
+    against = d if c.direction == "decreasing" else -d
+    spread = ", ".join(f"{k}: {v:.4g}" for k, v in m.items())
+    return float(np.max(against)), f"{c.over} -> {spread}", len(sel)
+
+
+def _difference(c: Check, rows: pd.DataFrame) -> tuple[float, str, int]:
+    """aggregate(select) - aggregate(versus) per value of ``c.by``; the group closest to (or furthest
+    beyond) a bound is the reproduced value."""
+    a, b = select(rows, c.part, c.select), select(rows, c.part, c.versus or {})
+    ma, mb = _grouped(a, c.by, c.aggregate), _grouped(b, c.by, c.aggregate)
+    keys = [k for k in ma.index if k in mb.index]
+    if not keys:
+        return np.nan, "", len(a) + len(b)
+    d = pd.Series({k: float(ma[k] - mb[k]) for k in keys})
+    margin = np.minimum(d - c.low, c.high - d)
+    worst = margin.idxmin()
+    spread = ", ".join(f"{k}: {v:+.4g}" for k, v in d.items()) if c.by else ""
+    return float(d[worst]), (f"{c.by} -> {spread}" if c.by else spread), len(a) + len(b)
+
+
 def compare(checks: tuple[Check, ...], rows: pd.DataFrame, parts_run: set[str]) -> pd.DataFrame:
-    """One row per check: published, reproduced (aggregate over seeds), tolerance, pass/miss."""
+    """One row per check: published, reproduced, tolerance, pass/miss.
+
+    Check kinds: ``value`` (aggregate over seeds of the selected rows within [low, high]); ``trend``
+    (aggregates per value of ``over`` must move in ``direction``; reproduced = the largest move against
+    it, which must not exceed ``slack``); ``difference`` (aggregate of ``select`` minus that of ``versus``
+    per value of ``by``, every one within [low, high]; reproduced = the one closest to or beyond a bound).
+    """
     out = []
     for c in checks:
         if c.part not in parts_run:
             continue
-        sel = select(rows, c.part, c.select)
-        v = sel["value"].to_numpy(float)
-        v = v[np.isfinite(v)]
-        if len(v) == 0:
-            rep, spread, status = np.nan, "", "miss"
+        if c.kind == "value":
+            sel = select(rows, c.part, c.select)
+            v = sel["value"].to_numpy(float)
+            v = v[np.isfinite(v)]
+            n = len(v)
+            rep = float(getattr(np, c.aggregate)(v)) if n else np.nan
+            spread = f"{v.min():.4g} to {v.max():.4g}" if n > 1 else ""
+            low, high = c.low, c.high
+        else:
+            rep, spread, n = _trend(c, rows) if c.kind == "trend" else _difference(c, rows)
+            low, high = (-np.inf, c.slack) if c.kind == "trend" else (c.low, c.high)
+        if not np.isfinite(rep):
+            status = "miss"
             note = "no result: the case failed or produced no such metric (see the failed cases)"
         else:
-            rep = float(getattr(np, c.aggregate)(v))
-            spread = f"{v.min():.4g} to {v.max():.4g}" if len(v) > 1 else ""
-            status = "pass" if c.low <= rep <= c.high else "miss"
+            status = "pass" if low <= rep <= high else "miss"
             note = "" if status == "pass" else c.if_missed
         out.append({"check": c.id, "description": c.description, "published": c.published,
-                    "reproduced": rep, "low": c.low, "high": c.high, "status": status,
-                    "aggregate": c.aggregate, "n": len(v), "spread": spread, "part": c.part,
+                    "reproduced": rep, "low": low, "high": high, "status": status,
+                    "aggregate": c.aggregate if c.kind == "value" else f"{c.kind} of {c.aggregate}s",
+                    "n": n, "spread": spread, "part": c.part,
                     "source": c.source, "note": note})
     return pd.DataFrame(out, columns=["check", "description", "published", "reproduced", "low", "high",
                                       "status", "aggregate", "n", "spread", "part", "source", "note"])

@@ -120,6 +120,55 @@ def test_compare_aggregates_and_flags_misses():
                                                      "low", "high", "status"]
 
 
+def test_trend_and_difference_checks():
+    # medians per f: posture 90, 85, 86 (a 1-point rise), movement 80, 70, 60
+    rows = pd.DataFrame({"part": "p", "status": "ok", "metric": "m",
+                         "cond": ["post"] * 6 + ["move"] * 6,
+                         "f": [0.1, 0.1, 1.0, 1.0, 0.5, 0.5] * 2,
+                         "value": [89, 91, 86, 86, 84, 86, 79, 81, 60, 60, 70, 70]})
+    base = dict(part="p", description="d", source="s", published="falls", low=-np.inf, high=np.inf)
+    checks = (
+        Check("t1", select={"metric": "m", "cond": "post"}, kind="trend", over="f", slack=2.0, **base),
+        Check("t2", select={"metric": "m", "cond": "post"}, kind="trend", over="f", slack=0.5, **base),
+        Check("t3", select={"metric": "m", "cond": "move"}, kind="trend", over="f", direction="increasing",
+              **base),
+        Check("d1", **{**base, "high": 0}, select={"metric": "m", "cond": "move"}, kind="difference",
+              versus={"metric": "m", "cond": "post"}, by="f"),
+        Check("d2", **{**base, "low": -12}, select={"metric": "m", "cond": "move"}, kind="difference",
+              versus={"metric": "m", "cond": "post"}, by="f"),
+    )
+    out = compare(checks, rows, {"p"}).set_index("check")
+    # sorted by f: 0.1 -> 90, 0.5 -> 85, 1.0 -> 86: largest rise 1
+    assert out.loc["t1", "reproduced"] == 1.0 and out.loc["t1", "status"] == "pass"
+    assert out.loc["t2", "status"] == "miss"
+    assert out.loc["t3", "reproduced"] == 10.0 and out.loc["t3", "status"] == "miss"   # falls by 10 twice
+    # move - post: -10, -15, -26: all <= 0; the one closest to the bound 0 is -10
+    assert out.loc["d1", "reproduced"] == -10.0 and out.loc["d1", "status"] == "pass"
+    assert out.loc["d2", "reproduced"] == -26.0 and out.loc["d2", "status"] == "miss"
+    assert "0.1: -10" in out.loc["d1", "spread"]
+
+
+@pytest.mark.parametrize("check, message", [
+    ({"kind": "trend"}, "needs key 'over'"),
+    ({"kind": "trend", "over": "f", "versus": {"metric": "m"}}, "'versus' does not apply to check kind 'trend'"),
+    ({"kind": "difference", "versus": {"metric": "m"}, "over": "f"}, "'over' does not apply"),
+    ({"kind": "ratio"}, "'kind': 'ratio' not allowed"),
+    ({"kind": "value"}, "needs key 'high'"),
+    ({"kind": "trend", "over": "f", "direction": "up"}, "'direction'"),
+])
+def test_bad_check_kinds(tmp_path, check, message):
+    import yaml
+    from benchmarks.config import load_checks
+    c = {"id": "x", "part": "p", "description": "d", "source": "s", "published": 1,
+         "select": {"metric": "m"}, **check}
+    if check.get("kind") == "value":
+        c["low"] = 0
+    p = tmp_path / "pub.yaml"
+    p.write_text(yaml.safe_dump({"study": "s", "source": "s", "checks": [c]}))
+    with pytest.raises(ConfigError, match=message):
+        load_checks(p, {"p": None})
+
+
 def test_protocols_are_registered():
     assert {"westwick2012.differentiators", "westwick2012.sampling_rate", "westwick2012.input_bandlimit",
             "westwick2012.sampling_rate_experiment", "westwick2012.input_noise",
