@@ -4,7 +4,8 @@ An :class:`Experiment` holds already-parsed, validated parts: a joint model and 
 from the registries :data:`sims.JOINTS` and :data:`sims.PERTURBATIONS`), the apparatus, the voluntary
 torque, the sensor models, the simulation rate and length, and the acquisition steps. It knows nothing
 of how the dynamics are integrated: :func:`simulate` hands the limb, the apparatus and the input signals
-to a backend from :data:`sims.BACKENDS` (``"lti"``: exact ZOH), then applies sensors and acquisition.
+to a backend from :data:`sims.BACKENDS` (``"lti"``: exact first-order hold for time-invariant joints;
+``"ltv"``: exponential midpoint rule for time-varying ones), then applies sensors and acquisition.
 
 References
 ----------
