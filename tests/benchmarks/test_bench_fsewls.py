@@ -1,0 +1,70 @@
+"""FSEWLS on 45 s at 1 kHz (the paper's trial length) against plain RK4 on the Riccati form of eq. 6.
+
+Run with ``--benchmark-enable`` for timings; by default (``--benchmark-disable``) each runs once as a
+test. The baseline, a straightforward numpy loop of classical RK4 on ``(P, Theta)``, integrates only
+3 s (3000 steps) so that the default run stays quick: multiply its time by 15 to compare it with the
+whole estimator on 45 s (high-pass, state-variable filter and EWLS included). The information-form
+EWLS alone on the same 3 s is timed too.
+"""
+import numpy as np
+import pytest
+from scipy import signal as sps
+
+import estimators
+from estimators.fsewls import FSEWLS, _ewls_riccati_rk4, _forcing, _unpack, ewls, highpass, svf
+from jointbench.types import Trial
+
+FS, DURATION, BASELINE = 1000.0, 45.0, 3.0
+I0, K0 = 0.06, 40.0
+B0 = 2 * 0.3 * np.sqrt(K0 * I0)
+
+
+@pytest.fixture(scope="module")
+def trial():
+    """Elbow driven by a +-4 N m random binary torque (10 ms clock), exact (zero-order hold) at 2 kHz.
+
+    The torque switches half-way between the 1 kHz samples that are kept (as in tests/test_fsewls.py).
+    """
+    n = int(DURATION * FS)
+    levels = np.random.default_rng(1998).choice([-4.0, 4.0], n // 10 + 2)
+    fine = np.repeat(levels, 20)[1:2 * n + 1]
+    num, den, _ = sps.cont2discrete(([1.0], [I0, B0, K0]), 1 / (2 * FS), method="zoh")
+    theta = sps.lfilter(num.ravel(), den, fine)
+    return Trial.from_arrays(theta[::2], fine[::2], FS, imposed="torque", name="elbow-45s")
+
+
+@pytest.fixture(scope="module")
+def regression(trial):
+    """``Phi``, ``y`` of 3 s in the steady part, with ``R0``, ``r0`` from their first 0.5 s."""
+    s = estimators.make("fsewls").settings
+    x = highpass(np.stack([trial.angle, trial.torque])[:, None], FS, s.highpass_cutoff, s.highpass_order,
+                 s.highpass_ripple)
+    Phi, y = svf(x[0], x[1], FS, FSEWLS(s).pole(), s.svf_order, s.svf_causal)
+    sl = slice(int(10 * FS), int((10 + BASELINE) * FS))
+    Phi, y = Phi[:, sl], y[:, sl]
+    R0, r0 = _unpack(_forcing(Phi[:, :500], y[:, :500]).sum(axis=0) / FS)
+    return Phi, y, R0, r0
+
+
+@pytest.mark.benchmark(group="fsewls-1kHz")
+def test_bench_fsewls_45s(benchmark, trial):
+    est = estimators.make("fsewls")
+    out = benchmark(est.fit, trial)
+    keep = out.steady()
+    for got, want in zip((out.I, out.B, out.K), (I0, B0, K0)):
+        assert np.abs(got[keep] / want - 1).max() < 0.01
+
+
+@pytest.mark.benchmark(group="fsewls-1kHz")
+def test_bench_ewls_information_form_3s(benchmark, regression):
+    Phi, y, R0, r0 = regression
+    out = benchmark(ewls, Phi, y, 1 / FS, 20.0, R0, r0)
+    assert out.shape == (int(BASELINE * FS), 3)
+
+
+@pytest.mark.benchmark(group="fsewls-1kHz")
+def test_bench_riccati_rk4_loop_3s(benchmark, regression):
+    Phi, y, R0, r0 = regression
+    out = benchmark(_ewls_riccati_rk4, Phi[0], y[0], 1 / FS, 20.0, np.linalg.inv(R0), np.linalg.solve(R0, r0))
+    fast = ewls(Phi, y, 1 / FS, 20.0, R0, r0)
+    assert (np.abs(fast - out) / np.abs(out)).max() < 1e-6  # same estimate as the fast path
