@@ -1,0 +1,415 @@
+"""Numerical pieces of the kernel-based regression estimator (:mod:`estimators.kbr`).
+
+Everything here is a pure function of arrays; :mod:`estimators.kbr` holds the settings, the checks
+and the result object. The notation follows van de Ruit et al. (2018), Sec. III and App. B:
+
+* ``D_n x``: ``n``-th derivative of a sampled signal ``x`` by a band-limited differentiator
+  (:func:`differentiators`), ``n = 0 ... max(Na, Nb)``;
+* the equation error of eq. 9, ``e = D_0 y + sum_n a_n D_n y - sum_n b_n D_n u``, kept only where the
+  differentiators are exact (``mask``), and its DFT ``E(k)`` on the bins of the band of interest;
+* each coefficient ``c_p(t) = c_p + g_p (Phi z_p)(t)``: a constant plus a time-varying part in the
+  range of the kernel matrix ``K_p = g_p^2 K_0``, ``Phi Phi^T = K_0`` (:func:`kernel_features`), so
+  that the regulariser ``check_p^T K_p^-1 check_p`` of eq. B.1 equals ``||z_p||^2``.
+
+References
+----------
+van de Ruit, M. et al. (2018). Revealing time-varying joint impedance with kernel-based regression
+and nonparametric decomposition. IEEE Trans. Control Syst. Technol. 28(1), 224-237,
+doi:10.1109/TCST.2018.2881664, eqs. 9, 10, 15 and B.1-B.2.
+
+Lataire, J., Pintelon, R., Piga, D. & Toth, R. (2017). Continuous-time linear time-varying system
+identification with a frequency-domain kernel-based estimator. IET Control Theory Appl. 11(4), 457-465.
+"""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import scipy.linalg
+from scipy import signal as sps
+from scipy.sparse.linalg import LinearOperator, gmres
+
+
+# ------------------------------------------------------------------------------------ derivatives
+def differentiators(n: int, fs: float, f_pass: float, orders: int,
+                    attenuation_db: float) -> tuple[np.ndarray, int]:
+    """Frequency responses ``D_n(w_k) = (j w_k)^n G(w_k)`` on the ``rfft`` bins of an ``n``-point record.
+
+    ``G`` is the response of a Kaiser-window low-pass FIR filter (:func:`scipy.signal.kaiserord`,
+    :func:`scipy.signal.firwin`) with pass band up to ``f_pass`` and stop band from the Nyquist
+    frequency, ``attenuation_db`` deep. Applied by FFT the filters act as circular convolutions whose
+    impulse responses are negligible (below about ``10^(-attenuation_db/20)`` relative) beyond
+    ``half`` samples, so on a record that is not periodic the derivatives are exact except within
+    ``half`` samples of either end, which the estimator discards. All orders share ``G``, so the
+    equation error of exact derivatives is only filtered by ``G``, which is 1 (to the ripple) in the
+    band of interest.
+
+    The odd orders' Nyquist discontinuity of ``(j w)^n`` is scaled by ``G`` at the Nyquist frequency
+    (the stop band), which sets the slowly decaying part of their tails (about 1e-5 relative at
+    ``half`` samples for 100 dB).
+
+    Parameters
+    ----------
+    n : int
+        Record length (samples).
+    fs : float
+        Sampling rate (Hz).
+    f_pass : float
+        Pass band edge (Hz), below ``fs / 2``.
+    orders : int
+        Highest derivative order.
+    attenuation_db : float
+        Stop band attenuation (dB) of the Kaiser design.
+
+    Returns
+    -------
+    D : ndarray, shape (orders + 1, n // 2 + 1)
+        Complex responses (units s^-n); the Nyquist bin is zero.
+    half : int
+        Half length of the FIR low-pass (samples): the number of samples to discard at each end.
+
+    References
+    ----------
+    van de Ruit et al. (2018), App. B: ``u^(n)``, ``y^(n)`` in eq. B.2 are "the sampled and vectorised
+    n-th derivatives"; how to obtain them from a record that is not periodic is this module's choice.
+    """
+    width = (fs / 2 - f_pass) / (fs / 2)
+    numtaps, beta = sps.kaiserord(attenuation_db, width)
+    numtaps |= 1
+    half = numtaps // 2
+    if 2 * half + 1 > n:
+        raise ValueError(f"differentiator of {numtaps} taps is longer than the record ({n} samples)")
+    taps = sps.firwin(numtaps, (f_pass + fs / 2) / 2, window=("kaiser", beta), fs=fs)
+    circ = np.zeros(n)
+    circ[:half + 1] = taps[half:]
+    circ[n - half:] = taps[:half]
+    G = np.fft.rfft(circ).real  # even taps: real response
+    jw = 2j * np.pi * np.fft.rfftfreq(n, 1.0 / fs)
+    D = np.stack([jw ** k * G for k in range(orders + 1)])
+    if n % 2 == 0:
+        D[:, -1] = 0.0
+    return D, half
+
+
+def derivatives(x: np.ndarray, D: np.ndarray) -> np.ndarray:
+    """``D_n x`` for every row of ``D`` (shape ``(len(D), len(x))``)."""
+    return np.fft.irfft(np.fft.rfft(x)[None, :] * D, len(x), axis=1)
+
+
+def periodic_derivative_response(n: int, fs: float, orders: int) -> np.ndarray:
+    """``(j w_k)^n`` on the ``rfft`` bins (Nyquist bin zero for odd ``n``): exact for periodic records."""
+    jw = 2j * np.pi * np.fft.rfftfreq(n, 1.0 / fs)
+    D = np.stack([jw ** k for k in range(orders + 1)])
+    if n % 2 == 0:
+        D[1::2, -1] = 0.0
+    return D
+
+
+# ----------------------------------------------------------------------------------------- kernel
+def kernel_features(time: np.ndarray, sigma: float, threshold: float, max_rank: int, points: int) -> np.ndarray:
+    """Features ``Phi`` (``N x r``) with ``Phi Phi^T ~ K_0``, ``K_0(t, t') = exp(-(t - t')^2 / sigma^2)``.
+
+    The eigenpairs ``(lambda_j, w_j)`` of the kernel on ``points`` equispaced times spanning the record
+    (the Nystrom method) give ``Phi = K(t, s) W_r Lambda_r^(-1/2)``; ``r`` keeps the eigenvalues at
+    least ``threshold`` times the largest, at most ``max_rank``. When ``points`` equals the number of
+    samples the times are the samples themselves and ``Phi = V_r Lambda_r^(1/2)``: the exact leading
+    eigenpairs of the kernel matrix (the implementation note of the study spec). With
+    ``a = sqrt(gamma) Phi z`` the regulariser ``a^T K^-1 a`` of ``K = gamma K_0`` over the range of
+    ``K`` equals ``||z||^2``; ``K^-1`` is never formed.
+
+    References
+    ----------
+    van de Ruit et al. (2018), eq. 15 (the kernel) and App. B ("does not require the explicit
+    computation of K^-1").
+    """
+    t = np.asarray(time, float)
+    s = t if points >= len(t) else np.linspace(t[0], t[-1], points)
+    Kss = np.exp(-((s[:, None] - s[None, :]) / sigma) ** 2)
+    lam, W = np.linalg.eigh(Kss)
+    lam, W = lam[::-1], W[:, ::-1]
+    r = int(min(max_rank, np.count_nonzero(lam >= threshold * lam[0])))
+    lam, W = lam[:r], W[:, :r]
+    if s is t:
+        return W * np.sqrt(lam)
+    Kts = np.exp(-((t[:, None] - s[None, :]) / sigma) ** 2)
+    return (Kts @ W) / np.sqrt(lam)
+
+
+# ---------------------------------------------------------------------------------- equation error
+@dataclasses.dataclass(frozen=True)
+class System:
+    """The band-limited equation error, linear in the unknowns: ``E = F0 + C c + sum_p T_p z_p``.
+
+    Coefficient ``p`` is ``c_p + g_p Phi z_p`` (``g_p = sqrt(gamma_p)``).
+
+    Attributes
+    ----------
+    F0 : ndarray, complex (nk,)
+        DFT on the band of ``mask * D_0 y``.
+    C : ndarray, complex (nk, P)
+        DFT on the band of ``mask * x_p``: regressor ``x_p = D_n y`` for ``a_n``, ``-D_n u`` for ``b_n``.
+    T : ndarray, complex (P, nk, r)
+        DFT on the band of ``mask * x_p * g_p * Phi[:, j]``.
+    Phi : ndarray (N, r)
+        Kernel features of ``K_0``.
+    gains : ndarray (P,)
+        ``g_p``.
+    """
+
+    F0: np.ndarray
+    C: np.ndarray
+    T: np.ndarray
+    Phi: np.ndarray
+    gains: np.ndarray
+
+    def trajectories(self, c: np.ndarray, z: np.ndarray) -> np.ndarray:
+        """Coefficients ``c_p + g_p Phi z_p`` on the samples (``P x N``)."""
+        return c[:, None] + self.gains[:, None] * (z @ self.Phi.T)
+
+
+def equation_system(regressors: np.ndarray, y0: np.ndarray, mask: np.ndarray, Phi: np.ndarray,
+                    gains: np.ndarray, band: np.ndarray) -> System:
+    """Assemble :class:`System` with one ``rfft`` of an ``N x r`` matrix per coefficient.
+
+    Parameters
+    ----------
+    regressors : ndarray (P, N)
+        ``x_p`` (``D_n y`` for the ``a_n``, ``-D_n u`` for the ``b_n``).
+    y0 : ndarray (N,)
+        ``D_0 y``.
+    mask : ndarray (N,)
+        1 where the derivatives are exact, 0 at the discarded ends.
+    Phi : ndarray (N, r)
+        Kernel features of ``K_0`` (:func:`kernel_features`).
+    gains : ndarray (P,)
+        ``sqrt(gamma_p)``: coefficient ``p`` has the kernel ``gamma_p K_0``.
+    band : ndarray of int
+        ``rfft`` bins of the band of interest.
+    """
+    X = regressors * mask
+    F0 = np.fft.rfft(y0 * mask)[band]
+    C = np.fft.rfft(X, axis=1)[:, band].T
+    T = np.stack([g * np.fft.rfft(x[:, None] * Phi, axis=0)[band] for x, g in zip(X, gains)])
+    return System(F0=F0, C=C, T=T, Phi=Phi, gains=np.asarray(gains, float))
+
+
+def _stack(x: np.ndarray) -> np.ndarray:
+    return np.concatenate([x.real, x.imag])
+
+
+def ridge_solve(Ac: np.ndarray, Az: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Minimise ``||Ac c + Az z - b||^2 + ||z||^2`` over ``c`` (free) and ``z`` (real arrays).
+
+    One Householder QR (R factor only) of ``[Ac Az b]`` gives ``R11 c + R12 z ~ r1`` and the part
+    orthogonal to ``range(Ac)``, ``R22 z ~ r2``: the unregularised ``c`` is eliminated exactly. Then
+    ``z`` minimises ``||R22 z - r2||^2 + ||z||^2`` by a small QR of ``[R22; I]`` and
+    ``c = R11^-1 (r1 - R12 z)``. No normal equations are formed (the weights can span many decades),
+    and eliminating ``c`` keeps the near-collinearity of the constants with the smoothest kernel
+    feature out of the solve.
+    """
+    p, q = Ac.shape[1], Az.shape[1]
+    scale = np.linalg.norm(Ac, axis=0)
+    scale[scale == 0] = 1.0
+    R = scipy.linalg.qr(np.column_stack([Ac / scale, Az, b]), mode="r", check_finite=False)[0]
+    R11, R12, r1 = R[:p, :p], R[:p, p:p + q], R[:p, -1]
+    R22, r2 = R[p:p + q, p:p + q], R[p:p + q, -1]
+    if R22.shape[0] < q:                          # fewer equations than unknowns: pad with zero rows
+        R22 = np.vstack([R22, np.zeros((q - R22.shape[0], q))])
+        r2 = np.concatenate([r2, np.zeros(q - len(r2))])
+    Rz = scipy.linalg.qr(np.vstack([np.column_stack([R22, r2]), np.column_stack([np.eye(q), np.zeros(q)])]),
+                         mode="r", check_finite=False)[0]
+    z = scipy.linalg.solve_triangular(Rz[:q, :q], Rz[:q, -1], check_finite=False)
+    c = scipy.linalg.solve_triangular(R11, r1 - R12 @ z, check_finite=False) / scale
+    return c, z
+
+
+def solve_weighted(system: System, weights: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+    """Minimise ``sum_k w_k |E(k)|^2 + sum_p ||z_p||^2``: one step of the convex relaxation (App. B).
+
+    Real and imaginary parts of the complex equations are stacked and solved by :func:`ridge_solve`.
+
+    Returns
+    -------
+    c : ndarray (P,)
+        Constant parts.
+    z : ndarray (P, r)
+        Weights of the kernel features.
+    cost : float
+        The minimised cost.
+
+    References
+    ----------
+    van de Ruit et al. (2018), eq. B.1 with ``sigma_E^2`` fixed (the convex relaxation of App. B).
+    """
+    P, nk, r = system.T.shape
+    sw = np.sqrt(weights)
+    Ac = _stack(system.C * sw[:, None])
+    Az = _stack(system.T.transpose(1, 0, 2).reshape(nk, P * r) * sw[:, None])
+    b = _stack(-system.F0 * sw)
+    c, z = ridge_solve(Ac, Az, b)
+    res = Ac @ c + Az @ z - b
+    return c, z.reshape(P, r), float(res @ res + z @ z)
+
+
+def error(system: System, c: np.ndarray, z: np.ndarray) -> np.ndarray:
+    """``E(k)`` on the band for constants ``c`` and feature weights ``z``."""
+    return system.F0 + system.C @ c + np.einsum("pkr,pr->k", system.T, z)
+
+
+def refine(system: System, Db: np.ndarray, mask: np.ndarray, sv2: np.ndarray, c: np.ndarray, z: np.ndarray,
+           iterations: int, tolerance: float) -> tuple[np.ndarray, np.ndarray, float, int]:
+    """Gauss-Newton minimisation of eq. B.1 itself, ``sum_k |E(k)|^2 / sigma_E^2(k, a) + sum ||z||^2``.
+
+    ``sigma_E^2(k, a) = sv2(k) q_k(a)``, ``q_k = mean_t |A(k, t)|^2``, ``A(k, t) = D_0(k) + sum_n
+    a_n(t) D_n(k)`` over the kept samples (``Db``: band rows of the responses of orders ``0 ... Na``;
+    ``a_n`` are the first ``Na`` coefficients). Each step linearises the residuals ``E / sigma_E``
+    (the derivative of ``q_k`` included) and solves the linear ridge problem for the new ``(c, z)``
+    with :func:`ridge_solve`. The residuals are first rotated by the unit phase ``conj(Abar)/|Abar|``
+    (``Abar = mean_t A``), which leaves the cost unchanged and makes them the output error
+    ``(Y - B/A U) / sqrt(sv2)`` when ``A`` is time-invariant. The step is halved until the cost
+    decreases, or doubled while it keeps decreasing (long curved valleys). Stops when the cost
+    decreases by less than ``tolerance * max(cost, 1)`` or after ``iterations`` steps.
+
+    Returns
+    -------
+    c, z : ndarray
+        The refined constants and feature weights.
+    cost : float
+        Eq. B.1 at ``(c, z)``.
+    steps : int
+        Gauss-Newton steps taken.
+
+    References
+    ----------
+    van de Ruit et al. (2018), eqs. 10 and B.1 (the estimator is their minimiser); App. B for
+    ``sigma_E^2`` depending on the coefficients.
+    """
+    na = len(Db) - 1
+    P, nk, r = system.T.shape
+    keep = mask > 0
+    Pk = system.Phi[keep]
+    g = system.gains
+    m = Pk.mean(axis=0)
+    Tf = system.T.transpose(1, 0, 2).reshape(nk, P * r)
+
+    def parts(c, z):
+        a = c[:na, None] + g[:na, None] * (z[:na] @ Pk.T)     # a_n(t) on kept samples
+        basis = np.vstack([np.ones(Pk.shape[0]), a])
+        M = basis @ basis.T / basis.shape[1]
+        q = np.einsum("ik,ij,jk->k", Db.conj(), M, Db).real
+        E = error(system, c, z)
+        return a, q, E, float(np.sum(np.abs(E) ** 2 / (sv2 * q)) + np.sum(z ** 2))
+
+    a, q, E, cost = parts(c, z)
+    done = 0
+    for done in range(1, iterations + 1):
+        # residuals rotated by the unit phase phi = conj(Abar)/|Abar| (the cost is unchanged): for a
+        # time-invariant A this is the output error (Y - B/A U)/sqrt(sv2), so bins without input carry
+        # no spurious curvature into the Gauss-Newton model
+        Abar = Db[0] + (a.mean(axis=1) @ Db[1:] if na else 0.0)
+        APhi = np.outer(Db[0], m) + (Db[1:].T @ (a @ Pk / Pk.shape[0]) if na else 0.0)
+        # dq/dc_n = 2 Re(conj(Abar) D_n), dq/dz_nj = 2 g_n Re(D_n conj(mean_t A Phi_j));
+        # dAbar/dc_n = D_n, dAbar/dz_nj = g_n D_n mean_t Phi_j
+        dq = np.zeros((nk, P + P * r))
+        dA = np.zeros((nk, P + P * r), complex)
+        for n in range(na):
+            cols = slice(P + n * r, P + (n + 1) * r)
+            dq[:, n] = 2 * (Abar.conj() * Db[n + 1]).real
+            dq[:, cols] = 2 * g[n] * (Db[n + 1][:, None] * APhi.conj()).real
+            dA[:, n] = Db[n + 1]
+            dA[:, cols] = g[n] * np.outer(Db[n + 1], m)
+        absA = np.maximum(np.abs(Abar), 1e-300)
+        psi = Abar / absA
+        dphi = -1j * psi.conj()[:, None] * (psi.conj()[:, None] * dA).imag / absA[:, None]
+        phi = psi.conj()
+        sd = np.sqrt(sv2 * q)
+        J = (np.concatenate([system.C, Tf], axis=1) * phi[:, None] + E[:, None] * dphi
+             - (E * phi / (2 * q))[:, None] * dq) / sd[:, None]
+        Jc, Jz = _stack(J[:, :P]), _stack(J[:, P:])
+        b = Jc @ c + Jz @ z.ravel() - _stack(E * phi / sd)
+        c_new, z_new = ridge_solve(Jc, Jz, b)
+        dc, dz = c_new - c, z_new.reshape(P, r) - z
+        step = 1.0
+        for _ in range(30):                       # halve until the cost decreases ...
+            trial = parts(c + step * dc, z + step * dz)
+            if trial[3] <= cost:
+                break
+            step /= 2
+        else:
+            break
+        while step >= 1.0 and step < 64.0:       # ... or double while it keeps decreasing (long valleys)
+            longer = parts(c + 2 * step * dc, z + 2 * step * dz)
+            if longer[3] >= trial[3]:
+                break
+            step, trial = 2 * step, longer
+        gain = cost - trial[3]
+        c, z = c + step * dc, z + step * dz
+        a, q, E, cost = trial
+        if gain <= tolerance * max(cost, 1.0):
+            break
+    return c, z, cost, done
+
+
+def noise_variance(Y: np.ndarray, lines: np.ndarray, band: np.ndarray, guard: int, count: int) -> np.ndarray:
+    """Output noise variance ``E|V(k)|^2`` at the band bins from the non-excited bins.
+
+    The mean of ``|Y(j)|^2`` over the ``count`` non-excited bins ``j`` nearest to ``k`` (ties to the
+    lower bin), where bins within ``guard`` bins of an excited line (its skirt) and the DC and Nyquist
+    bins are left out.
+
+    References
+    ----------
+    van de Ruit et al. (2018), App. B: the noise variance of the measured spectra, there by their
+    ref. [52] (Lataire & Pintelon 2009), here by this local average.
+    """
+    nb = len(Y)
+    j = np.arange(1, nb - 1)
+    dist = np.min(np.abs(j[:, None] - lines[None, :]), axis=1)
+    j = j[dist > guard]
+    if len(j) < count:
+        raise ValueError(f"only {len(j)} non-excited bins are left for the noise estimate, {count} needed")
+    pos = np.searchsorted(j, band)
+    lo = np.clip(pos - count, 0, len(j) - 2 * count) if len(j) >= 2 * count else np.zeros_like(pos)
+    cand = lo[:, None] + np.arange(min(2 * count, len(j)))[None, :]
+    d = np.abs(j[cand] - band[:, None])
+    nearest = np.take_along_axis(cand, np.argsort(d, axis=1, kind="stable")[:, :count], axis=1)
+    return np.mean(np.abs(Y[j[nearest]]) ** 2, axis=1)
+
+
+def error_variance_factor(D: np.ndarray, a: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """``mean_t |D_0(k) + sum_n a_n(t) D_n(k)|^2`` over the kept samples: how the output noise enters ``E``.
+
+    ``D`` holds the band rows of the differentiator responses (orders ``0 ... Na``), ``a`` the
+    trajectories ``a_1 ... a_Na`` (``Na x N``).
+    """
+    keep = mask > 0
+    basis = np.vstack([np.ones(np.count_nonzero(keep)), a[:, keep]])
+    M = basis @ basis.T / basis.shape[1]          # second moments of (1, a_1(t), ..., a_Na(t))
+    return np.einsum("ik,ij,jk->k", D.conj(), M, D).real
+
+
+# -------------------------------------------------------------------------------------- prediction
+def periodic_response(a: np.ndarray, r: np.ndarray, Dp: np.ndarray) -> np.ndarray:
+    """Periodic solution ``y`` of ``y + sum_n a_n(t) y^(n) = r(t)`` on the record.
+
+    Derivatives of ``y`` are the exact ones of a periodic band-limited signal (``Dp``, from
+    :func:`periodic_derivative_response`). Solved by GMRES preconditioned with the time-invariant
+    operator of the mean coefficients (diagonal in the DFT domain); dense solve if GMRES stalls.
+    """
+    n = len(r)
+    if len(a) == 0:
+        return r.copy()
+
+    def apply(y):
+        dy = derivatives(y, Dp[1:len(a) + 1])
+        return y + np.sum(a * dy, axis=0)
+
+    den = Dp[0] + np.tensordot(a.mean(axis=1), Dp[1:len(a) + 1], axes=1)
+    den = np.where(np.abs(den) > 1e-12, den, 1e-12)
+    op = LinearOperator((n, n), matvec=apply, dtype=float)
+    pre = LinearOperator((n, n), matvec=lambda v: np.fft.irfft(np.fft.rfft(v) / den, n), dtype=float)
+    y, info = gmres(op, r, M=pre, rtol=1e-12, atol=0.0, restart=50, maxiter=20)
+    if info != 0:
+        L = np.column_stack([apply(e) for e in np.eye(n)])
+        y = np.linalg.solve(L, r)
+    return y
