@@ -184,6 +184,15 @@ def _progress(total: int, enabled: bool):
     return tqdm(total=total, unit="case", file=sys.stderr, dynamic_ncols=True)
 
 
+def _one_blas_thread() -> None:
+    """Worker initializer: one BLAS thread per worker process (the pool already uses every core; nested
+    BLAS threads would oversubscribe them, which slowed a 0.16 s KBR fit to seconds on 2 cores). Serial
+    runs use one thread too, so that serial and parallel runs give bit-identical numbers."""
+    from threadpoolctl import threadpool_limits
+
+    threadpool_limits(limits=1)
+
+
 def run_cases(cases: list[Case], cache: Cache, workers: int | None = None, serial: bool = False,
               progress: bool = True, on_result: Callable[[CaseResult], None] | None = None
               ) -> list[CaseResult]:
@@ -213,10 +222,13 @@ def run_cases(cases: list[Case], cache: Cache, workers: int | None = None, seria
 
     workers = workers or os.cpu_count() or 1
     if serial or workers == 1 or len(todo) <= 1:
-        for i in todo:
-            done(i, run_case(cases[i]))
+        from threadpoolctl import threadpool_limits
+
+        with threadpool_limits(limits=1):   # as in the workers: same BLAS reductions, same numbers
+            for i in todo:
+                done(i, run_case(cases[i]))
     else:
-        with cf.ProcessPoolExecutor(max_workers=min(workers, len(todo))) as pool:
+        with cf.ProcessPoolExecutor(max_workers=min(workers, len(todo)), initializer=_one_blas_thread) as pool:
             futs = {pool.submit(run_case, cases[i]): i for i in todo}
             for fut in cf.as_completed(futs):
                 i = futs[fut]
