@@ -10,7 +10,7 @@ from jointbench.signal import decimate_fft
 from sims import JOINTS, PERTURBATIONS, PROFILES, Experiment, simulate
 from sims.apparatus import Handle, PositionServo, TorqueDrive
 from sims.backend_lti import LTIBackend
-from sims.backend_ltv import LTVBackend, affine_scan, step_matrices
+from sims.backend_ltv import LTVBackend, affine_scan, derivative, step_matrices
 from sims.joint_second_order import SecondOrderJoint
 from sims.joint_time_varying import TimeVaryingJoint
 from sims.joint_wrist_contact import WristContactJoint
@@ -164,10 +164,12 @@ def test_ltv_wrist_with_contact_matches_fine_rk4():
     u = 0.01 * _drive(t)
     r = LTVBackend().run(joint, Handle(), u, np.zeros(n), fs)
 
+    du = derivative(u, 1 / fs)
+
     def f(tt, x, i):
         k = 5.6 + 0.9 * np.sin(2 * np.pi * tt / 0.5)
-        ud = (u[i + 1] - u[i]) * fs                  # the drive is linear between samples
-        ui = u[i] + ud * (tt - t[i])
+        a = (tt - t[i]) * fs                          # u and u' are both held linearly between samples
+        ui, ud = (1 - a) * u[i] + a * u[i + 1], (1 - a) * du[i] + a * du[i + 1]
         y = 10 * (ud - x[1]) + 100 * (ui - x[0])
         return np.array([x[1], (y - 0.035 * x[1] - k * x[0]) / 0.003])
 
@@ -184,6 +186,23 @@ def test_ltv_wrist_with_contact_matches_fine_rk4():
     assert np.max(np.abs(r.angle - ref)) <= 1e-5 * np.max(np.abs(ref))
     # the handle torque is the contact torque, and equals the limb's impedance torque (no voluntary torque)
     assert np.allclose(r.torque_measured, r.torque_impedance, atol=1e-9 * np.abs(r.torque_measured).max())
+
+
+@pytest.mark.parametrize("fs, tol", [(2500.0, 0.01), (10000.0, 0.0005)])
+def test_wrist_steady_state_matches_the_closed_form_response(fs, tol):
+    """Y/U at the handle equals (b_c s + k_c) Z / (Z + b_c s + k_c) near the resonance, where the torque is a
+    small difference of large contact terms (an error in u' is amplified about 200 times there)."""
+    joint = WristContactJoint(I=0.003, b=0.035, k=5.6, b_c=10, k_c=100)
+    n = int(6 * fs)
+    t = np.arange(n) / fs
+    for f in (1.0, 6.0, 8.0, 19.3):
+        r = LTVBackend().run(joint, Handle(), 0.01 * np.cos(2 * np.pi * f * t), np.zeros(n), fs)
+        late = slice(n // 2, None)
+        A = np.column_stack([np.cos(2 * np.pi * f * t[late]), np.sin(2 * np.pi * f * t[late])])
+        c = np.linalg.lstsq(A, r.torque_measured[late], rcond=None)[0]
+        s = 2j * np.pi * f
+        Z, C = 0.003 * s * s + 0.035 * s + 5.6, 10 * s + 100
+        assert abs((c[0] - 1j * c[1]) / 0.01 / (C * Z / (Z + C)) - 1) < tol, f
 
 
 # ------------------------------------------------------------------------------------------- simulate
