@@ -216,11 +216,12 @@ class KBR(Estimator):
       ``|Y(j)|^2`` over the ``noise_bins`` nearest non-excited bins ``j`` farther than ``noise_guard``
       from every line (a local stand-in for ref. [52] of the paper). The relaxation stops when the
       cost changes by less than ``tolerance * max(cost, 1)`` or after ``relax_iterations`` solves.
-    * ``refine`` (default on): the relaxation converges to a fixed point, not to the minimiser of
-      eq. B.1. With noise, the many non-excited bins of the band pull that fixed point towards
-      ``A = 1``: ``a_1`` falls about a hundredfold, RMSE_k is about 2.5 N m/rad at 5 dB. So
-      Gauss-Newton steps on eq. B.1 itself, with ``sigma_E^2`` as a function of the ``a_n``, start
-      from the relaxation (:func:`estimators._kbr_solve.refine`).
+    * ``refine`` (default off, i.e. the paper's method): the relaxation converges to a fixed point,
+      not to the minimiser of eq. B.1. With noise, the many non-excited bins of the band pull that
+      fixed point towards ``A = 1`` (``a_1`` falls, RMSE_k rises: about 2.5 N m/rad at a noise
+      variance 0.32 of the output's). ``refine: true`` adds Gauss-Newton steps on eq. B.1 itself, with
+      ``sigma_E^2`` as a function of the ``a_n``, from the relaxation's result
+      (:func:`estimators._kbr_solve.refine`); an addition the paper does not describe.
 
     Parameters
     ----------
@@ -264,7 +265,7 @@ class KBR(Estimator):
                                                 "the number of samples = exact")
         relax_iterations: int = param(20, ge=1, doc="most weighted solves of the convex relaxation")
         tolerance: float = param(1e-6, gt=0, doc="stop when the cost changes by less than this (relative)")
-        refine: bool = param(True, doc="after the relaxation, minimise eq. B.1 itself by Gauss-Newton")
+        refine: bool = param(False, doc="after the relaxation, minimise eq. B.1 itself by Gauss-Newton")
         refine_iterations: int = param(50, ge=1, doc="most Gauss-Newton steps")
         derivative_attenuation: float = param(100.0, unit="dB", ge=20, doc="stop band of the differentiators' "
                                                                           "low-pass")

@@ -36,7 +36,7 @@ def _params(**over) -> Table1Params:
 # ------------------------------------------------------------------------------------------- config
 def test_config_parses_with_every_table1_cell_and_reading():
     s = load_study("vanderuit2018_table1")
-    assert set(s.parts) == {"table1", "table1_snr_standard"}
+    assert set(s.parts) == {"table1", "table1_snr_standard", "table1_kbr_refined"}
     assert {r.id for r in s.readings} >= {f"R{i}" for i in range(1, 12)}
     cells = [c for c in s.checks if c.id.startswith("T1-")]
     assert len(cells) == 8 * 10          # 8 (variation, method) blocks x 10 published cells
@@ -63,7 +63,7 @@ def test_config_parses_with_every_table1_cell_and_reading():
 def test_cases_expand_and_noise_free_settings_apply():
     s = load_study("vanderuit2018_table1")
     cases = expand(s)
-    assert len(cases) == 4 * 3 * 10 + 4 * 2 * 10
+    assert len(cases) == 4 * 3 * 10 + 4 * 2 * 10 + 2 * 2 * 10
     assert len({c.case_id for c in cases}) == len(cases)
     p = _params(snr_db=math.inf)
     ctx = Context(part="table1", seed=0, params=p, experiment=None,
@@ -145,7 +145,7 @@ def smoke(tmp_path_factory):
     part = d["parts"]["table1"]
     part["seeds"] = 1
     part["sweep"] = {"variation": ["sine20", "square10"], "snr_db": [10, math.inf]}
-    del d["parts"]["table1_snr_standard"]
+    del d["parts"]["table1_snr_standard"], d["parts"]["table1_kbr_refined"]
     path = tmp / "study.yaml"
     path.write_text(yaml.safe_dump(d, sort_keys=False))
     return run_study(path, out_root=tmp / "results", serial=True, progress=False)
