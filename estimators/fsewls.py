@@ -86,7 +86,7 @@ def _odd_fast_len(n: int) -> int:
 
 
 def svf(theta: np.ndarray, tau: np.ndarray, fs: float, a: float, order: int,
-        causal: bool) -> tuple[np.ndarray, np.ndarray]:
+        causal: bool, form: str = "printed") -> tuple[np.ndarray, np.ndarray]:
     """Regressors ``Phi = [s^2 L theta, s L theta, L theta]`` and output ``y = L tau`` (eq. 4).
 
     The filters act in the frequency domain with their exact continuous responses at ``s = j w`` (the
@@ -95,7 +95,9 @@ def svf(theta: np.ndarray, tau: np.ndarray, fs: float, a: float, order: int,
     itself, starting from rest at the first sample; it delays the signals by about ``n/a`` at low
     frequencies. ``causal=False`` (zero phase): the differentiator ``(jw)^(n-2)`` is kept and the
     low-pass replaced by its magnitude ``(a^2 / (a^2 + w^2))^(n/2)``, so ``|L|`` is unchanged and no
-    lag is added; acausal, it settles within about ``10/a`` seconds of each end.
+    lag is added; acausal, it settles within about ``10/a`` seconds of each end. ``form='lowpass'``
+    drops the factor ``s^(n-2)``: ``L = a^n / (s + a)^n``, the "third-order low-pass filter" of the
+    paper's Sec. III-B (the printed eq. 4 form has a zero at s = 0 and a flat acceleration regressor).
 
     ``theta``, ``tau`` (high-passed) have shape (..., n); ``Phi`` (..., n, 3) and ``y`` (..., n).
 
@@ -114,7 +116,7 @@ def svf(theta: np.ndarray, tau: np.ndarray, fs: float, a: float, order: int,
         low = (a * a / (a * a + (2 * np.pi * f) ** 2)) ** (order / 2.0)
     widths = [(0, 0)] * (theta.ndim - 1) + [(pad, nfft - n - pad)]
     spec = scipy.fft.rfft(np.stack([np.pad(theta, widths), np.pad(tau, widths)]), axis=-1)
-    base = low * jw ** (order - 2)
+    base = low * jw ** (order - 2) if form == "printed" else low
     ops = np.stack([spec[0] * (base * jw * jw), spec[0] * (base * jw), spec[0] * base, spec[1] * base])
     out = scipy.fft.irfft(ops, nfft, axis=-1)[..., pad:pad + n]
     return np.moveaxis(out[:3], 0, -1), out[3]
@@ -341,6 +343,7 @@ class FSEWLS(Estimator):
         svf_cutoff: float = param(3.2, unit="Hz", gt=0, doc="cutoff of the state-variable filter L")
         svf_cutoff_means: Literal["-3dB", "a"] = param("-3dB", doc="-3 dB point of a^n/(s+a)^n, or 'a' (2 pi cutoff)")
         svf_causal: bool = param(False, doc="true: causal L (lags ~ n/a); false: zero phase, |L| kept")
+        svf_form: Literal["printed", "lowpass"] = param("printed", doc="L = s^(n-2) a^n/(s+a)^n as printed, or a^n/(s+a)^n")
         forgetting: float = param(20.0, unit="1/s", gt=0, doc="forgetting rate lambda of the EWLS (eq. 6)")
         init_window: float = param(0.5, unit="s", gt=0, doc="first seconds fitted for Theta(0) and P(0)")
 
@@ -390,7 +393,7 @@ class FSEWLS(Estimator):
         if s.highpass_cutoff is not None:
             x = highpass(x, fs, s.highpass_cutoff, s.highpass_order, s.highpass_ripple)
         theta, tau = x - x.mean(axis=-1, keepdims=True)
-        Phi, y = svf(theta, tau, fs, self.pole(), s.svf_order, s.svf_causal)
+        Phi, y = svf(theta, tau, fs, self.pole(), s.svf_order, s.svf_causal, s.svf_form)
         m = max(int(round(s.init_window * fs)), 3)
         R0, r0 = _unpack(_forcing(Phi[:, :m], y[:, :m]).sum(axis=0) / fs)
         scale = np.sqrt(np.diag(R0))

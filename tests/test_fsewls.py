@@ -300,5 +300,17 @@ def test_pooled_records_must_have_equal_length(steady_elbow):
 def test_settings_are_frozen_and_documented():
     fields = {f.name: f for f in dataclasses.fields(FSEWLS.Settings)}
     assert set(fields) == {"highpass_cutoff", "highpass_order", "highpass_ripple", "svf_order", "svf_cutoff",
-                           "svf_cutoff_means", "svf_causal", "forgetting", "init_window"}
+                           "svf_cutoff_means", "svf_causal", "svf_form", "forgetting", "init_window"}
     assert all(f.metadata.get("doc") for f in fields.values())
+
+
+def test_svf_lowpass_form_drops_the_differentiator():
+    """svf_form='lowpass': L = a^n/(s+a)^n, so L theta of a constant is the constant (the printed form
+    s^(n-2) a^n/(s+a)^n has a zero at s = 0 and removes it)."""
+    from estimators.fsewls import svf
+    fs, n = 1000.0, 20000
+    theta = np.full(n, 0.3)
+    mid = slice(n // 4, 3 * n // 4)
+    Phi_low, _ = svf(theta, theta, fs, a=39.4, order=3, causal=False, form="lowpass")
+    Phi_pr, _ = svf(theta, theta, fs, a=39.4, order=3, causal=False, form="printed")
+    assert np.allclose(Phi_low[mid, 2], 0.3, atol=1e-6) and np.allclose(Phi_pr[mid, 2], 0.0, atol=1e-6)
