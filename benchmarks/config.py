@@ -90,6 +90,7 @@ class Part:
     seeds: tuple[int, ...]
     sweep: Mapping[str, tuple[Any, ...]]
     where: str
+    report_section: str = "results"
 
     def grid(self) -> list[dict[str, Any]]:
         """Every combination of the sweep (one empty dict without a sweep)."""
@@ -109,7 +110,8 @@ class Study:
 
 
 _PART_KEYS = {"protocol": True, "description": True, "params": False, "experiment": False,
-              "estimators": False, "seeds": False, "sweep": False}
+              "estimators": False, "seeds": False, "sweep": False, "report_section": False}
+REPORT_SECTIONS = ("results", "interpretation")
 _STUDY_KEYS = {"study": True, "title": True, "paper": True, "published": True, "readings": False,
                "parts": True}
 _CHECK_KEYS = {"id": True, "part": True, "description": True, "source": True, "published": True,
@@ -171,7 +173,12 @@ def load_part(name: str, data: Mapping, where: str, models_dir: Path) -> Part:
         raise ConfigError(f"{where}: key 'params': expected a mapping")
     if "joint" in params:   # analytic parts name a joint model like experiments do
         params = _resolve_joint(params, f"{where}: params", models_dir)
+    section = data.get("report_section", "results")
+    if section not in REPORT_SECTIONS:
+        raise ConfigError(f"{where}: key 'report_section': {section!r} not allowed; allowed: "
+                          f"{', '.join(REPORT_SECTIONS)}")
     return Part(name=name, protocol=str(data["protocol"]), description=str(data["description"]),
+                report_section=section,
                 params=dict(params), experiment=experiment,
                 estimators={k: dict(v or {}) for k, v in est.items()},
                 seeds=_seeds(data.get("seeds"), where),

@@ -48,21 +48,11 @@ def render(study: Study, comparison: pd.DataFrame, part_reports: dict, failed: l
                 lines.append(f"- **{r.check}** ({r.description}): reproduced {r.reproduced:.4g}, expected "
                              f"[{r.low:.4g}, {r.high:.4g}]. {r.note or 'No explanation recorded yet.'}")
             lines.append("")
+    sections = {"results": [], "interpretation": []}
     for name, rep in part_reports.items():
-        part = study.parts[name]
-        lines += [f"## {name}: {part.description}", ""]
-        if rep is None:
-            lines += ["_(no figure maker for this protocol)_", ""]
-            continue
-        if isinstance(rep, str):
-            lines += [f"Figures could not be drawn: {rep}", ""]
-            continue
-        if rep.text:
-            lines += [rep.text, ""]
-        for title, df in rep.tables:
-            lines += [f"**{title}**", "", markdown(df)]
-        for fname, caption in rep.figures:
-            lines += [f"![{caption}]({fname})", "", f"_{caption}_", ""]
+        sections[study.parts[name].report_section].append((name, rep))
+    for name, rep in sections["results"]:
+        lines += _part(study, name, rep, "##")
     if failed:
         lines += ["## Failed cases", ""]
         for r in failed:
@@ -73,5 +63,25 @@ def render(study: Study, comparison: pd.DataFrame, part_reports: dict, failed: l
     for r in study.readings:
         lines.append(f"- **{r.id}. {r.topic}.** Paper: {r.passage} Reading: {r.reading}"
                      + (f" Alternatives: {r.alternatives}" if r.alternatives else ""))
+    if sections["interpretation"]:
+        lines += ["", "What the candidate readings give (parts run for the interpretation, not checked):", ""]
+        for name, rep in sections["interpretation"]:
+            lines += _part(study, name, rep, "###")
     lines += ["", "## Reproduce", "", "```", meta["command"], "```", ""]
     return "\n".join(lines)
+
+
+def _part(study: Study, name: str, rep, heading: str) -> list[str]:
+    """The section of one part: its text, tables and figures (or why there are none)."""
+    lines = [f"{heading} {name}: {study.parts[name].description}", ""]
+    if rep is None:
+        return lines + ["_(no figure maker for this protocol)_", ""]
+    if isinstance(rep, str):
+        return lines + [f"Figures could not be drawn: {rep}", ""]
+    if rep.text:
+        lines += [rep.text, ""]
+    for title, df in rep.tables:
+        lines += [f"**{title}**", "", markdown(df)]
+    for fname, caption in rep.figures:
+        lines += [f"![{caption}]({fname})", "", f"_{caption}_", ""]
+    return lines

@@ -95,7 +95,7 @@ def run_study(ref: str | Path, parts: list[str] | None = None, out_root: Path | 
         try:
             part_reports[name] = figures.REGISTRY.get(part.protocol)(
                 part, rows[rows["part"] == name], curves[curves["part"] == name] if len(curves) else curves,
-                folder)
+                folder, study.checks)
         except Exception as exc:  # noqa: BLE001 - a broken plot must not lose the tables
             part_reports[name] = f"{type(exc).__name__}: {exc}"
             traceback.print_exc()

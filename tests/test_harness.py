@@ -186,3 +186,26 @@ def test_partial_run_keeps_other_parts_from_cache(tmp_path):
     fresh = run_study("westwick2012", parts=["fig2"], out_root=out, serial=True, progress=False,
                       use_cache=False)
     assert set(fresh.comparison["part"]) == {"fig2"}
+
+
+def test_report_section_puts_a_part_under_interpretation():
+    import dataclasses as dc
+    from benchmarks import report
+    from benchmarks.figures import PartReport
+    s = load_study("westwick2012")
+    parts = dict(s.parts)
+    parts["fig2"] = dc.replace(parts["fig2"], report_section="interpretation")
+    s = dc.replace(s, parts=parts)
+    meta = {"commit": "x", "command": "c", "n_cases": 2, "n_cached": 0, "wall_s": 1.0, "workers": 1,
+            "parts": list(s.parts), "from_cache": []}
+    text = report.render(s, pd.DataFrame(), {"fig2": PartReport(text="CANDIDATE-XYZ"),
+                                            "fig3": PartReport(text="RESULT-ABC")}, [], meta)
+    interp = text.index("## Interpretation")
+    assert text.index("CANDIDATE-XYZ") > interp > text.index("RESULT-ABC")
+    assert "### fig2:" in text and "## fig3:" in text
+
+
+def test_bad_report_section(tmp_path):
+    p = write_study(tmp_path, lambda d: d["parts"]["fig4"].update(report_section="appendix"))
+    with pytest.raises(ConfigError, match="'report_section': 'appendix' not allowed; allowed: results, interpretation"):
+        load_study(p)

@@ -1,7 +1,8 @@
 """Figure and table makers for the report, one per protocol (registered by protocol name).
 
-A maker is ``fn(part, rows, curves, folder) -> PartReport``: it reads the tidy rows and curves of one
-study part (never recomputes anything) and writes PNG files into ``folder``.
+A maker is ``fn(part, rows, curves, folder, checks) -> PartReport``: it reads the tidy rows and curves
+of one study part (never recomputes anything), may show the study's published values (``checks``, from
+the published-values file: never copied into a maker) and writes PNG files into ``folder``.
 """
 from __future__ import annotations
 

@@ -30,22 +30,13 @@ def _snr_order(values) -> list[float]:
     return sorted({float(v) for v in values})
 
 
-def published_cells(part) -> dict[tuple, object]:
+def published_cells(checks) -> dict[tuple, object]:
     """(metric, estimator, variation, snr_db) -> the value check of that Table I cell (published
-    value and tolerance), from the study's published-values file.
-
-    The study file is the one the part came from (``part.where`` starts with its path). Checks of
-    any part count, so a sensitivity part shows the same published values. Empty when unreadable.
+    value and tolerance), from the study's published-values file. Checks of any part count, so a
+    sensitivity part shows the same published values.
     """
-    from benchmarks.config import load_study
-
-    path = str(part.where).rsplit(": parts.", 1)[0]
-    try:
-        study = load_study(Path(path))
-    except Exception:  # noqa: BLE001 - the table is still useful without the published column
-        return {}
     out = {}
-    for c in study.checks:
+    for c in checks:
         if getattr(c, "kind", "value") != "value":
             continue
         sel = dict(c.select)
@@ -245,10 +236,10 @@ def tf_figure(curves: pd.DataFrame, folder: Path, name: str) -> str | None:
 
 
 @register("vanderuit2018.table1")
-def table1(part, rows, curves, folder) -> PartReport:
+def table1(part, rows, curves, folder, checks) -> PartReport:
     rows = rows.copy()
     rows["estimator"] = rows["estimator"].fillna("")
-    published = published_cells(part)
+    published = published_cells(checks)
     figs = []
     if len(curves):
         curves = curves.copy()

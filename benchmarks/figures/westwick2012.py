@@ -27,7 +27,7 @@ def _pivot(rows: pd.DataFrame, part: str, by: list[str]) -> pd.DataFrame:
 
 
 @register("westwick2012.differentiators")
-def differentiators(part, rows, curves, folder) -> PartReport:
+def differentiators(part, rows, curves, folder, checks) -> PartReport:
     order = int(part.params.get("order", 1))
     fig, (a, b) = new_figure(2, 1, figsize=(6.5, 5.5))
     per = _curve(curves, "periodic", series="closed form")
@@ -49,7 +49,7 @@ def differentiators(part, rows, curves, folder) -> PartReport:
 
 
 @register("westwick2012.sampling_rate")
-def sampling_rate(part, rows, curves, folder) -> PartReport:
+def sampling_rate(part, rows, curves, folder, checks) -> PartReport:
     fs_list = sorted(curves["fs_hz"].dropna().unique(), reverse=True)
     fig, axes = new_figure(len(fs_list), 1, figsize=(6, 1.7 * len(fs_list)), sharex=True)
     axes = np.atleast_1d(axes)
@@ -65,7 +65,7 @@ def sampling_rate(part, rows, curves, folder) -> PartReport:
 
 
 @register("westwick2012.input_bandlimit")
-def input_bandlimit(part, rows, curves, folder) -> PartReport:
+def input_bandlimit(part, rows, curves, folder, checks) -> PartReport:
     fig, ax = new_figure(figsize=(6.5, 4))
     for series, c in curves[curves["curve"] == "irf"].groupby("series", sort=False):
         ax.plot(c["x"] * 1e3, c["y"], label=series, lw=1.5 if series == "no noise" else 1)
@@ -80,7 +80,7 @@ def input_bandlimit(part, rows, curves, folder) -> PartReport:
 
 
 @register("parametric_fit")
-def parametric_fit(part, rows, curves, folder) -> PartReport:
+def parametric_fit(part, rows, curves, folder, checks) -> PartReport:
     figs = []
     c0 = _first_seed(curves)
     for est, c in c0.groupby("estimator"):
@@ -105,7 +105,7 @@ def parametric_fit(part, rows, curves, folder) -> PartReport:
 
 
 @register("westwick2012.sampling_rate_experiment")
-def sampling_rate_experiment(part, rows, curves, folder) -> PartReport:
+def sampling_rate_experiment(part, rows, curves, folder, checks) -> PartReport:
     c0 = _first_seed(curves)
     fs_list = sorted(c0["fs_hz"].dropna().unique(), reverse=True)
     fig, axes = new_figure(len(fs_list), 1, figsize=(6, 1.8 * len(fs_list)))
@@ -131,7 +131,7 @@ def sampling_rate_experiment(part, rows, curves, folder) -> PartReport:
 
 
 @register("westwick2012.input_noise")
-def input_noise(part, rows, curves, folder) -> PartReport:
+def input_noise(part, rows, curves, folder, checks) -> PartReport:
     c0 = _first_seed(curves)
     fig, (a, b) = new_figure(2, 1, figsize=(6.5, 6.5), sharex=True)
     for series, s in _curve(c0, "coherence2").groupby("series"):

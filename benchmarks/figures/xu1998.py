@@ -109,7 +109,7 @@ def _first_seed(curves: pd.DataFrame) -> pd.DataFrame:
 
 # --------------------------------------------------------------------------------------------- Fig. 2
 @register("xu1998.fig2")
-def fig2(part, rows, curves, folder) -> PartReport:
+def fig2(part, rows, curves, folder, checks) -> PartReport:
     lam = _forgetting(part)
     conds = [c for c in ("posture", "movement") if (rows.get("condition") == c).any()]
     fig, axes = new_figure(1, len(conds), figsize=(5.2 * len(conds), 4.2), sharey=True)
@@ -175,7 +175,7 @@ def fig2(part, rows, curves, folder) -> PartReport:
 
 # --------------------------------------------------------------------------------------------- Fig. 3
 @register("xu1998.fig3")
-def fig3(part, rows, curves, folder) -> PartReport:
+def fig3(part, rows, curves, folder, checks) -> PartReport:
     fig, (a, b, c) = new_figure(1, 3, figsize=(13, 4))
     _errorbar(a, _median_curve(rows, "vaf_output", "nsr"), color="k", marker="^", mfc="w", label="output")
     for name, col, mk in (("I", "C2", "D"), ("B", "C0", "s"), ("K", "C3", "o")):
@@ -223,7 +223,7 @@ def fig3(part, rows, curves, folder) -> PartReport:
 
 # ------------------------------------------------------------------------------------------- examples
 @register("xu1998.traces")
-def traces(part, rows, curves, folder) -> PartReport:
+def traces(part, rows, curves, folder, checks) -> PartReport:
     figs = []
     c0 = _first_seed(curves)
     names = [n for n in ("K", "B", "I", "zeta") if len(c0) and (c0["curve"] == n).any()]
@@ -256,7 +256,7 @@ def traces(part, rows, curves, folder) -> PartReport:
 
 # ---------------------------------------------------------------------------------------- calibration
 @register("xu1998.calibration")
-def calibration(part, rows, curves, folder) -> PartReport:
+def calibration(part, rows, curves, folder, checks) -> PartReport:
     figs = []
     c0 = _first_seed(curves)
     names = [n for n in ("I", "B", "K", "zeta") if len(c0) and (c0["curve"] == n).any()]
@@ -280,7 +280,7 @@ def calibration(part, rows, curves, folder) -> PartReport:
 
 # ------------------------------------------------------------------------------------------ readings
 @register("xu1998.readings")
-def readings(part, rows, curves, folder) -> PartReport:
+def readings(part, rows, curves, folder, checks) -> PartReport:
     variants = dict(part.params.get("variants") or {})
     order = list(part.sweep.get("variant", variants))
     metrics = ["vafv_K", "vafm_K", "vaf_output", "mean_err_K", "vafv_B"]
