@@ -60,9 +60,9 @@ westwick2012-fig8: $(STAMP)
 xu1998: $(STAMP)
 	$(RUN) xu1998
 xu1998-fig2: $(STAMP)
-	$(RUN) xu1998 --parts fig2
+	$(RUN) xu1998 --parts fig2 traces readings
 xu1998-fig3: $(STAMP)
-	$(RUN) xu1998 --parts fig3
+	$(RUN) xu1998 --parts fig3 fig3_angle_noise
 xu1998-calibration: $(STAMP)
 	$(RUN) xu1998 --parts calibration
 
