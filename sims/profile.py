@@ -49,9 +49,34 @@ class Constant:
         return True
 
 
+@dataclasses.dataclass(frozen=True)
+class _Periodic:
+    """Fields shared by the periodic profiles: ``mean``, ``amplitude``, and ``frequency`` or ``period``."""
+
+    mean: float = param(doc="mean value")
+    amplitude: float = param(doc="amplitude (half the peak-to-peak range)")
+    frequency: float | None = param(None, unit="Hz", gt=0, doc="frequency of the variation")
+    period: float | None = param(None, unit="s", gt=0, doc="or its period")
+    phase: float = param(0.0, unit="rad", doc="phase at t = 0")
+
+    shape: ClassVar[str] = "periodic"
+
+    def __post_init__(self):
+        _period(self.frequency, self.period, self.shape)   # exactly one of frequency and period
+
+    @property
+    def T(self) -> float:
+        """The period (s)."""
+        return _period(self.frequency, self.period, self.shape)
+
+    @property
+    def constant(self) -> bool:
+        return self.amplitude == 0
+
+
 @PROFILES.register("sine")
 @dataclasses.dataclass(frozen=True)
-class Sine:
+class Sine(_Periodic):
     """``x(t) = mean + amplitude · sin(2π t / period + phase)``.
 
     References
@@ -60,30 +85,17 @@ class Sine:
     (sinusoidal stiffness, period 20 s).
     """
 
-    mean: float = param(doc="mean value")
-    amplitude: float = param(doc="amplitude (half the peak-to-peak range)")
-    frequency: float | None = param(None, unit="Hz", gt=0, doc="frequency of the variation")
-    period: float | None = param(None, unit="s", gt=0, doc="or its period")
-    phase: float = param(0.0, unit="rad", doc="phase at t = 0")
-
     shape: ClassVar[str] = "sine"
 
-    def __post_init__(self):
-        _period(self.frequency, self.period, "sine")
-
     def at(self, t: np.ndarray) -> np.ndarray:
-        T = _period(self.frequency, self.period, "sine")
-        return self.mean + self.amplitude * np.sin(2 * np.pi * np.asarray(t, float) / T + self.phase)
-
-    @property
-    def constant(self) -> bool:
-        return self.amplitude == 0
+        return self.mean + self.amplitude * np.sin(2 * np.pi * np.asarray(t, float) / self.T + self.phase)
 
 
 @PROFILES.register("square")
 @dataclasses.dataclass(frozen=True)
-class Square:
-    """``x(t) = mean + amplitude · sign(sin(2π t / period + phase))`` (high first for phase 0).
+class Square(_Periodic):
+    """``x(t) = mean + amplitude · sign(sin(2π t / period + phase))`` (high first for phase 0); the
+    amplitude is half the step height.
 
     The value at a switching instant is the new level (the sign of 0 is taken as +1).
 
@@ -93,26 +105,12 @@ class Square:
     waves of period 10, 20 and 30 s).
     """
 
-    mean: float = param(doc="mean value")
-    amplitude: float = param(doc="half the step height")
-    frequency: float | None = param(None, unit="Hz", gt=0, doc="frequency of the variation")
-    period: float | None = param(None, unit="s", gt=0, doc="or its period")
-    phase: float = param(0.0, unit="rad", doc="phase at t = 0")
-
     shape: ClassVar[str] = "square"
 
-    def __post_init__(self):
-        _period(self.frequency, self.period, "square")
-
     def at(self, t: np.ndarray) -> np.ndarray:
-        T = _period(self.frequency, self.period, "square")
         # position within the cycle, robust at the switching instants (no sin() rounding)
-        c = np.mod(np.asarray(t, float) / T + self.phase / (2 * np.pi), 1.0)
+        c = np.mod(np.asarray(t, float) / self.T + self.phase / (2 * np.pi), 1.0)
         return self.mean + self.amplitude * np.where(c < 0.5, 1.0, -1.0)
-
-    @property
-    def constant(self) -> bool:
-        return self.amplitude == 0
 
 
 @PROFILES.register("piecewise")

@@ -13,6 +13,15 @@ def experiment():
     return Experiment.from_mapping(SPEC, "bench")
 
 
+@pytest.fixture(scope="module")
+def inputs(experiment):
+    """The drive and voluntary torque of seed 0 at the simulation rate."""
+    e = experiment
+    ss = np.random.SeedSequence(0).spawn(2)
+    return (e.perturbation.generate(e.n_sim, e.fs_sim, np.random.default_rng(ss[0])),
+            e.voluntary.generate(e.n_sim, e.fs_sim, np.random.default_rng(ss[1])))
+
+
 @pytest.mark.benchmark(group="simulate-trial")
 def test_bench_simulate_trial(benchmark, experiment):
     trial = benchmark(simulate, experiment, 0)
@@ -20,23 +29,19 @@ def test_bench_simulate_trial(benchmark, experiment):
 
 
 @pytest.mark.benchmark(group="simulate-trial")
-def test_bench_backend_alone_baseline(benchmark, experiment):
+def test_bench_backend_alone_baseline(benchmark, experiment, inputs):
     e = experiment
-    ss = np.random.SeedSequence(0).spawn(2)
-    drive = e.perturbation.generate(e.n_sim, e.fs_sim, np.random.default_rng(ss[0]))
-    tv = e.voluntary.generate(e.n_sim, e.fs_sim, np.random.default_rng(ss[1]))
+    drive, tv = inputs
     resp = benchmark(LTIBackend().run, e.joint, e.apparatus, drive, tv, e.fs_sim)
     assert resp.angle.shape == (150_000,)
 
 
 @pytest.mark.benchmark(group="simulate-trial")
-def test_bench_ltv_backend_same_input(benchmark, experiment):
+def test_bench_ltv_backend_same_input(benchmark, experiment, inputs):
     """The time-varying backend on the same constant joint and input (ratio to the LTI baseline)."""
     from sims.backend_ltv import LTVBackend
     e = experiment
-    ss = np.random.SeedSequence(0).spawn(2)
-    drive = e.perturbation.generate(e.n_sim, e.fs_sim, np.random.default_rng(ss[0]))
-    tv = e.voluntary.generate(e.n_sim, e.fs_sim, np.random.default_rng(ss[1]))
+    drive, tv = inputs
     resp = benchmark(LTVBackend().run, e.joint, e.apparatus, drive, tv, e.fs_sim)
     ref = LTIBackend().run(e.joint, e.apparatus, drive, tv, e.fs_sim)
     # the backends start differently (lti: inputs ramp up over the sample before t = 0; ltv: at rest at
