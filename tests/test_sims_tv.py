@@ -309,3 +309,35 @@ def test_time_varying_simulation_is_deterministic(base):
     a, b = simulate(e, 11), simulate(e, 11)
     assert np.array_equal(a.angle, b.angle) and np.array_equal(a.torque, b.torque)
     assert not np.array_equal(a.torque, simulate(e, 12).torque)
+
+
+# ------------------------------------------------------------------------ every registered simulator
+# One small experiment per registered joint model and per perturbation; a new one must be added here.
+JOINT_CASES = {
+    "second_order": {"joint": {"model": "second_order", "I": 0.171, "B": 1.22, "K": 53.5},
+                     "apparatus": {"kind": "position_servo"}},
+    "time_varying": {"joint": XU["joint"], "apparatus": {"kind": "torque_drive"}},
+    "wrist_contact": {"joint": WRIST["joint"], "apparatus": {"kind": "handle"}},
+}
+PERTURBATION_CASES = {
+    "filtered_noise": {"kind": "filtered_noise", "cutoff": "10 Hz", "rms": "0.02 rad"},
+    "prbs": {"kind": "prbs", "amplitude": 0.02, "clock": "10 ms"},
+    "multisine": {"kind": "multisine", "quiet": "0.5 s", "period": "2 s", "f_min": "0.5 Hz", "spacing": "1.5 Hz"},
+}
+
+
+def test_every_registered_simulator_has_a_case():
+    assert set(JOINT_CASES) == set(JOINTS.names()) and set(PERTURBATION_CASES) == set(PERTURBATIONS.names())
+
+
+@pytest.mark.parametrize("joint", sorted(JOINT_CASES))
+@pytest.mark.parametrize("perturbation", sorted(PERTURBATION_CASES))
+def test_every_registered_simulator_is_deterministic(joint, perturbation):
+    spec = {**JOINT_CASES[joint], "perturbation": PERTURBATION_CASES[perturbation],
+            "sensors": {"torque": {"noise_snr_db": 20}}, "fs_sim": "2 kHz", "duration": "4 s",
+            "acquisition": {"detrend": False, "fs": "500 Hz", "trim": "0.5 s"}}
+    e = Experiment.from_mapping(spec, "test")
+    a, b, c = simulate(e, 3), simulate(e, 3), simulate(e, 4)
+    assert np.array_equal(a.angle, b.angle) and np.array_equal(a.torque, b.torque)
+    assert np.all(np.isfinite(a.angle)) and np.all(np.isfinite(a.torque))
+    assert not np.array_equal(a.torque, c.torque)
