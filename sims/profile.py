@@ -41,6 +41,11 @@ class Constant:
         return np.full(np.shape(t), float(self.value))
 
     @property
+    def minimum(self) -> float:
+        """The smallest value the profile takes."""
+        return float(self.value)
+
+    @property
     def mean(self) -> float:
         return float(self.value)
 
@@ -72,6 +77,11 @@ class _Periodic:
     @property
     def constant(self) -> bool:
         return self.amplitude == 0
+
+    @property
+    def minimum(self) -> float:
+        """The smallest value the profile takes."""
+        return float(self.mean - abs(self.amplitude))
 
 
 @PROFILES.register("sine")
@@ -152,6 +162,11 @@ class Piecewise:
     @property
     def constant(self) -> bool:
         return bool(np.all(np.asarray(self.values) == self.values[0]))
+
+    @property
+    def minimum(self) -> float:
+        """The smallest value the profile takes (ramps stay between their end values)."""
+        return float(np.min(self.values))
 
 
 Profile = Constant | Sine | Square | Piecewise
