@@ -46,11 +46,15 @@ class Context:
     estimators: Mapping[str, Any]
     rows: list[dict] = dataclasses.field(default_factory=list)
     curves: list[dict] = dataclasses.field(default_factory=list)
+    _rng: np.random.Generator | None = dataclasses.field(default=None, init=False, repr=False)
 
     @property
     def rng(self) -> np.random.Generator:
-        """A generator for protocol-level draws (independent of the simulator's streams)."""
-        return np.random.default_rng(np.random.SeedSequence([self.seed, 0x5EED]))
+        """The case's generator for protocol-level draws (independent of the simulator's streams): one per
+        case, created on first use from the seed, so successive draws continue one stream."""
+        if self._rng is None:
+            self._rng = np.random.default_rng(np.random.SeedSequence([self.seed, 0x5EED]))
+        return self._rng
 
     def metric(self, metric: str, value: float, estimator: str = "", **labels: Any) -> None:
         """Record one tidy row (labels become columns, e.g. ``fs_hz=250``)."""
