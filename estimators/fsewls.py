@@ -183,6 +183,33 @@ def ewls(Phi: np.ndarray, y: np.ndarray, dt: float, lam: float, R0: np.ndarray,
     return np.linalg.solve(R * np.multiply.outer(scale, scale), (r * scale)[..., None])[..., 0] * scale
 
 
+def ewls_start(Phi: np.ndarray, y: np.ndarray, fs: float, init_window: float) -> tuple[np.ndarray, np.ndarray]:
+    """``R0 = P(0)^-1`` and ``r0 = R0 Theta(0)`` of eq. 6 by least squares over the first ``init_window``
+    seconds: ``R0 = sum of Phi Phi^T dt`` and ``r0 = sum of Phi y dt`` over that window (``dt = 1/fs``),
+    so that ``Theta(0) = R0^-1 r0`` is the ordinary least-squares fit there.
+
+    References
+    ----------
+    Xu & Hollerbach (1998), Sec. II-D ("initial values ... calculated using standard least squares").
+    """
+    m = max(int(round(init_window * fs)), 3)
+    return _unpack(_forcing(Phi[:, :m], y[:, :m]).sum(axis=0) / fs)
+
+
+def ewls_regression(Phi: np.ndarray, y: np.ndarray, fs: float, forgetting: float, init_window: float) -> np.ndarray:
+    """EWLS (eq. 6) on given regressors ``Phi`` (n_records, n, 3) and output ``y`` (n_records, n), started as
+    :class:`FSEWLS` starts it (:func:`ewls_start`): the estimator's last two steps without its filters. For
+    controls that feed exact signals (e.g. the true derivatives of a simulation). Returns ``[I, B, K]`` per
+    sample, shape (n, 3).
+
+    References
+    ----------
+    Xu & Hollerbach (1998), eqs. 5-6 and Sec. II-D.
+    """
+    R0, r0 = ewls_start(Phi, y, fs, init_window)
+    return ewls(Phi, y, 1.0 / fs, forgetting, R0, r0)
+
+
 def _ewls_riccati_rk4(Phi: np.ndarray, y: np.ndarray, dt: float, lam: float, P0: np.ndarray,
                       theta0: np.ndarray) -> np.ndarray:
     """Reference for the tests: plain classical RK4 on eq. 6 in ``(P, Theta)`` for one record (slow).
@@ -394,8 +421,7 @@ class FSEWLS(Estimator):
             x = highpass(x, fs, s.highpass_cutoff, s.highpass_order, s.highpass_ripple)
         theta, tau = x - x.mean(axis=-1, keepdims=True)
         Phi, y = svf(theta, tau, fs, self.pole(), s.svf_order, s.svf_causal, s.svf_form)
-        m = max(int(round(s.init_window * fs)), 3)
-        R0, r0 = _unpack(_forcing(Phi[:, :m], y[:, :m]).sum(axis=0) / fs)
+        R0, r0 = ewls_start(Phi, y, fs, s.init_window)
         scale = np.sqrt(np.diag(R0))
         if (np.any(np.std(theta, axis=-1) <= 1e-10 * size) or not np.all(scale > 0)
                 or np.linalg.cond(R0 / np.multiply.outer(scale, scale)) > 1e12):
