@@ -8,7 +8,7 @@ STAMP  := $(VENV)/.installed-stamp
 RUN    := $(BIN)/jointbench run
 SHARED ?= ../shared
 
-.PHONY: help venv test bench reproduce westwick2012 westwick2012-fig2 westwick2012-fig3 \
+.PHONY: help venv test test-slow bench reproduce westwick2012 westwick2012-fig2 westwick2012-fig3 \
         westwick2012-fig4 westwick2012-fig5 westwick2012-fig6 westwick2012-table1 westwick2012-fig7 \
         westwick2012-fig8 xu1998 xu1998-fig2 xu1998-fig3 xu1998-calibration vanderuit2018-table1 \
         example-ankle clean-results
@@ -16,6 +16,7 @@ SHARED ?= ../shared
 help:
 	@echo "make reproduce   run every implemented paper study (results/<study>/report.md)"
 	@echo "make test        run the tests (creates .venv when missing)"
+	@echo "make test-slow   exact-value tests of the full studies (slow marker)"
 	@echo "make bench       speed benchmarks (pytest-benchmark), JSON in results/benchmarks.json"
 	@echo "make westwick2012[-fig2|-fig3|-fig4|-fig5|-fig6|-table1|-fig7|-fig8]"
 	@echo "make xu1998[-fig2|-fig3|-calibration]"
@@ -33,12 +34,18 @@ venv: $(STAMP)
 test: $(STAMP)
 	$(BIN)/python -m pytest -q
 
+# Exact-value tests of the full studies (pytest marker `slow`; minutes, not part of `make test`).
+test-slow: $(STAMP)
+	$(BIN)/python -m pytest -q --slow -m slow
+
 bench: $(STAMP)
 	mkdir -p results
 	$(BIN)/python -m pytest -q tests/benchmarks --benchmark-enable --benchmark-sort=mean --benchmark-columns=median,iqr,min,mean,rounds \
 	    --benchmark-json=results/benchmarks.json
 
+# The studies, then the README's status tables from their comparison.csv files (never typed by hand).
 reproduce: westwick2012 xu1998 vanderuit2018-table1
+	$(BIN)/jointbench status --write-readme
 
 westwick2012: $(STAMP)
 	$(RUN) westwick2012

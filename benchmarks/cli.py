@@ -1,4 +1,4 @@
-"""Command line: ``jointbench run STUDY``, ``jointbench estimate ...``, ``jointbench list``.
+"""Command line: ``jointbench run STUDY``, ``jointbench status``, ``jointbench estimate ...``, ``jointbench list``.
 
 Errors caused by the user (config, data, options) print one line and exit with status 2.
 """
@@ -24,15 +24,32 @@ def _run(args) -> int:
     cmd = "jointbench " + " ".join(shlex.quote(a) for a in sys.argv[1:]) if sys.argv[1:] else ""
     run = run_study(args.study, parts=args.parts or None, serial=args.serial, workers=args.workers,
                     use_cache=not args.no_cache, progress=not args.quiet, command=cmd)
+    from benchmarks.tables import headline
+
     comp = run.comparison
     n_pass = int((comp["status"] == "pass").sum()) if len(comp) else 0
-    print(f"{run.study.id}: {len(run.results)} cases, {len(run.failed)} failed; "
-          f"{n_pass}/{len(comp)} checks pass")
+    print(f"{run.study.id}: {len(run.results)} cases, {len(run.failed)} failed; {headline(comp)}")
     for r in comp.itertuples():
-        print(f"  {r.status:4s}  {r.check:18s} reproduced {r.reproduced:.5g}  [{r.low:.5g}, {r.high:.5g}]")
+        print(f"  {r.status:4s}  {r.evidence:12s}  {r.check:18s} reproduced {r.reproduced:.5g}  "
+              f"[{r.low:.5g}, {r.high:.5g}]")
     print(f"wrote {run.folder}/report.md, comparison.csv, cases.csv")
     if args.strict and (len(run.failed) or n_pass < len(comp)):
         return 1
+    return 0
+
+
+def _status(args) -> int:
+    from pathlib import Path
+
+    from benchmarks import status
+
+    results = Path(args.results) if args.results else None
+    if args.write_readme:
+        readme = Path(args.readme) if args.readme else None
+        path, changed = status.write_readme(results, readme)
+        print(f"{path}: status block {'rewritten' if changed else 'already up to date'}")
+    else:
+        print(status.block(results))
     return 0
 
 
@@ -59,6 +76,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.add_argument("--strict", action="store_true", help="exit 1 if a case fails or a check misses")
     p.set_defaults(func=_run)
+    p = sub.add_parser("status", help="status of every study from results/*/comparison.csv (README tables)")
+    p.add_argument("--write-readme", action="store_true",
+                   help="rewrite the block between <!-- status:begin --> and <!-- status:end --> in README.md")
+    p.add_argument("--results", metavar="DIR", help="results folder (default: results/ of the checkout)")
+    p.add_argument("--readme", metavar="FILE", help="README to rewrite (default: README.md of the checkout)")
+    p.set_defaults(func=_status)
     p = sub.add_parser("list", help="list studies, estimators and protocols")
     p.set_defaults(func=_list)
     from benchmarks import cli_estimate

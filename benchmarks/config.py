@@ -12,6 +12,7 @@ from __future__ import annotations
 import dataclasses
 import itertools
 import math
+import re
 from pathlib import Path
 from typing import Any, Mapping
 
@@ -57,7 +58,15 @@ class Reading:
 
 @dataclasses.dataclass(frozen=True)
 class Check:
-    """One published value with its tolerance and how to compute it from the tidy rows."""
+    """One published value with its tolerance and how to compute it from the tidy rows.
+
+    ``evidence`` says what a pass means (:data:`EVIDENCE`): ``reproduction`` (an independent published
+    value or claim, judged), ``conditional`` (passes only under ``reading``, a reading chosen by its
+    outcome), ``calibrated`` (``free_parameter`` was chosen to match it: shown, never counted as a
+    pass) or ``sanity`` (arithmetic or self-consistency). ``tolerance_reason`` states why the band is
+    what it is. ``domain`` restricts the scored rows (e.g. ``{f_v: {lt: 1.0}}``, the paper's domain;
+    ``domain_reason`` says why); the rows outside it are shown, not scored.
+    """
 
     id: str
     part: str
@@ -75,6 +84,34 @@ class Check:
     slack: float = 0.0
     versus: Mapping[str, Any] | None = None
     by: str = ""
+    evidence: str = "reproduction"
+    reading: str = ""
+    free_parameter: str = ""
+    tolerance_reason: str = ""
+    domain: Mapping[str, Any] | None = None
+    domain_reason: str = ""
+
+    @property
+    def readings(self) -> tuple[str, ...]:
+        """The reading ids named by ``reading`` (``"R1, R2"`` -> ``("R1", "R2")``)."""
+        return tuple(r.strip() for r in self.reading.split(",") if r.strip())
+
+
+@dataclasses.dataclass(frozen=True)
+class NotReproduced:
+    """A published table, figure or value the study does not reproduce, and why."""
+
+    item: str
+    reason: str
+
+
+@dataclasses.dataclass(frozen=True)
+class MethodSwap:
+    """Swap test of a study comparing two methods: with their reproduced values exchanged, how many
+    method-specific checks still pass (a check that survives the swap does not tell the methods apart)."""
+
+    part: str
+    estimators: tuple[str, str]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -107,17 +144,25 @@ class Study:
     parts: Mapping[str, Part]
     readings: tuple[Reading, ...]
     checks: tuple[Check, ...]
+    not_reproduced: tuple[NotReproduced, ...] = ()
+    method_swap: MethodSwap | None = None
 
 
 _PART_KEYS = {"protocol": True, "description": True, "params": False, "experiment": False,
               "estimators": False, "seeds": False, "sweep": False, "report_section": False}
 REPORT_SECTIONS = ("results", "interpretation")
 _STUDY_KEYS = {"study": True, "title": True, "paper": True, "published": True, "readings": False,
-               "parts": True}
+               "not_reproduced": True, "method_swap": False, "parts": True}
 _CHECK_KEYS = {"id": True, "part": True, "description": True, "source": True, "published": True,
                "low": False, "high": False, "select": True, "aggregate": False, "if_missed": False,
-               "kind": False, "over": False, "direction": False, "slack": False, "versus": False, "by": False}
-AGGREGATES = ("median", "mean", "min", "max")
+               "kind": False, "over": False, "direction": False, "slack": False, "versus": False, "by": False,
+               "evidence": True, "reading": False, "free_parameter": False, "tolerance_reason": True,
+               "domain": False, "domain_reason": False}
+AGGREGATES = ("median", "mean", "min", "max", "std")
+#: kinds of evidence, in the order the report shows them; the headline counts ``reproduction`` only
+EVIDENCE = ("reproduction", "conditional", "calibrated", "sanity")
+#: range conditions allowed in ``select``, ``versus`` and ``domain`` (``{f_v: {lt: 1.0}}``)
+RANGE_OPS = ("lt", "le", "gt", "ge")
 #: check kind -> keys it needs (besides the common ones) and keys it allows
 CHECK_KINDS = {
     "value": ({"low", "high"}, {"low", "high", "aggregate"}),
@@ -185,12 +230,51 @@ def load_part(name: str, data: Mapping, where: str, models_dir: Path) -> Part:
                 sweep={k: tuple(v) for k, v in sweep.items()}, where=where)
 
 
+def _conditions(value: Any, key: str, where: str, need_metric: bool) -> dict:
+    """A ``select``/``versus``/``domain`` mapping: column -> value, or column -> {lt|le|gt|ge: number}."""
+    if not isinstance(value, Mapping) or (need_metric and "metric" not in value):
+        raise ConfigError(f"{where}: key {key!r}: a mapping column -> value"
+                          + (" with at least 'metric'" if need_metric else ""))
+    for col, v in value.items():
+        if isinstance(v, Mapping):
+            bad = sorted(set(v) - set(RANGE_OPS))
+            if bad or not v:
+                raise ConfigError(f"{where}: key {key}.{col}: a range takes {', '.join(RANGE_OPS)}, got "
+                                  f"{bad[0] if bad else 'nothing'!r}")
+            for op, bound in v.items():
+                if isinstance(bound, bool) or not isinstance(bound, (int, float)):
+                    raise ConfigError(f"{where}: key {key}.{col}.{op}: expected a number, got {bound!r}")
+    return dict(value)
+
+
+def _evidence(c: Mapping, where: str) -> tuple[str, str, str]:
+    """``evidence`` with what it requires: ``reading`` for conditional, ``free_parameter`` for calibrated."""
+    ev = c["evidence"]
+    if ev not in EVIDENCE:
+        raise ConfigError(f"{where}: key 'evidence': {ev!r} not allowed; allowed: {', '.join(EVIDENCE)}")
+    reading, free = str(c.get("reading", "")).strip(), str(c.get("free_parameter", "")).strip()
+    if ev == "conditional":
+        ids = [r.strip() for r in reading.split(",") if r.strip()]
+        if not ids or not all(re.fullmatch(r"R\d+", r) for r in ids):
+            raise ConfigError(f"{where}: evidence 'conditional' needs key 'reading': the reading(s) chosen by "
+                              f"outcome that the check passes under, e.g. 'R1' or 'R1, R2'; got {reading!r}")
+    elif "reading" in c:
+        raise ConfigError(f"{where}: key 'reading' applies to evidence 'conditional' only")
+    if ev == "calibrated":
+        if not free:
+            raise ConfigError(f"{where}: evidence 'calibrated' needs key 'free_parameter': the parameter chosen "
+                              f"to match the published value (and its value)")
+    elif "free_parameter" in c:
+        raise ConfigError(f"{where}: key 'free_parameter' applies to evidence 'calibrated' only")
+    return ev, reading, free
+
+
 def load_checks(path: Path, parts: Mapping[str, Part]) -> tuple[Check, ...]:
     data = _load_yaml(path)
     _check_keys(data, {"study": True, "source": True, "checks": True}, str(path))
     out, seen = [], set()
     for i, c in enumerate(data["checks"] or []):
-        where = f"{path}: checks[{i}]"
+        where = f"{path}: check {c['id']}" if isinstance(c, Mapping) and "id" in c else f"{path}: checks[{i}]"
         _check_keys(c, _CHECK_KEYS, where)
         if c["id"] in seen:
             raise ConfigError(f"{where}: key 'id': duplicate check id {c['id']!r}")
@@ -222,15 +306,52 @@ def load_checks(path: Path, parts: Mapping[str, Part]) -> tuple[Check, ...]:
         direction = c.get("direction", "decreasing")
         if direction not in ("decreasing", "increasing"):
             raise ConfigError(f"{where}: key 'direction': {direction!r}; allowed: decreasing, increasing")
-        for key in ("select", "versus"):
-            if key in c and (not isinstance(c[key], Mapping) or "metric" not in c[key]):
-                raise ConfigError(f"{where}: key {key!r}: a mapping with at least 'metric'")
+        select = _conditions(c["select"], "select", where, True)
+        versus = _conditions(c["versus"], "versus", where, True) if "versus" in c else None
+        domain = _conditions(c["domain"], "domain", where, False) if "domain" in c else None
+        if (domain is None) != ("domain_reason" not in c):
+            raise ConfigError(f"{where}: keys 'domain' and 'domain_reason' go together (a domain needs its reason)")
+        if domain is not None:
+            clash = sorted(set(domain) & (set(select) | set(versus or {})))
+            if clash:
+                raise ConfigError(f"{where}: key 'domain': column {clash[0]!r} is also in 'select'/'versus'")
+        evidence, reading, free = _evidence(c, where)
+        reason = str(c["tolerance_reason"]).strip()
+        if not reason:
+            raise ConfigError(f"{where}: key 'tolerance_reason': state why the band is what it is")
         out.append(Check(id=str(c["id"]), part=c["part"], description=str(c["description"]),
                          source=str(c["source"]), published=c["published"], low=low, high=high,
-                         select=dict(c["select"]), aggregate=agg, if_missed=str(c.get("if_missed", "")),
+                         select=select, aggregate=agg, if_missed=str(c.get("if_missed", "")),
                          kind=kind, over=str(c.get("over", "")), direction=direction, slack=slack,
-                         versus=dict(c["versus"]) if "versus" in c else None, by=str(c.get("by", ""))))
+                         versus=versus, by=str(c.get("by", "")), evidence=evidence, reading=reading,
+                         free_parameter=free, tolerance_reason=reason, domain=domain,
+                         domain_reason=str(c.get("domain_reason", ""))))
     return tuple(out)
+
+
+def _not_reproduced(value: Any, where: str) -> tuple[NotReproduced, ...]:
+    if not isinstance(value, list) or not value:
+        raise ConfigError(f"{where}: key 'not_reproduced': a list of {{item, reason}} naming every published "
+                          f"table, figure and value left out (write the list even when it is short)")
+    out = []
+    for i, v in enumerate(value):
+        _check_keys(v, {"item": True, "reason": True}, f"{where}: not_reproduced[{i}]")
+        if not str(v["item"]).strip() or not str(v["reason"]).strip():
+            raise ConfigError(f"{where}: not_reproduced[{i}]: 'item' and 'reason' must not be empty")
+        out.append(NotReproduced(str(v["item"]).strip(), str(v["reason"]).strip()))
+    return tuple(out)
+
+
+def _method_swap(value: Any, where: str, parts: Mapping[str, Part]) -> MethodSwap | None:
+    if value is None:
+        return None
+    _check_keys(value, {"part": True, "estimators": True}, f"{where}: method_swap")
+    if value["part"] not in parts:
+        raise ConfigError(f"{where}: method_swap.part: unknown part {value['part']!r}")
+    est = value["estimators"]
+    if not (isinstance(est, list) and len(est) == 2 and all(isinstance(e, str) for e in est) and est[0] != est[1]):
+        raise ConfigError(f"{where}: method_swap.estimators: two different estimator names, got {est!r}")
+    return MethodSwap(str(value["part"]), (est[0], est[1]))
 
 
 def load_study(path: str | Path, configs_dir: Path = CONFIGS) -> Study:
@@ -253,5 +374,13 @@ def load_study(path: str | Path, configs_dir: Path = CONFIGS) -> Study:
     pub = Path(data["published"])
     pub = pub if pub.is_absolute() else configs_dir.parent / pub
     checks = load_checks(pub, parts)
+    known = {r.id for r in readings}
+    for c in checks:
+        missing = [r for r in c.readings if r not in known]
+        if missing:
+            raise ConfigError(f"{pub}: check {c.id}: key 'reading': {missing[0]} is not a reading of {path.name} "
+                              f"({', '.join(sorted(known)) or 'none'})")
     return Study(id=str(data["study"]), title=str(data["title"]), paper=str(data["paper"]), path=path,
-                 parts=parts, readings=tuple(readings), checks=checks)
+                 parts=parts, readings=tuple(readings), checks=checks,
+                 not_reproduced=_not_reproduced(data["not_reproduced"], str(path)),
+                 method_swap=_method_swap(data.get("method_swap"), str(path), parts))

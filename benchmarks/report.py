@@ -1,25 +1,158 @@
-"""The study report: ``results/<study>/report.md`` with checks, tables, figures and interpretation."""
+"""The study report: ``results/<study>/report.md`` with checks, tables, figures and interpretation.
+
+:func:`model` turns a run into plain data (headline, check groups by kind of evidence, tolerance reasons,
+swap test, parts, not reproduced, readings); :func:`render` writes that model as markdown. A renderer of
+another format can take the same model.
+"""
 from __future__ import annotations
 
+import dataclasses
 import datetime as _dt
 
 import pandas as pd
 
-from benchmarks.config import Study
-from benchmarks.tables import markdown
+from benchmarks.config import EVIDENCE, Study
+from benchmarks.tables import DIRTY_BANNER, evidence_counts, headline, markdown
+
+#: what each kind of evidence means, as the report says it
+EVIDENCE_TEXT = {
+    "reproduction": "an independent published value or claim, judged by the harness: the headline count",
+    "conditional": "passes only under a reading of an ambiguous passage that was chosen by its outcome "
+                   "(the reading is named): shown beside the headline, not in it",
+    "calibrated": "a free parameter was chosen to match the published value (the parameter is named): "
+                  "shown, never counted as a pass",
+    "sanity": "arithmetic on the paper's own numbers, or a self-consistency of the harness (e.g. a fit "
+              "recovering the simulation's own truth): shown separately",
+    "unrecorded": "generated before the kind of evidence was recorded",
+}
+
+
+@dataclasses.dataclass
+class CheckGroup:
+    """The checks of one kind of evidence, with the footnoted reasons of their bands."""
+
+    evidence: str
+    passed: int
+    total: int
+    table: pd.DataFrame
+    reasons: list[tuple[str, str]]          # (label, reason)
+    misses: list[dict]
 
 
 def _status(s: str) -> str:
     return "pass" if s == "pass" else "**MISS**"
 
 
+def _footnotes(comparison: pd.DataFrame) -> tuple[list[str], list[tuple[str, str]]]:
+    """A label per row for its tolerance reason (and domain reason), shared reasons sharing a label."""
+    labels, reasons, seen = [], [], {}
+    for r in comparison.itertuples():
+        row = []
+        for prefix, text in (("", getattr(r, "tolerance_reason", "")), ("domain: ", getattr(r, "domain_reason", ""))):
+            text = "" if pd.isna(text) else str(text)
+            if not text:
+                continue
+            key = prefix + text
+            if key not in seen:
+                seen[key] = f"[{len(seen) + 1}]"
+                reasons.append((seen[key], key))
+            row.append(seen[key])
+        labels.append(" ".join(row))
+    return labels, reasons
+
+
+def _group(comp: pd.DataFrame, evidence: str) -> CheckGroup:
+    cols = ["check", "description", "published", "reproduced", "low", "high", "status", "aggregate", "spread"]
+    if evidence == "conditional":
+        cols.insert(7, "reading")
+    if evidence == "calibrated":
+        cols.insert(7, "free_parameter")
+    if "out_of_domain" in comp and comp["out_of_domain"].fillna("").astype(str).str.len().gt(0).any():
+        cols.append("out_of_domain")
+    t = comp[[c for c in cols if c in comp.columns]].rename(
+        columns={"aggregate": "over", "free_parameter": "free parameter",
+                 "out_of_domain": "outside the domain (shown, not scored)"})
+    t["status"] = t["status"].map(_status)
+    labels, reasons = _footnotes(comp)
+    t["band: why"] = labels
+    misses = [{"check": r.check, "description": r.description, "reproduced": r.reproduced, "low": r.low,
+               "high": r.high, "note": r.note} for r in comp[comp["status"] != "pass"].itertuples()]
+    return CheckGroup(evidence, int((comp["status"] == "pass").sum()), len(comp), t, reasons, misses)
+
+
+def _swap_text(swap: dict | None) -> str:
+    if not swap or not swap.get("n"):
+        return ""
+    a, b = swap["estimators"]
+    text = (f"**Swap test** (part `{swap['part']}`): with the reproduced values of `{a}` and `{b}` exchanged, "
+            f"{swap['pass_swapped']} of the {swap['n']} checks that name one of them still pass ({swap['pass']} pass "
+            f"as reproduced); {len(swap['survivors'])} pass both ways and so do not tell the methods apart. ")
+    if swap.get("differences"):
+        n_surv = len(swap["difference_survivors"])
+        text += (f"Of the {swap['differences']} checks of a difference between the two, "
+                 + ("none passes both ways." if not n_surv else
+                    f"{n_surv} pass both ways: {', '.join(swap['difference_survivors'])}."))
+    return text
+
+
+def model(study: Study, comparison: pd.DataFrame, part_reports: dict, failed: list, meta: dict) -> dict:
+    """Everything the report says, as data."""
+    groups = []
+    if not comparison.empty:
+        ev = comparison["evidence"].fillna("unrecorded") if "evidence" in comparison else None
+        for kind in (*EVIDENCE, "unrecorded"):
+            sel = comparison[ev == kind] if ev is not None else (comparison if kind == "unrecorded" else comparison.iloc[0:0])
+            if len(sel):
+                groups.append(_group(sel, kind))
+    sections = {"results": [], "interpretation": []}
+    for name, rep in part_reports.items():
+        sections[study.parts[name].report_section].append((name, rep))
+    commit = meta["commit"]
+    return {
+        "title": f"{study.title}: reproduction report",
+        "dirty": commit.endswith("-dirty"),
+        "commit": commit,
+        "generated": f"{_dt.datetime.now(_dt.timezone.utc):%Y-%m-%d %H:%M} UTC",
+        "meta": meta,
+        "counts": evidence_counts(comparison),
+        "headline": headline(comparison),
+        "groups": groups,
+        "swap": _swap_text(meta.get("method_swap")),
+        "results": sections["results"],
+        "interpretation": sections["interpretation"],
+        "failed": failed,
+        "not_reproduced": list(study.not_reproduced),
+        "readings": list(study.readings),
+    }
+
+
+def _headline_sentence(counts: dict) -> str:
+    rep = counts.get("reproduction", (0, 0))
+    out = f"**Reproduction: {rep[0]} of {rep[1]} checks pass.**"
+    beside = []
+    for kind, what in (("conditional", "each under a reading chosen by its outcome"),
+                       ("calibrated", "a free parameter was chosen to match them: not evidence, not counted"),
+                       ("sanity", "arithmetic or self-consistency"),
+                       ("unrecorded", "kind of evidence not recorded")):
+        if kind in counts:
+            p, n = counts[kind]
+            beside.append(f"{kind} {p} of {n} pass ({what})")
+    if beside:
+        out += " Beside them, not in that count: " + "; ".join(beside) + "."
+    return out
+
+
 def render(study: Study, comparison: pd.DataFrame, part_reports: dict, failed: list, meta: dict) -> str:
     """Markdown text of the report."""
-    lines = [f"# {study.title}: reproduction report", ""]
+    m = model(study, comparison, part_reports, failed, meta)
+    lines = [f"# {m['title']}", ""]
+    if m["dirty"]:
+        lines += [f"> **WARNING: {DIRTY_BANNER}.** Commit `{m['commit']}` has uncommitted changes, so these "
+                  "numbers cannot be traced to any commit. Commit the code, then regenerate.", ""]
     lines.append(f"Study `{study.id}` (paper `{study.paper}`), config `{study.path.name}`. Generated "
-                 f"{_dt.datetime.now(_dt.timezone.utc):%Y-%m-%d %H:%M} UTC at commit `{meta['commit']}` by "
-                 f"`{meta['command']}`: {meta['n_cases']} cases ({meta['n_cached']} from cache, "
-                 f"{len(failed)} failed), {meta['wall_s']:.1f} s wall time on {meta['workers']} worker(s).")
+                 f"{m['generated']} at commit `{m['commit']}` by `{meta['command']}`: {meta['n_cases']} cases "
+                 f"({meta['n_cached']} from cache, {len(failed)} failed), {meta['wall_s']:.1f} s wall time on "
+                 f"{meta['workers']} worker(s).")
     lines.append("")
     if meta["parts"] != list(study.parts):
         lines.append(f"This run computed the parts {', '.join(meta['parts'])}"
@@ -31,41 +164,44 @@ def render(study: Study, comparison: pd.DataFrame, part_reports: dict, failed: l
         lines.append("")
     lines += ["## Checks against the published values", ""]
     if comparison.empty:
-        lines.append("_(no check belongs to the parts run)_")
+        lines += ["_(no check belongs to the parts run)_", ""]
     else:
-        n_pass = int((comparison["status"] == "pass").sum())
-        lines.append(f"{n_pass} of {len(comparison)} checks pass. `reproduced` combines the seeds as `over` "
-                     "says; `spread` is min to max over seeds; a pass needs low <= reproduced <= high.")
-        lines.append("")
-        t = comparison[["check", "description", "published", "reproduced", "low", "high", "status",
-                        "aggregate", "spread"]].rename(columns={"aggregate": "over"})
-        t["status"] = t["status"].map(_status)
-        lines.append(markdown(t))
-        misses = comparison[comparison["status"] != "pass"]
-        if len(misses):
+        lines += [_headline_sentence(m["counts"]), ""]
+        lines += ["`reproduced` combines the seeds as `over` says; `spread` is min to max over seeds; a pass needs "
+                  "low <= reproduced <= high. The reason for each band is under its table (column `band: why`).", ""]
+        if m["swap"]:
+            lines += [m["swap"], ""]
+        for g in m["groups"]:
+            lines += [f"### {g.evidence.capitalize()} checks ({g.passed} of {g.total} pass)", "",
+                      f"_{EVIDENCE_TEXT[g.evidence].capitalize()}._", "", markdown(g.table)]
+            lines += ["Why the bands are what they are:", ""]
+            lines += [f"- {label} {text}" for label, text in g.reasons] + [""]
+        if any(g.misses for g in m["groups"]):
             lines += ["### Misses and their likely reasons", ""]
-            for r in misses.itertuples():
-                lines.append(f"- **{r.check}** ({r.description}): reproduced {r.reproduced:.4g}, expected "
-                             f"[{r.low:.4g}, {r.high:.4g}]. {r.note or 'No explanation recorded yet.'}")
+            for g in m["groups"]:
+                for r in g.misses:
+                    lines.append(f"- **{r['check']}** ({g.evidence}; {r['description']}): reproduced "
+                                 f"{r['reproduced']:.4g}, expected [{r['low']:.4g}, {r['high']:.4g}]. "
+                                 f"{r['note'] or 'No explanation recorded yet.'}")
             lines.append("")
-    sections = {"results": [], "interpretation": []}
-    for name, rep in part_reports.items():
-        sections[study.parts[name].report_section].append((name, rep))
-    for name, rep in sections["results"]:
+    for name, rep in m["results"]:
         lines += _part(study, name, rep, "##")
     if failed:
         lines += ["## Failed cases", ""]
         for r in failed:
             lines.append(f"- `{r.case.case_id}`: {r.error}")
         lines += ["", "Tracebacks are in `failures.log`.", ""]
+    lines += ["## Not reproduced", "",
+              "Published tables, figures and values this study leaves out, and why (from the study config):", ""]
+    lines += [f"- **{n.item}**: {n.reason}" for n in m["not_reproduced"]] + [""]
     lines += ["## Interpretation", "",
               "Every reading chosen for an ambiguous or underspecified passage (also a comment in the config):", ""]
-    for r in study.readings:
+    for r in m["readings"]:
         lines.append(f"- **{r.id}. {r.topic}.** Paper: {r.passage} Reading: {r.reading}"
                      + (f" Alternatives: {r.alternatives}" if r.alternatives else ""))
-    if sections["interpretation"]:
+    if m["interpretation"]:
         lines += ["", "What the candidate readings give (parts run for the interpretation, not checked):", ""]
-        for name, rep in sections["interpretation"]:
+        for name, rep in m["interpretation"]:
             lines += _part(study, name, rep, "###")
     lines += ["", "## Reproduce", "", "```", meta["command"], "```", ""]
     return "\n".join(lines)

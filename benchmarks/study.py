@@ -17,7 +17,7 @@ import pandas as pd
 from benchmarks import figures, report
 from benchmarks.config import REPO, Study, load_study
 from benchmarks.runner import Cache, CaseResult, code_fingerprint, expand, git_commit, run_cases
-from benchmarks.tables import cases_frame, compare, curves_frame
+from benchmarks.tables import cases_frame, compare, curves_frame, swap_survival
 
 
 @dataclasses.dataclass
@@ -72,7 +72,7 @@ def run_study(ref: str | Path, parts: list[str] | None = None, out_root: Path | 
     rows = cases_frame(results, commit)
     curves = curves_frame(results)
     shown = [p for p in study.parts if p in run_parts or p in from_cache]
-    comparison = compare(study.checks, rows, set(shown))
+    comparison = compare(study.checks, rows, set(shown), commit)
     _write(folder / "cases.csv", lambda p: rows.to_csv(p, index=False))
     _write(folder / "curves.csv.gz", lambda p: curves.to_csv(p, index=False, compression="gzip"))
     _write(folder / "comparison.csv", lambda p: comparison.to_csv(p, index=False))
@@ -102,6 +102,10 @@ def run_study(ref: str | Path, parts: list[str] | None = None, out_root: Path | 
     meta = {"commit": commit, "command": command or f"jointbench run {study.id}", "n_cases": len(cases),
             "n_cached": n_cached, "wall_s": wall, "workers": 1 if serial else (workers or os.cpu_count()),
             "parts": run_parts, "from_cache": from_cache}
+    swap = study.method_swap
+    if swap is not None and swap.part in shown:
+        meta["method_swap"] = {**swap_survival(study.checks, rows, swap.part, swap.estimators),
+                               "part": swap.part, "estimators": swap.estimators}
     text = report.render(study, comparison, part_reports, failed, meta)
     _write(folder / "report.md", lambda p: p.write_text(text))
     return StudyRun(study, folder, results, rows, comparison)

@@ -1,6 +1,8 @@
 """Tidy tables from case results, and the comparison with published values."""
 from __future__ import annotations
 
+from typing import Mapping
+
 import numpy as np
 import pandas as pd
 
@@ -43,14 +45,20 @@ def curves_frame(results) -> pd.DataFrame:
 
 
 def _match(col: pd.Series, value) -> pd.Series:
+    if isinstance(value, Mapping):       # a range: {lt|le|gt|ge: bound}
+        num = pd.to_numeric(col, errors="coerce").astype(float)
+        ok = num.notna()
+        for op, bound in value.items():
+            ok &= {"lt": num < bound, "le": num <= bound, "gt": num > bound, "ge": num >= bound}[op]
+        return ok
     if isinstance(value, (int, float)) and not isinstance(value, bool):
         num = pd.to_numeric(col, errors="coerce")
         return pd.Series(np.isclose(num.astype(float), float(value), rtol=1e-9, atol=0), index=col.index)
     return col.astype(str) == str(value)
 
 
-def select(rows: pd.DataFrame, part: str, where: dict) -> pd.DataFrame:
-    """Rows of ``part`` (successful cases) whose columns equal ``where``."""
+def select(rows: pd.DataFrame, part: str, where: Mapping) -> pd.DataFrame:
+    """Rows of ``part`` (successful cases) whose columns equal ``where`` (or lie in its ranges)."""
     sel = rows[(rows["part"] == part) & (rows["status"] == "ok")]
     for k, v in where.items():
         if k not in sel.columns:
@@ -59,14 +67,30 @@ def select(rows: pd.DataFrame, part: str, where: dict) -> pd.DataFrame:
     return sel
 
 
-def _grouped(sel: pd.DataFrame, column: str, aggregate: str) -> pd.Series:
+def _out_of_domain(rows: pd.DataFrame, part: str, where: Mapping, domain: Mapping) -> pd.DataFrame:
+    """Rows matching ``where`` but not ``domain``."""
+    every = select(rows, part, where)
+    inside = select(every, part, domain)
+    return every.drop(index=inside.index)
+
+
+def aggregate(values, how: str) -> float:
+    """One of :data:`benchmarks.config.AGGREGATES` over finite values (``std``: sample SD, ddof 1)."""
+    v = np.asarray(values, float)
+    v = v[np.isfinite(v)]
+    if how == "std":
+        return float(np.std(v, ddof=1)) if len(v) > 1 else np.nan
+    return float(getattr(np, how)(v)) if len(v) else np.nan
+
+
+def _grouped(sel: pd.DataFrame, column: str, how: str) -> pd.Series:
     """Aggregate of the finite values per value of ``column`` (numeric order when numeric)."""
     sel = sel[np.isfinite(sel["value"].to_numpy(float))]
     if not column:
-        return pd.Series({"": getattr(np, aggregate)(sel["value"].to_numpy(float))}) if len(sel) else pd.Series()
+        return pd.Series({"": aggregate(sel["value"], how)}) if len(sel) else pd.Series(dtype=float)
     if column not in sel.columns:
         return pd.Series(dtype=float)
-    g = sel.groupby(sel[column].astype(str), sort=False)["value"].agg(lambda v: getattr(np, aggregate)(v.to_numpy(float)))
+    g = sel.groupby(sel[column].astype(str), sort=False)["value"].agg(lambda v: aggregate(v, how))
     num = pd.to_numeric(pd.Series(g.index, index=g.index), errors="coerce")
     order = num.sort_values().index if num.notna().all() else sorted(g.index)
     return g.loc[list(order)]
@@ -74,7 +98,7 @@ def _grouped(sel: pd.DataFrame, column: str, aggregate: str) -> pd.Series:
 
 def _trend(c: Check, rows: pd.DataFrame) -> tuple[float, str, int]:
     """Largest move against ``c.direction`` between consecutive aggregates over ``c.over``."""
-    sel = select(rows, c.part, c.select)
+    sel = select(rows, c.part, {**c.select, **(c.domain or {})})
     m = _grouped(sel, c.over, c.aggregate)
     if len(m) < 2:
         return np.nan, "", len(sel)
@@ -84,39 +108,67 @@ def _trend(c: Check, rows: pd.DataFrame) -> tuple[float, str, int]:
     return float(np.max(against)), f"{c.over} -> {spread}", len(sel)
 
 
+def _differences(c: Check, a: pd.DataFrame, b: pd.DataFrame) -> pd.Series:
+    ma, mb = _grouped(a, c.by, c.aggregate), _grouped(b, c.by, c.aggregate)
+    keys = [k for k in ma.index if k in mb.index]
+    return pd.Series({k: float(ma[k] - mb[k]) for k in keys}, dtype=float)
+
+
 def _difference(c: Check, rows: pd.DataFrame) -> tuple[float, str, int]:
     """aggregate(select) - aggregate(versus) per value of ``c.by``; the group closest to (or furthest
     beyond) a bound is the reproduced value."""
-    a, b = select(rows, c.part, c.select), select(rows, c.part, c.versus or {})
-    ma, mb = _grouped(a, c.by, c.aggregate), _grouped(b, c.by, c.aggregate)
-    keys = [k for k in ma.index if k in mb.index]
-    if not keys:
+    dom = c.domain or {}
+    a, b = select(rows, c.part, {**c.select, **dom}), select(rows, c.part, {**(c.versus or {}), **dom})
+    d = _differences(c, a, b)
+    if d.empty:
         return np.nan, "", len(a) + len(b)
-    d = pd.Series({k: float(ma[k] - mb[k]) for k in keys})
     margin = np.minimum(d - c.low, c.high - d)
     worst = margin.idxmin()
     spread = ", ".join(f"{k}: {v:+.4g}" for k, v in d.items()) if c.by else ""
     return float(d[worst]), (f"{c.by} -> {spread}" if c.by else spread), len(a) + len(b)
 
 
-def compare(checks: tuple[Check, ...], rows: pd.DataFrame, parts_run: set[str]) -> pd.DataFrame:
-    """One row per check: published, reproduced, tolerance, pass/miss.
+def _outside(c: Check, rows: pd.DataFrame) -> str:
+    """What the rows outside the check's domain give (shown, not scored)."""
+    if not c.domain:
+        return ""
+    if c.kind == "difference":
+        a = _out_of_domain(rows, c.part, c.select, c.domain)
+        b = _out_of_domain(rows, c.part, c.versus or {}, c.domain)
+        d = _differences(c, a, b)
+        body = ", ".join(f"{k}: {v:+.4g}" for k, v in d.items())
+        return f"{c.by} -> {body}" if body else ""
+    out = _out_of_domain(rows, c.part, c.select, c.domain)
+    col = next(iter(c.domain))
+    g = _grouped(out, col if col in out.columns else "", c.aggregate)
+    return f"{col} -> " + ", ".join(f"{k}: {v:.4g}" for k, v in g.items()) if len(g) else ""
+
+
+COMPARISON_COLUMNS = ["check", "description", "published", "reproduced", "low", "high", "status", "evidence",
+                      "reading", "free_parameter", "aggregate", "n", "spread", "out_of_domain", "part",
+                      "source", "tolerance_reason", "domain_reason", "note", "commit"]
+
+
+def compare(checks: tuple[Check, ...], rows: pd.DataFrame, parts_run: set[str], commit: str = "") -> pd.DataFrame:
+    """One row per check: published, reproduced, tolerance, pass/miss, and the kind of evidence.
 
     Check kinds: ``value`` (aggregate over seeds of the selected rows within [low, high]); ``trend``
     (aggregates per value of ``over`` must move in ``direction``; reproduced = the largest move against
     it, which must not exceed ``slack``); ``difference`` (aggregate of ``select`` minus that of ``versus``
     per value of ``by``, every one within [low, high]; reproduced = the one closest to or beyond a bound).
+    A check's ``domain`` restricts the scored rows; what the rest gives is in ``out_of_domain``.
+    ``commit`` is stamped on every row (``...-dirty`` rows say loudly that they must not be committed).
     """
     out = []
     for c in checks:
         if c.part not in parts_run:
             continue
         if c.kind == "value":
-            sel = select(rows, c.part, c.select)
+            sel = select(rows, c.part, {**c.select, **(c.domain or {})})
             v = sel["value"].to_numpy(float)
             v = v[np.isfinite(v)]
             n = len(v)
-            rep = float(getattr(np, c.aggregate)(v)) if n else np.nan
+            rep = aggregate(v, c.aggregate)
             spread = f"{v.min():.4g} to {v.max():.4g}" if n > 1 else ""
             low, high = c.low, c.high
         else:
@@ -130,11 +182,90 @@ def compare(checks: tuple[Check, ...], rows: pd.DataFrame, parts_run: set[str]) 
             note = "" if status == "pass" else c.if_missed
         out.append({"check": c.id, "description": c.description, "published": c.published,
                     "reproduced": rep, "low": low, "high": high, "status": status,
+                    "evidence": c.evidence, "reading": c.reading, "free_parameter": c.free_parameter,
                     "aggregate": c.aggregate if c.kind == "value" else f"{c.kind} of {c.aggregate}s",
-                    "n": n, "spread": spread, "part": c.part,
-                    "source": c.source, "note": note})
-    return pd.DataFrame(out, columns=["check", "description", "published", "reproduced", "low", "high",
-                                      "status", "aggregate", "n", "spread", "part", "source", "note"])
+                    "n": n, "spread": spread, "out_of_domain": _outside(c, rows), "part": c.part,
+                    "source": c.source, "tolerance_reason": c.tolerance_reason,
+                    "domain_reason": c.domain_reason, "note": note, "commit": stamp(commit)})
+    return pd.DataFrame(out, columns=COMPARISON_COLUMNS)
+
+
+DIRTY_BANNER = "generated from an uncommitted tree - do not commit"
+
+
+def stamp(commit: str) -> str:
+    """The commit as recorded in the outputs: a dirty tree's stamp carries :data:`DIRTY_BANNER`."""
+    return f"{commit} ({DIRTY_BANNER})" if commit.endswith("-dirty") else commit
+
+
+def evidence_counts(comparison: pd.DataFrame) -> dict[str, tuple[int, int]]:
+    """Evidence kind -> (passes, checks), in :data:`benchmarks.config.EVIDENCE` order (kinds present).
+
+    The headline of a report or of the README is ``reproduction`` alone; the others go beside it.
+    A comparison written before the evidence column existed counts under ``unrecorded``.
+    """
+    from benchmarks.config import EVIDENCE
+
+    if comparison.empty:
+        return {}
+    ev = comparison["evidence"].fillna("unrecorded") if "evidence" in comparison else \
+        pd.Series("unrecorded", index=comparison.index)
+    out = {}
+    for kind in (*EVIDENCE, "unrecorded"):
+        sel = comparison[ev == kind]
+        if len(sel):
+            out[kind] = (int((sel["status"] == "pass").sum()), len(sel))
+    return out
+
+
+def headline(comparison: pd.DataFrame) -> str:
+    """``reproduction 9 of 14 pass; beside them: conditional 3 of 3, calibrated 2 of 4 (not counted), ...``"""
+    counts = evidence_counts(comparison)
+    if not counts:
+        return "no checks"
+    rep = counts.get("reproduction")
+    head = f"reproduction {rep[0]} of {rep[1]} pass" if rep else "no reproduction check"
+    notes = {"calibrated": " (not counted)"}
+    others = [f"{k} {p} of {n}{notes.get(k, '')}" for k, (p, n) in counts.items() if k != "reproduction"]
+    return head + ("; beside them: " + ", ".join(others) if others else "")
+
+
+def method_specific(checks, estimators: tuple[str, str]) -> list[Check]:
+    """Checks whose ``select`` or ``versus`` names one of ``estimators``."""
+    names = set(estimators)
+    return [c for c in checks
+            if str(c.select.get("estimator", "")) in names or str((c.versus or {}).get("estimator", "")) in names]
+
+
+def swap_estimators(rows: pd.DataFrame, part: str, estimators: tuple[str, str]) -> pd.DataFrame:
+    """The rows with the two estimators' labels exchanged in ``part`` (their reproduced values swapped)."""
+    a, b = estimators
+    out = rows.copy()
+    inside = out["part"] == part
+    col = out["estimator"].astype(str)
+    out.loc[inside & (col == a), "estimator"] = b
+    out.loc[inside & (col == b), "estimator"] = a
+    return out
+
+
+def swap_survival(checks, rows: pd.DataFrame, part: str, estimators: tuple[str, str]) -> dict:
+    """How many method-specific checks of ``part`` pass with the two estimators' values swapped.
+
+    Returns ``n`` (method-specific checks), ``pass`` and ``pass_swapped`` (how many pass as reproduced
+    and with the values swapped), ``survivors`` (ids passing both ways: they do not tell the methods
+    apart) and ``difference_survivors`` (those of kind ``difference`` comparing the two estimators).
+    """
+    own = [c for c in method_specific(checks, estimators) if c.part == part]
+    if not own:
+        return {"n": 0, "pass": 0, "pass_swapped": 0, "survivors": [], "difference_survivors": []}
+    before = compare(tuple(own), rows, {part}).set_index("check")["status"]
+    after = compare(tuple(own), swap_estimators(rows, part, estimators), {part}).set_index("check")["status"]
+    both = [c.id for c in own if before[c.id] == "pass" and after[c.id] == "pass"]
+    between = {c.id for c in own if c.kind == "difference"
+               and {str(c.select.get("estimator")), str((c.versus or {}).get("estimator"))} == set(estimators)}
+    return {"n": len(own), "pass": int((before == "pass").sum()), "pass_swapped": int((after == "pass").sum()),
+            "survivors": both, "difference_survivors": [i for i in both if i in between],
+            "differences": len(between)}
 
 
 def summarize(rows: pd.DataFrame, part: str, by: list[str]) -> pd.DataFrame:

@@ -31,7 +31,7 @@ def write_study(tmp_path: Path, edit) -> Path:
 
 def test_study_config_loads_and_names_every_part():
     s = load_study("westwick2012")
-    assert set(s.parts) == {"fig2", "fig3", "fig4", "fig5", "fig6", "fig6_no_torque_filter", "table1", "fig8"}
+    assert set(s.parts) == {"fig2", "fig3", "fig4", "fig5", "fig6", "fig6_torque_delay", "table1", "fig8"}
     assert all(c.part in s.parts for c in s.checks)
     assert {r.id for r in s.readings} >= {"R1", "R5", "R12"}
 
@@ -160,7 +160,7 @@ def test_bad_check_kinds(tmp_path, check, message):
     import yaml
     from benchmarks.config import load_checks
     c = {"id": "x", "part": "p", "description": "d", "source": "s", "published": 1,
-         "select": {"metric": "m"}, **check}
+         "select": {"metric": "m"}, "evidence": "reproduction", "tolerance_reason": "why", **check}
     if check.get("kind") == "value":
         c["low"] = 0
     p = tmp_path / "pub.yaml"

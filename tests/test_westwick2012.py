@@ -9,6 +9,7 @@ import estimators
 import sims
 from benchmarks.config import load_study
 from benchmarks.study import run_study
+from tests.golden import check_golden
 from tests.test_harness import write_study
 
 
@@ -29,13 +30,18 @@ def test_study_writes_every_output(smoke):
                  "fig4.png", "fig5.png", "fig6_ibk_spectral.png", "fig7.png", "fig8.png"):
         assert (folder / name).is_file(), name
     comp = pd.read_csv(folder / "comparison.csv")
-    assert list(comp.columns[:7]) == ["check", "description", "published", "reproduced", "low", "high", "status"]
-    assert set(comp["status"]) <= {"pass", "miss"}
-    assert {c.id for c in load_study("westwick2012").checks} == set(comp["check"])
+    assert list(comp.columns[:9]) == ["check", "description", "published", "reproduced", "low", "high", "status",
+                                      "evidence", "reading"]
+    assert list(comp["check"]) == [c.id for c in load_study("westwick2012").checks]
     cases = pd.read_csv(folder / "cases.csv")
     for col in ("study", "part", "seed", "estimator", "metric", "value", "wall_time_s", "git_commit"):
         assert col in cases.columns
     assert not smoke.failed
+
+
+def test_smoke_outcome_is_pinned(smoke):
+    """Every check's status in this smoke run is pinned: a check that flips fails here."""
+    check_golden("westwick2012", smoke.comparison)
 
 
 def test_analytic_checks_pass(smoke):

@@ -9,11 +9,30 @@ import sims
 from benchmarks.metrics import relative_error, vaf
 from benchmarks.protocols import Context, register
 from jointbench.estimate import FRFEstimate, IRFEstimate, ParametricEstimate
+from jointbench.schema import param
 
 
 @dataclasses.dataclass(frozen=True)
 class FitParams:
-    """No options: the experiment and estimators say it all."""
+    """The experiment and estimators say it all; ``near_unity`` only labels the coherence band recorded."""
+
+    near_unity: float = param(0.9, gt=0, lt=1, doc="the squared coherence counts as near unity above this")
+
+
+def coherence_band(f: np.ndarray, coherence: np.ndarray, level: float) -> tuple[float, float]:
+    """Lowest and highest frequency (Hz) of the contiguous band around the coherence's maximum where it is
+    at least ``level`` (NaN, NaN when it never is)."""
+    f, c = np.asarray(f, float), np.asarray(coherence, float)
+    if not np.any(c >= level):
+        return float("nan"), float("nan")
+    i = int(np.argmax(c))
+    lo = i
+    while lo > 0 and c[lo - 1] >= level:
+        lo -= 1
+    hi = i
+    while hi < len(c) - 1 and c[hi + 1] >= level:
+        hi += 1
+    return float(f[lo]), float(f[hi])
 
 
 def record_estimate_curves(ctx: Context, name: str, est, trial) -> None:
@@ -61,4 +80,9 @@ def parametric_fit(ctx: Context) -> None:
                 ctx.metric(f"{p}_err_pct", relative_error(float(np.mean(getattr(truth, p))), value), name)
         ctx.metric("stiffness", float(np.mean(est.stiffness(trial.time))), name)
         ctx.metric("vaf_torque", vaf(y, est.predict(u)), name)
+        basis = est.basis if isinstance(est, ParametricEstimate) else est
+        if isinstance(basis, FRFEstimate) and basis.coherence is not None:
+            lo, hi = coherence_band(basis.freq, basis.coherence, ctx.params.near_unity)
+            ctx.metric("coherence_band_low_hz", lo, name)
+            ctx.metric("coherence_band_high_hz", hi, name)
         record_estimate_curves(ctx, name, est, trial)

@@ -116,6 +116,27 @@ class BandlimitParams:
     N: int = param(4096, ge=64, doc="DFT length of the eq. 17 filter")
     window: float = param(0.25, unit="s", gt=0, doc="lags either side of 0 scored and shown")
     visible: float = param(1.0, gt=0, doc="a deviation counts as visible above this percent of the peak")
+    rule_snr_db: float = param(40.0, unit="dB", doc="SNR of the rule of thumb of Sec. III-D")
+
+
+def rule_of_thumb_decades(cutoff: float, order: int, snr_db: float, fs: float | None = None) -> float:
+    """Decades above ``cutoff`` at which the eq. 17 gain (the squared coherence) of a low-passed white-noise
+    angle with white measurement noise falls to 1/2 (signal and noise spectra equal).
+
+    ``fs=None``: the SNR refers to the pass-band density of the input (the reading under which Sec. III-D's
+    arithmetic works: 40 dB against -40 dB/decade is one decade). With ``fs``: the SNR refers to the
+    variance over 0 ... fs/2, as in Fig. 5 (reading R4); the crossing then depends on fs and may lie beyond
+    Nyquist (the value is still the analytic crossing of the two spectra).
+
+    References
+    ----------
+    Westwick & Perreault (2012), Sec. III-D (rule of thumb) and eq. 17.
+    """
+    density = 10 ** (-snr_db / 10)
+    if fs is not None:   # mean of 1/(1 + (f/fc)^(2 order)) over 0 ... fs/2, on a fine grid
+        f = np.linspace(0, fs / 2, 200001)
+        density *= float(np.mean(1.0 / (1.0 + (f / cutoff) ** (2 * order))))
+    return float(np.log10((1.0 / density - 1.0) ** (1.0 / (2 * order))))
 
 
 def bandlimited_irf(j: Joint, fs: float, N: int, cutoff: float, order: int, snr_db: float) -> np.ndarray:
@@ -133,6 +154,10 @@ def input_bandlimit(ctx: Context) -> None:
     """W3: distortion and spread of the impedance IRF from input bandwidth and noise (Fig. 5)."""
     p = ctx.params
     j = _joint(p.joint)
+    ctx.metric("omega_n_rad_s", np.sqrt(j.K / j.I))                 # Fig. 5 caption: 18.6 rad/s
+    ctx.metric("zeta", j.B / (2 * np.sqrt(j.K * j.I)))               # Fig. 5 caption: 0.24
+    ctx.metric("rule_of_thumb_decades", rule_of_thumb_decades(p.cutoff, p.order, p.rule_snr_db))
+    ctx.metric("rule_of_thumb_decades_variance_snr", rule_of_thumb_decades(p.cutoff, p.order, p.rule_snr_db, p.fs))
     m = int(round(p.window * p.fs))
     ideal = d.two_sided(bandlimited_irf(j, p.fs, p.N, p.cutoff, p.order, np.inf), m, m)[1]
     lags = np.arange(-m, m + 1)
@@ -195,6 +220,7 @@ def sampling_rate_experiment(ctx: Context) -> None:
     I, B, K = (float(np.mean(v)) for v in (fit.I, fit.B, fit.K))
     for name, v in (("I", I), ("B", B), ("K", K)):
         ctx.metric(name, v, p.parametric)
+    top_irf = None
     for fs in sorted(p.fs, reverse=True):
         tr = resample_trial(trial, fs)
         irf = ctx.estimators[p.nonparametric].fit(tr)
@@ -204,8 +230,33 @@ def sampling_rate_experiment(ctx: Context) -> None:
         h_p = bandlimit_fb(d.two_sided(d.impedance_irf(I, B, K, fs, n), m1, m2)[1], fs, p.bandlimit,
                            p.bandlimit_order)
         ctx.metric("vaf_parametric_irf", vaf(h_np, h_p), p.parametric, fs_hz=fs)
+        if top_irf is None:
+            top_irf = (irf.lags, h_np, fs)
+        ctx.metric("shape_diff_pct", shape_difference(top_irf, (irf.lags, h_np, fs)), p.nonparametric, fs_hz=fs)
         ctx.curve("irf_over_fs2", irf.lags, h_np / fs ** 2, series="nonparametric", fs_hz=fs)
         ctx.curve("irf_over_fs2", irf.lags, h_p / fs ** 2, series="parametric", fs_hz=fs)
+
+
+def shape_difference(ref: tuple, other: tuple) -> float:
+    """Shape difference (%) of two band-limited IRFs at different rates: ``100 (1 - c^2)`` with ``c`` the
+    cosine similarity of the two at the lag times they share (``ref``'s rate a whole multiple of
+    ``other``'s). Scale-free, so the normalisation by the rate (``h / fs^2`` in Figs. 4 and 7) drops out.
+
+    References
+    ----------
+    Westwick & Perreault (2012), Sec. V-B, Fig. 7 ('significant differences in the IRF shape are only
+    evident at the lowest sampling rate').
+    """
+    (lr, hr, fr), (lo, ho, fo) = ref, other
+    q = fr / fo
+    if abs(q - round(q)) > 1e-9:
+        raise ValueError(f"shape difference: {fr:g} Hz is not a whole multiple of {fo:g} Hz")
+    idx = {int(v): k for k, v in enumerate(np.asarray(lr))}
+    pairs = [(idx[int(round(v * q))], k) for k, v in enumerate(np.asarray(lo)) if int(round(v * q)) in idx]
+    a = np.asarray([hr[i] for i, _ in pairs])
+    b = np.asarray([ho[k] for _, k in pairs])
+    c = float(a @ b) / float(np.linalg.norm(a) * np.linalg.norm(b))
+    return 100.0 * (1.0 - c * c)
 
 
 # --------------------------------------------------------------------------------------- W6 (Fig. 8)
@@ -216,7 +267,8 @@ class NoiseParams:
     fall_db: float = param(3.0, gt=0, doc="'falls away': the noisy estimate this far below the original")
     beyond: float = param(1.25, ge=1, doc="prediction scored up to this multiple of the fall-away frequency")
     fmin: float = param(1.0, unit="Hz", ge=0, doc="lowest frequency scored")
-    fmax_plot: float = param(100.0, unit="Hz", gt=0)
+    fmax_plot: float = param(100.0, unit="Hz", gt=0, doc="highest frequency shown")
+    low_coherence: float = param(0.5, gt=0, lt=1, doc="'low coherence': the original squared coherence below this")
     estimator: str = param("irf2_ls")
 
 
@@ -259,6 +311,11 @@ def input_noise(ctx: Context) -> None:
     ctx.metric("prediction_rms_err_db", np.sqrt(np.mean(err ** 2)))
     ctx.metric("prediction_max_err_db", np.max(np.abs(err)))
     ctx.metric("eq17_truth_rms_err_db", np.sqrt(np.mean(err17 ** 2)))
+    low = (f > 0) & (c0 < p.low_coherence)     # where the original coherence is low (up to Nyquist)
+    if low.any():
+        errl = 20 * np.log10(np.abs(pred[low]) / np.abs(H1[low]))
+        ctx.metric("prediction_rms_err_db_low_coherence", np.sqrt(np.mean(errl ** 2)))
+        ctx.metric("low_coherence_from_hz", float(f[low][0]))
     show = (f > 0) & (f <= p.fmax_plot)
     for series, v in (("original", H0), ("with noise", H1), ("eq. 17 prediction", pred),
                       ("eq. 17 with true impedance", eq17), ("true impedance", ideal)):

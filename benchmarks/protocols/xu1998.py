@@ -67,6 +67,11 @@ class TrackParams:
     curve_params: tuple[str, ...] = param(("K", "B", "I"), doc="parameters whose time courses are stored")
     curve_rate: float = param(50.0, unit="Hz", gt=0, doc="rate of the stored time courses")
     estimator: str = param("fsewls", doc="estimator of the part scored")
+    regressors: Literal["filtered", "exact"] = param("filtered", doc="filtered: the estimator's own H and L "
+                                                    "on the measured signals; exact: a control that feeds the "
+                                                    "estimator's EWLS the simulation's exact perturbed response "
+                                                    "delta theta'', delta theta', delta theta and perturbation "
+                                                    "torque (eq. 2; noise free, voluntary part separated exactly)")
     variants: dict = param(default_factory=dict, doc="name -> overrides of these parameters (readings part)")
     variant: str | None = param(None, doc="which entry of 'variants' this case uses")
 
@@ -74,6 +79,9 @@ class TrackParams:
         bad = [c for c in self.curve_params if c not in ("I", "B", "K", "zeta")]
         if bad:
             raise ValueError(f"key 'curve_params': unknown parameter {bad[0]!r}; allowed: I, B, K, zeta")
+        if self.regressors == "exact" and (self.nsr or self.measured_voluntary):
+            raise ValueError("key 'regressors': 'exact' is a noise-free control of the perturbed response "
+                             "(no nsr, no measured_voluntary)")
         if self.variant is not None and self.variant not in self.variants:
             raise ValueError(f"key 'variant': {self.variant!r} is not in 'variants' "
                              f"({', '.join(self.variants) or 'none given'})")
@@ -200,6 +208,46 @@ def output_vafs(est, fit, trial, keep: np.ndarray) -> dict[str, float]:
     return out
 
 
+# ------------------------------------------------------------------------------- exact-derivative control
+@dataclasses.dataclass(frozen=True)
+class _ExactFit:
+    """I, B, K from EWLS on exact regressors (the part of an FSEWLS estimate the scoring reads)."""
+
+    I: np.ndarray
+    B: np.ndarray
+    K: np.ndarray
+    y: np.ndarray
+    yhat: np.ndarray
+
+    def damping_ratio(self) -> np.ndarray:
+        ki = self.K * self.I
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return np.where(ki > 0, self.B / (2.0 * np.sqrt(np.abs(ki))), np.nan)
+
+
+def exact_fit(est, trial) -> _ExactFit:
+    """EWLS of the estimator's settings (forgetting, init_window) fed the exact perturbed response of the
+    simulated joint and the perturbation torque (eq. 2): no high-pass, no state-variable filter, no sensors.
+
+    The states come from the simulator's own LTV integrator run on the acquired perturbation torque
+    (``truth.signals['command']``) alone with the true I(t), B(t), K(t) of the trial, so
+    ``I dtheta'' + B dtheta' + K dtheta = tau_p`` holds sample by sample. The joint is linear, so this is the
+    perturbed response with the voluntary movement separated exactly (posture and movement alike); what
+    is left is the EWLS itself (its forgetting lag).
+    """
+    from estimators.fsewls import ewls_regression
+
+    s, fs, truth = est.settings, trial.fs, trial.truth
+    n = trial.n
+    t = np.arange(n) / fs
+    joint = _Frozen(t, *(np.broadcast_to(np.asarray(getattr(truth, k), float), (n,)).copy() for k in "IBK"))
+    tau = np.asarray(truth.signals["command"], float)
+    resp = LTVBackend().run(joint, TorqueDrive(), tau, np.zeros(n), fs)
+    Phi = np.stack([resp.acceleration, resp.velocity, resp.angle], axis=-1)[None]
+    theta = ewls_regression(Phi, tau[None], fs, s.forgetting, s.init_window)
+    return _ExactFit(I=theta[:, 0], B=theta[:, 1], K=theta[:, 2], y=tau, yhat=np.einsum("ni,ni->n", Phi[0], theta))
+
+
 # ------------------------------------------------------------------------------------------- scoring
 def _scores(fit, truth, keep: np.ndarray, dt: float) -> dict[str, float]:
     out = {}
@@ -251,16 +299,19 @@ def track(ctx: Context) -> None:
     trial = sims.simulate(exp, ctx.seed)
     if p.measured_voluntary and exp.voluntary.active:
         trial = trial.replace(torque=trial.torque + np.asarray(trial.truth.signals["voluntary"]))
-    fit = est.fit(trial)
+    fit = est.fit(trial) if p.regressors == "filtered" else exact_fit(est, trial)
     keep = scored_window(trial.n, trial.fs, p.discard, est.transient())
     dt = 1.0 / trial.fs
     labels = {"condition": p.condition}
     if p.f_v is not None:
         labels["f_v"] = p.f_v
     scores = _scores(fit, trial.truth, keep, dt)
-    outs = output_vafs(est, fit, trial, keep)
-    scores["vaf_output"] = outs[p.output]
-    scores.update({f"vaf_output_{k}": v for k, v in outs.items()})
+    if p.regressors == "filtered":
+        outs = output_vafs(est, fit, trial, keep)
+        scores["vaf_output"] = outs[p.output]
+        scores.update({f"vaf_output_{k}": v for k, v in outs.items()})
+    else:   # the exact regression's own output: tau against Phi^T Theta_hat
+        scores["vaf_output"] = vaf(fit.y[keep], fit.yhat[keep])
     scores["scored_s"] = keep.sum() * dt
     if p.paired_noise_free:   # the same record (same perturbation) without the noise of 'nsr'
         clean = sims.simulate(case_experiment(ctx.experiment, dataclasses.replace(p, nsr=0.0)), ctx.seed)

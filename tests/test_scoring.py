@@ -1,0 +1,459 @@
+"""Honest scoring (issue 8): kinds of evidence, tolerances with reasons, domains, the checks of the gaps
+between two methods and their swap test, the README status block, dirty-tree stamps, and the wiring of
+settings and metric definitions (each test here would catch one plausible one-line bug)."""
+from __future__ import annotations
+
+import dataclasses
+import importlib.util
+import math
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+import yaml
+
+import estimators
+from benchmarks import report, status
+from benchmarks.config import CONFIGS, EVIDENCE, REPO, Check, load_checks, load_study
+from benchmarks.protocols import Context
+from benchmarks.tables import (DIRTY_BANNER, compare, evidence_counts, headline, method_specific, stamp,
+                               swap_estimators, swap_survival)
+from jointbench.errors import ConfigError
+from jointbench.signal import decimate_fft
+from jointbench.types import Trial
+
+STUDIES = ("westwick2012", "xu1998", "vanderuit2018_table1")
+
+
+def _load_generator():
+    path = CONFIGS / "published" / "vanderuit2018_table1_generate.py"
+    spec = importlib.util.spec_from_file_location("vdr_generate", path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+# ------------------------------------------------------------------------------------ parsing checks
+def _write(tmp_path, checks, name="pub.yaml") -> Path:
+    p = tmp_path / name
+    p.write_text(yaml.safe_dump({"study": "s", "source": "s", "checks": checks}))
+    return p
+
+
+def _check(**over) -> dict:
+    return {"id": "x", "part": "p", "description": "d", "source": "s", "published": 1, "low": 0, "high": 2,
+            "select": {"metric": "m"}, "evidence": "reproduction", "tolerance_reason": "why", **over}
+
+
+@pytest.mark.parametrize("over, message", [
+    ({"evidence": None}, "missing required key 'evidence'"),
+    ({"evidence": "anecdote"}, "'evidence': 'anecdote' not allowed; allowed: reproduction, conditional, calibrated, sanity"),
+    ({"evidence": "conditional"}, "evidence 'conditional' needs key 'reading'"),
+    ({"evidence": "conditional", "reading": "the first one"}, "needs key 'reading'"),
+    ({"reading": "R1"}, "'reading' applies to evidence 'conditional' only"),
+    ({"evidence": "calibrated"}, "evidence 'calibrated' needs key 'free_parameter'"),
+    ({"free_parameter": "r"}, "'free_parameter' applies to evidence 'calibrated' only"),
+    ({"tolerance_reason": None}, "missing required key 'tolerance_reason'"),
+    ({"tolerance_reason": "  "}, "state why the band is what it is"),
+    ({"domain": {"f": {"lt": 1}}}, "'domain' and 'domain_reason' go together"),
+    ({"domain": {"f": {"below": 1}}, "domain_reason": "r"}, r"a range takes lt, le, gt, ge"),
+    ({"domain": {"metric": {"lt": 1}}, "domain_reason": "r"}, "column 'metric' is also in 'select'"),
+    ({"select": {"metric": "m", "f": {"lt": "one"}}}, "expected a number"),
+    ({"aggregate": "mode"}, "'aggregate': 'mode' not allowed"),
+])
+def test_checks_parse_strictly(tmp_path, over, message):
+    c = {k: v for k, v in _check(**over).items() if v is not None}
+    with pytest.raises(ConfigError, match=message) as exc:
+        load_checks(_write(tmp_path, [c]), {"p": None})
+    assert "pub.yaml" in str(exc.value) and "check x" in str(exc.value)
+
+
+def test_conditional_reading_must_exist_in_the_study(tmp_path):
+    data = yaml.safe_load((CONFIGS / "studies" / "westwick2012.yaml").read_text())
+    pub = yaml.safe_load((CONFIGS / "published" / "westwick2012.yaml").read_text())
+    pub["checks"][0] = {**pub["checks"][0], "evidence": "conditional", "reading": "R1, R99"}
+    (tmp_path / "pub.yaml").write_text(yaml.safe_dump(pub))
+    data["published"] = str(tmp_path / "pub.yaml")
+    (tmp_path / "study.yaml").write_text(yaml.safe_dump(data))
+    with pytest.raises(ConfigError, match="R99 is not a reading of study.yaml"):
+        load_study(tmp_path / "study.yaml")
+
+
+def test_default_aggregate_through_the_parser_is_the_median(tmp_path):
+    """A check without 'aggregate' combines seeds by their median, not their mean."""
+    (c,) = load_checks(_write(tmp_path, [_check(low=1.5, high=2.5)]), {"p": None})
+    assert c.aggregate == "median"
+    rows = pd.DataFrame({"part": "p", "status": "ok", "metric": "m", "value": [1.0, 2.0, 30.0]})
+    out = compare((c,), rows, {"p"}).iloc[0]
+    assert out["reproduced"] == 2.0 and out["status"] == "pass"     # the mean, 11, would miss
+
+
+def test_every_study_states_evidence_reasons_and_what_is_not_reproduced():
+    for sid in STUDIES:
+        s = load_study(sid)
+        assert s.not_reproduced and all(n.item and n.reason for n in s.not_reproduced), sid
+        for c in s.checks:
+            assert c.evidence in EVIDENCE and c.tolerance_reason, (sid, c.id)
+            if c.evidence == "conditional":
+                assert c.readings and all(r in {x.id for x in s.readings} for r in c.readings)
+        assert any(c.evidence == "reproduction" for c in s.checks), sid
+
+
+def test_no_hand_typed_claim_about_the_standard_snr_table():
+    """The false R1 claim ('keeps all 32 VAF_optim/RMSE_k cells in tolerance') is gone: such counts are
+    derived in the report, not typed into configs."""
+    for path in (CONFIGS / "studies" / "vanderuit2018_table1.yaml", CONFIGS / "published" / "vanderuit2018_table1.yaml"):
+        text = path.read_text()
+        for claim in ("32 of 32", "0 of 32", "29 of 32", "every VAF_optim and RMSE_k cell inside its band"):
+            assert claim not in text, (path.name, claim)
+
+
+# ------------------------------------------------------------------------------------ compare
+def _rows(**cols) -> pd.DataFrame:
+    return pd.DataFrame({"part": "p", "status": "ok", **cols})
+
+
+def test_compare_records_evidence_reading_reason_and_commit():
+    c = Check("c", "p", "d", "s", 1, 0, 2, {"metric": "m"}, evidence="conditional", reading="R2",
+              tolerance_reason="because")
+    out = compare((c,), _rows(metric="m", value=[1.0]), {"p"}, commit="abc1234").iloc[0]
+    assert (out["evidence"], out["reading"], out["tolerance_reason"], out["commit"]) == \
+        ("conditional", "R2", "because", "abc1234")
+    dirty = compare((c,), _rows(metric="m", value=[1.0]), {"p"}, commit="abc1234-dirty").iloc[0]
+    assert DIRTY_BANNER in dirty["commit"] and stamp("abc") == "abc"
+
+
+def test_domain_scores_inside_and_shows_outside():
+    rows = _rows(metric="v", f_v=[0.5, 0.5, 1.0, 2.0], value=[99.0, 98.0, 80.0, 85.0])
+    c = Check("x3", "p", "d", "s", "close to 100", 95, 100, {"metric": "v"}, aggregate="min",
+              domain={"f_v": {"lt": 1.0}}, domain_reason="tasks below 1 Hz")
+    out = compare((c,), rows, {"p"}).iloc[0]
+    assert out["reproduced"] == 98.0 and out["status"] == "pass" and out["n"] == 2
+    assert out["out_of_domain"] == "f_v -> 1.0: 80, 2.0: 85" and out["domain_reason"] == "tasks below 1 Hz"
+    # difference checks: groups outside the domain are shown, not scored
+    rows = _rows(metric=["a", "b"] * 3, f=[0.1, 0.1, 0.5, 0.5, 1.0, 1.0], value=[1.0, 0.0, -1.0, 0.0, -2.0, 0.0])
+    d = Check("x4", "p", "d", "s", "negative", -math.inf, 0, {"metric": "a"}, kind="difference",
+              versus={"metric": "b"}, by="f", domain={"f": {"ge": 0.2}}, domain_reason="resolution")
+    out = compare((d,), rows, {"p"}).iloc[0]
+    assert out["status"] == "pass" and out["reproduced"] == -1.0 and out["out_of_domain"] == "f -> 0.1: +1"
+
+
+def test_std_aggregate_and_range_select():
+    rows = _rows(metric="m", fs_hz=[50, 50, 50, 100, 250, 500], value=[1.0, 2.0, 3.0, 7.0, 9.0, 11.0])
+    sd = Check("sd", "p", "d", "s", 1, 0.5, 1.5, {"metric": "m", "fs_hz": 50}, aggregate="std")
+    mx = Check("mx", "p", "d", "s", 1, 0, 10, {"metric": "m", "fs_hz": {"ge": 100, "lt": 500}}, aggregate="max")
+    out = compare((sd, mx), rows, {"p"}).set_index("check")
+    assert out.loc["sd", "reproduced"] == pytest.approx(1.0)        # sample SD (ddof 1) of 1, 2, 3
+    assert out.loc["mx", "reproduced"] == 9.0 and out.loc["mx", "n"] == 2
+
+
+def test_headline_counts_reproduction_only():
+    comp = pd.DataFrame({"check": list("abcdefg"), "status": ["pass", "miss", "pass", "pass", "pass", "miss", "pass"],
+                         "evidence": ["reproduction", "reproduction", "calibrated", "calibrated", "sanity",
+                                      "conditional", "conditional"]})
+    assert evidence_counts(comp) == {"reproduction": (1, 2), "conditional": (1, 2), "calibrated": (2, 2),
+                                     "sanity": (1, 1)}
+    assert headline(comp) == ("reproduction 1 of 2 pass; beside them: conditional 1 of 2, calibrated 2 of 2 "
+                              "(not counted), sanity 1 of 1")
+    old = comp.drop(columns="evidence")          # a comparison written before the evidence column
+    assert evidence_counts(old) == {"unrecorded": (5, 7)}
+
+
+# ------------------------------------------------------------------------------------ the report
+def _meta(commit="abc1234", **kw):
+    return {"commit": commit, "command": "jointbench run x", "n_cases": 1, "n_cached": 0, "wall_s": 1.0,
+            "workers": 1, "parts": None, "from_cache": [], **kw}
+
+
+def test_report_groups_checks_by_evidence_with_reasons_and_not_reproduced():
+    s = load_study("xu1998")
+    comp = compare(s.checks, pd.DataFrame(columns=["part", "status", "metric", "value"]), set(s.parts), "abc1234")
+    text = report.render(s, comp, {}, [], _meta(parts=list(s.parts)))
+    head = text.index("**Reproduction:")
+    assert head < text.index("### Reproduction checks") < text.index("### Conditional checks") < \
+        text.index("### Sanity checks") < text.index("## Not reproduced") < text.index("## Interpretation")
+    n_rep = sum(c.evidence == "reproduction" for c in s.checks)
+    assert f"**Reproduction: 0 of {n_rep} checks pass.**" in text
+    assert "Why the bands are what they are:" in text and s.checks[0].tolerance_reason in text
+    for n in s.not_reproduced:
+        assert f"- **{n.item}**: {n.reason}" in text
+    assert "WARNING" not in text and "-dirty" not in text
+
+
+def test_report_from_a_dirty_tree_says_so_loudly():
+    s = load_study("westwick2012")
+    text = report.render(s, pd.DataFrame(), {}, [], _meta(commit="abc1234-dirty", parts=list(s.parts)))
+    assert text.splitlines()[2].startswith(f"> **WARNING: {DIRTY_BANNER}.**")
+
+
+def test_cli_summary_line_is_the_headline(tmp_path, capsys, monkeypatch):
+    from benchmarks import cli
+    import benchmarks.study as study_mod
+
+    orig = study_mod.run_study
+    monkeypatch.setattr(study_mod, "run_study",
+                        lambda *a, **k: orig(*a, **{**k, "out_root": tmp_path / "out", "serial": True}))
+    assert cli.main(["run", "westwick2012", "--parts", "fig2", "fig4", "--quiet"]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[0] == "westwick2012: 2 cases, 0 failed; reproduction 4 of 4 pass; beside them: sanity 3 of 3"
+    assert out[1].split()[:3] == ["pass", "reproduction", "W1-h1-idft"]
+
+
+# ------------------------------------------------------------------------------------ van de Ruit gaps
+def _table1_rows(values: dict) -> pd.DataFrame:
+    """One row per Table I cell: (metric, estimator, variation, snr_db) -> value."""
+    recs = [{"part": "table1", "status": "ok", "metric": m, "estimator": e, "variation": v, "snr_db": snr,
+             "value": x} for (m, e, v, snr), x in values.items()]
+    return pd.DataFrame(recs)
+
+
+def _published_cells(checks) -> dict:
+    out = {}
+    for c in checks:
+        if c.id.startswith("T1-"):
+            sel = c.select
+            out[(sel["metric"], sel["estimator"], sel["variation"], float(sel["snr_db"]))] = float(c.published)
+    return out
+
+
+def test_table1_gap_checks_cover_every_resolvable_cell():
+    """A sign and a size check of KBR - skirt for every cell whose published gap exceeds the seed spread
+    plus the rounding; the size band always excludes zero (so it implies the sign)."""
+    gen = _load_generator()
+    s = load_study("vanderuit2018_table1")
+    ids = {c.id: c for c in s.checks}
+    expected = [(v, snr, col) for v in gen.VARIATIONS for snr in gen.SNRS for col in gen.COLUMNS
+                if gen.resolvable(v, snr, col) is not None]
+    assert len(expected) >= 19
+    for v, snr, col in expected:
+        sign, size = ids[f"D-{v}-{snr}-{col}-sign"], ids[f"D-{v}-{snr}-{col}-size"]
+        gap = gen.resolvable(v, snr, col)
+        assert sign.kind == size.kind == "difference" and sign.evidence == "reproduction"
+        assert size.low <= gap <= size.high and (size.low > 0 or size.high < 0)
+        assert (sign.low, sign.high) == ((0.0, math.inf) if gap > 0 else (-math.inf, 0.0))
+    assert len([c for c in s.checks if c.id.startswith("D-")]) == 2 * len(expected)
+
+
+def test_generated_block_of_the_table1_yaml_is_the_generators_output():
+    gen = _load_generator()
+    text = gen.YAML.read_text()
+    assert text.count(gen.BEGIN) == 1 and gen.block() in text
+
+
+def test_swapping_the_methods_fails_every_gap_check_with_published_values():
+    """A property of the check set: with the published values every gap check passes, with the two
+    methods' values swapped every one fails."""
+    s = load_study("vanderuit2018_table1")
+    rows = _table1_rows(_published_cells(s.checks))
+    gaps = [c for c in s.checks if c.id.startswith("D-")]
+    before = compare(tuple(gaps), rows, {"table1"})
+    after = compare(tuple(gaps), swap_estimators(rows, "table1", ("kbr", "skirt")), {"table1"})
+    assert (before["status"] == "pass").all(), list(before.loc[before["status"] != "pass", "check"])
+    assert (after["status"] == "miss").all(), list(after.loc[after["status"] != "miss", "check"])
+
+
+def test_swapping_the_reproduced_values_fails_every_passing_gap_check():
+    """With the reproduced medians of the committed comparison (a synthetic rows frame built from it), no
+    check of a KBR - skirt gap passes both as reproduced and with the methods swapped."""
+    s = load_study("vanderuit2018_table1")
+    committed = pd.read_csv(REPO / "results" / "vanderuit2018_table1" / "comparison.csv").set_index("check")
+    cells = {}
+    for c in s.checks:
+        if c.id.startswith("T1-") and c.id in committed.index:
+            sel = c.select
+            cells[(sel["metric"], sel["estimator"], sel["variation"], float(sel["snr_db"]))] = \
+                float(committed.loc[c.id, "reproduced"])
+    assert len(cells) == 80
+    rows = _table1_rows(cells)
+    out = swap_survival(tuple(c for c in s.checks if c.id.startswith(("T1-", "D-"))), rows, "table1",
+                        ("kbr", "skirt"))
+    assert out["difference_survivors"] == [] and out["differences"] > 0
+    assert out["n"] == 80 + out["differences"]
+    # the per-cell bands alone do not tell the methods apart: many of them survive the swap
+    assert out["pass_swapped"] > 0 and len(out["survivors"]) > 0
+
+
+def test_method_specific_checks():
+    s = load_study("vanderuit2018_table1")
+    spec = method_specific(s.checks, ("kbr", "skirt"))
+    assert len(spec) == len(s.checks)          # every check of this study names a method
+    assert not method_specific(load_study("westwick2012").checks, ("kbr", "skirt"))
+
+
+# ------------------------------------------------------------------------------------ README status
+def test_readme_status_block_is_generated_from_the_committed_comparisons():
+    assert status.readme_block() == status.block(), (
+        "README.md's status block is not what `jointbench status --write-readme` gives from the committed "
+        "results/*/comparison.csv: run it (make reproduce does)")
+
+
+def test_status_writes_between_markers(tmp_path):
+    res = tmp_path / "results" / "s1"
+    res.mkdir(parents=True)
+    pd.DataFrame({"check": ["A1-x", "A1-y", "B2-z"], "status": ["pass", "miss", "pass"],
+                  "evidence": ["reproduction", "reproduction", "sanity"],
+                  "commit": ["abc1234"] * 3}).to_csv(res / "comparison.csv", index=False)
+    readme = tmp_path / "README.md"
+    readme.write_text(f"intro\n{status.BEGIN}\nold text\n{status.END}\noutro\n")
+    path, changed = status.write_readme(tmp_path / "results", readme)
+    text = readme.read_text()
+    assert changed and text.startswith("intro\n") and text.endswith("outro\n") and "old text" not in text
+    assert "#### `s1`: reproduction 1 of 2 pass; beside them: sanity 1 of 1" in text
+    assert "| A1 | reproduction | 1 of 2 | A1-y |" in text and "| abc1234 |" in text
+    assert status.write_readme(tmp_path / "results", readme) == (path, False)     # idempotent
+    readme.write_text("no markers\n")
+    with pytest.raises(ConfigError, match="status:begin"):
+        status.write_readme(tmp_path / "results", readme)
+
+
+def test_committed_results_are_not_from_a_dirty_tree():
+    """No committed report or comparison was generated from an uncommitted tree."""
+    folders = sorted(p for p in (REPO / "results").glob("*/") if (p / "report.md").is_file())
+    comps = [pd.read_csv(p / "comparison.csv") for p in folders]
+    if not all("commit" in c.columns for c in comps):
+        pytest.skip("the committed results predate the stamped format (no 'commit' column): they are "
+                    "regenerated at a clean commit with `make reproduce` after the last merge")
+    for folder, comp in zip(folders, comps):
+        assert "-dirty" not in (folder / "report.md").read_text(), folder.name
+        assert not comp["commit"].astype(str).str.contains("dirty").any(), folder.name
+
+
+# ------------------------------------------------------------------------------------ wiring
+def test_context_rng_is_one_generator_per_case():
+    ctx = Context(part="p", seed=3, params=None, experiment=None, estimators={})
+    a, b = ctx.rng.normal(size=4), ctx.rng.normal(size=4)
+    assert not np.array_equal(a, b)                                 # two draws in one case differ
+    again = Context(part="p", seed=3, params=None, experiment=None, estimators={})
+    assert np.array_equal(np.concatenate([a, b]), again.rng.normal(size=8))   # same seed, same stream
+    other = Context(part="p", seed=4, params=None, experiment=None, estimators={})
+    assert not np.array_equal(a, other.rng.normal(size=4))
+
+
+@pytest.mark.parametrize("m", [100, 101])
+def test_decimate_fft_keeps_every_bin_below_the_new_nyquist(m):
+    n = 1000
+    k = (m - 1) // 2                                                # the highest bin below the new Nyquist
+    t_in, t = np.arange(n) / n, np.arange(m) / m
+    x = np.cos(2 * np.pi * k * t_in) + 0.5 * np.sin(2 * np.pi * 3 * t_in)
+    assert np.allclose(decimate_fft(x, m), np.cos(2 * np.pi * k * t) + 0.5 * np.sin(2 * np.pi * 3 * t), atol=1e-12)
+    above = np.cos(2 * np.pi * (m // 2 + 1) * t_in)                # above the new Nyquist: removed
+    assert np.allclose(decimate_fft(above, m), 0, atol=1e-12)
+    if m % 2 == 0:   # the new Nyquist bin itself is kept, real part only: one of the pair k = +-m/2, i.e. half
+        nyq = np.cos(2 * np.pi * (m // 2) * t_in)
+        assert np.allclose(decimate_fft(nyq, m), 0.5 * np.cos(np.pi * np.arange(m)), atol=1e-12)
+
+
+def test_ibk_spectral_weights_the_fit_by_coherence_squared():
+    """The I, B, K of ibk_spectral are the least-squares fit to its own FRF estimate weighted by gamma^2."""
+    rng = np.random.default_rng(5)
+    fs, n = 200.0, 200 * 60
+    from scipy import signal as sps
+    u = sps.lfilter(*sps.butter(2, 15, fs=fs), rng.standard_normal(n))
+    w = 2 * np.pi * np.fft.rfftfreq(n, 1 / fs)
+    H = 50 + 1j * w * 1.5 - 0.15 * w ** 2 + 3.0 * (1j * w) ** 3 / (1j * w + 60) ** 2   # not second order
+    y = np.fft.irfft(np.fft.rfft(u) * H, n)
+    y = y + sps.lfilter(*sps.butter(1, 3, fs=fs), rng.standard_normal(n)) * 4 * np.std(y)  # coloured noise
+    est = estimators.make("ibk_spectral", {"fmax": "20 Hz"}).fit(Trial.from_arrays(u, y, fs, name="t"))
+    f, Hh, coh = est.basis.freq, est.basis.H, est.basis.coherence
+    sel = (f <= 20) & (coh > 0)
+    assert coh[sel].min() < 0.5 * coh[sel].max()                    # the weights really differ
+    ws = 2 * np.pi * f[sel]
+    A = np.concatenate([np.column_stack([-ws ** 2, 0 * ws, np.ones_like(ws)]), np.column_stack([0 * ws, ws, 0 * ws])])
+    b = np.concatenate([Hh.real[sel], Hh.imag[sel]])
+    g2 = np.concatenate([coh[sel], coh[sel]])
+    def wls(weight):            # minimise sum weight |row residual|^2
+        r = np.sqrt(weight)
+        return np.linalg.lstsq(A * r[:, None], b * r, rcond=None)[0]
+
+    ref = wls(g2)
+    assert (est.I, est.B, est.K) == pytest.approx(tuple(ref), rel=1e-7)
+    assert not np.allclose(wls(np.sqrt(g2)), ref, rtol=1e-4)        # weighting by gamma would differ
+
+
+def test_fsewls_settings_reach_the_ewls_and_its_start():
+    """FSEWLS's output equals eq. 6 integrated independently (plain RK4 in P, Theta) from P(0) = the inverse
+    of sum(Phi Phi^T) dt over init_window and Theta(0) the least-squares fit there, with lambda as set."""
+    from estimators.fsewls import _ewls_riccati_rk4, svf, svf_pole
+
+    fs, n = 1000.0, 4000
+    rng = np.random.default_rng(2)
+    from scipy import signal as sps
+    theta = sps.lfilter(*sps.butter(2, 10, fs=fs), rng.standard_normal(n))
+    k = 40 + 15 * (np.arange(n) > n // 2)
+    tau = 0.06 * np.gradient(np.gradient(theta)) * fs ** 2 + 0.3 * np.gradient(theta) * fs + k * theta
+    tau = tau + 0.05 * rng.standard_normal(n)
+    trial = Trial.from_arrays(theta, tau, fs, imposed="torque", name="t")
+    for lam, init in ((20.0, 0.5), (7.0, 0.25)):
+        est = estimators.make("fsewls", {"highpass_cutoff": None, "forgetting": f"{lam} 1/s",
+                                         "init_window": f"{init} s", "svf_cutoff": "3 Hz"})
+        fit = est.fit(trial)
+        s = est.settings
+        x = np.stack([theta - theta.mean(), tau - tau.mean()])
+        Phi, y = svf(x[0], x[1], fs, svf_pole(s.svf_cutoff, s.svf_order, s.svf_cutoff_means), s.svf_order,
+                     s.svf_causal, s.svf_form)
+        m = int(round(init * fs))
+        R0 = Phi[:m].T @ Phi[:m] / fs                                # information in the window, dt = 1/fs
+        th0 = np.linalg.lstsq(Phi[:m], y[:m], rcond=None)[0]
+        ref = _ewls_riccati_rk4(Phi, y, 1 / fs, lam, np.linalg.inv(R0), th0)
+        got = np.column_stack([fit.I, fit.B, fit.K])
+        scale = np.abs(ref).max(axis=0)
+        assert np.abs(got - ref).max(axis=0) / scale == pytest.approx(np.zeros(3), abs=1e-4), (lam, init)
+
+
+def test_vaf_optim_is_against_the_noise_free_torque():
+    """In the van de Ruit protocol, VAF_optim compares the prediction with the noise-free output, VAF_self
+    with the noisy one: a model predicting the noise-free torque exactly has VAF_optim 100 %."""
+    from benchmarks.protocols.vanderuit2018 import Table1Params, table1
+    from jointbench.schema import parse
+    import sims
+
+    s = load_study("vanderuit2018_table1")
+    part = s.parts["table1"]
+    exp = sims.Experiment.from_mapping({**part.experiment, "duration": "22 s"}, "test")
+
+    @dataclasses.dataclass
+    class Perfect:
+        truth: object
+        time: np.ndarray
+
+        def predict(self, u):
+            return np.asarray(self.truth.signals["torque"], float)
+
+        def stiffness(self, t):
+            return np.full(len(t), 5.0)
+
+    class Oracle:
+        name = "oracle"
+
+        def fit(self, trial):
+            return Perfect(trial.truth, trial.time)
+
+    params = parse(Table1Params, {**part.params, "variation": "sine20", "snr_db": 5.0, "score": ["2 s", "10 s"],
+                                  "curve_seeds": [], "image_variations": [], "band_step": "0 s"}, "test")
+    ctx = Context(part="table1", seed=0, params=params, experiment=exp, estimators={"oracle": Oracle()})
+    table1(ctx)
+    got = {r["metric"]: r["value"] for r in ctx.rows if r["estimator"] == "oracle"}
+    assert got["vaf_optim"] == pytest.approx(100.0) and got["vaf_optim_window"] == pytest.approx(100.0)
+    assert got["vaf_self"] < 95 and got["vaf_val"] < 95          # the noise (r = 0.11) is in both
+
+
+def test_golden_pin_fails_on_a_flip_and_updates_only_with_a_reason(tmp_path, monkeypatch):
+    from tests import golden
+
+    monkeypatch.setattr(golden, "GOLDEN", tmp_path)
+    comp = pd.DataFrame({"check": ["a", "b"], "evidence": ["reproduction", "sanity"], "status": ["pass", "miss"]})
+    monkeypatch.delenv("JOINTBENCH_GOLDEN_REASON", raising=False)
+    with pytest.raises(AssertionError, match="no pinned outcome"):
+        golden.check_golden("s", comp)
+    monkeypatch.setenv("JOINTBENCH_GOLDEN_REASON", "first")
+    golden.check_golden("s", comp)
+    monkeypatch.delenv("JOINTBENCH_GOLDEN_REASON")
+    golden.check_golden("s", comp)                                   # unchanged: passes
+    flipped = comp.assign(status=["miss", "miss"])
+    with pytest.raises(AssertionError, match="a: status pass -> miss"):
+        golden.check_golden("s", flipped)
+    monkeypatch.setenv("JOINTBENCH_GOLDEN_REASON", "the band of a was tightened")
+    golden.check_golden("s", flipped)
+    assert "the band of a was tightened" in (tmp_path / "CHANGES.md").read_text()
+    assert "- a: status pass -> miss" in (tmp_path / "CHANGES.md").read_text()
