@@ -457,3 +457,57 @@ def test_golden_pin_fails_on_a_flip_and_updates_only_with_a_reason(tmp_path, mon
     golden.check_golden("s", flipped)
     assert "the band of a was tightened" in (tmp_path / "CHANGES.md").read_text()
     assert "- a: status pass -> miss" in (tmp_path / "CHANGES.md").read_text()
+
+
+# ------------------------------------------------------------------------------------ new metrics
+def test_rule_of_thumb_is_one_decade_with_the_pass_band_snr():
+    from benchmarks.protocols.westwick2012 import rule_of_thumb_decades
+
+    assert rule_of_thumb_decades(5.0, 2, 40.0) == pytest.approx(np.log10((1e4 - 1) ** 0.25), rel=1e-12)
+    assert rule_of_thumb_decades(5.0, 1, 40.0) == pytest.approx(2.0, abs=1e-4)      # -20 dB/decade: 2 decades
+    # referred to the variance over 0 ... fs/2 (Fig. 5's R4) the noise density is lower: the crossing moves up
+    assert rule_of_thumb_decades(5.0, 2, 40.0, fs=200.0) > 1.2
+
+
+def test_shape_difference_is_scale_free_and_sees_shape():
+    from benchmarks.protocols.westwick2012 import shape_difference
+
+    lags = np.arange(-50, 51)
+    h = np.exp(-(lags / 10.0) ** 2) * np.cos(lags / 4.0)
+    sub = lags[::5] // 5                                            # the same curve at a fifth of the rate
+    assert shape_difference((lags, h, 500.0), (sub, 7.0 * h[::5], 100.0)) == pytest.approx(0, abs=1e-12)
+    other = np.exp(-(lags / 10.0) ** 2)
+    assert shape_difference((lags, h, 500.0), (sub, other[::5], 100.0)) > 5
+    with pytest.raises(ValueError, match="whole multiple"):
+        shape_difference((lags, h, 500.0), (sub, h[::5], 300.0))
+
+
+def test_coherence_band_is_the_contiguous_band_around_the_maximum():
+    from benchmarks.protocols.generic import coherence_band
+
+    f = np.arange(10.0)
+    c = np.array([0.2, 0.95, 0.5, 0.92, 0.99, 0.95, 0.91, 0.3, 0.97, 0.1])
+    assert coherence_band(f, c, 0.9) == (3.0, 6.0)
+    assert all(np.isnan(coherence_band(f, c, 0.999)))
+
+
+def test_exact_derivative_control_leaves_only_the_ewls():
+    """Fed the exact perturbed response, the EWLS's regression is exact and slow variations are tracked."""
+    import sims
+    from benchmarks.protocols import xu1998 as X
+    from jointbench.schema import parse
+
+    part = load_study("xu1998").parts["fig2"]
+    exp0 = sims.Experiment.from_mapping({**part.experiment, "duration": "14 s"}, "test")
+    est0 = estimators.make("fsewls", part.estimators["fsewls"], "test")
+    scores = {}
+    for f in (0.25, 1.5):
+        p = parse(X.TrackParams, {"condition": "posture", "f_v": f, "regressors": "exact"}, "test")
+        trial = sims.simulate(X.case_experiment(exp0, p), 0)
+        fit = X.exact_fit(X.case_estimator(est0, p), trial)
+        keep = X.scored_window(trial.n, trial.fs, 4.0, est0.transient())
+        assert X.vaf(fit.y[keep], fit.yhat[keep]) > 99             # exact regressors: only the lag is left
+        scores[f] = X._scores(fit, trial.truth, keep, 1 / trial.fs)["vafv_K"]
+    assert scores[0.25] > 95 and scores[1.5] < scores[0.25]          # what is left: the forgetting lag
+    with pytest.raises(ConfigError, match="'exact' is a noise-free control"):
+        parse(X.TrackParams, {"regressors": "exact", "nsr": 0.1}, "test")

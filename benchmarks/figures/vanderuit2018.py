@@ -51,15 +51,16 @@ def within_tolerance(rows: pd.DataFrame, published: dict) -> pd.DataFrame:
     st = _stats(rows)
     recs = []
     for m in TABLE1_METRICS:
-        n = hit = 0
-        for (metric, est, var, snr), c in published.items():
-            key = (var, est, snr, metric)
-            if metric != m or key not in st.index:
-                continue
-            n += 1
-            hit += int(c.low <= float(st.loc[key, "median"]) <= c.high)
-        if n:
-            recs.append({"column": LABELS[m], "cells within tolerance": f"{hit} of {n}"})
+        for ev in ("reproduction", "calibrated"):
+            n = hit = 0
+            for (metric, est, var, snr), c in published.items():
+                key = (var, est, snr, metric)
+                if metric != m or key not in st.index or getattr(c, "evidence", "reproduction") != ev:
+                    continue
+                n += 1
+                hit += int(c.low <= float(st.loc[key, "median"]) <= c.high)
+            if n:
+                recs.append({"column": LABELS[m], "evidence": ev, "cells within tolerance": f"{hit} of {n}"})
     return pd.DataFrame(recs)
 
 
