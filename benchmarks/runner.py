@@ -129,14 +129,21 @@ def code_fingerprint() -> str:
     return h.hexdigest()[:16]
 
 
-def git_commit() -> str:
+#: the paths whose uncommitted changes can change a result (generated outputs such as results/ and the
+#: README's status block cannot: `make reproduce` rewrites them between studies)
+RESULT_INPUTS = ("jointbench", "sims", "estimators", "benchmarks", "configs", "pyproject.toml")
+
+
+def git_commit(repo: Path = REPO) -> str:
+    """Short commit of HEAD, with ``-dirty`` when a tracked file that can change a result
+    (:data:`RESULT_INPUTS`) has uncommitted changes; 'unknown' outside a git checkout."""
     try:
-        out = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=REPO, capture_output=True,
+        out = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=repo, capture_output=True,
                              text=True, timeout=10)
         if out.returncode:
             return "unknown"
-        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=REPO,
-                               capture_output=True, text=True, timeout=10).stdout.strip()
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no", "--", *RESULT_INPUTS],
+                               cwd=repo, capture_output=True, text=True, timeout=10).stdout.strip()
         return out.stdout.strip() + ("-dirty" if dirty else "")
     except (OSError, subprocess.SubprocessError):
         return "unknown"

@@ -511,3 +511,29 @@ def test_exact_derivative_control_leaves_only_the_ewls():
     assert scores[0.25] > 95 and scores[1.5] < scores[0.25]          # what is left: the forgetting lag
     with pytest.raises(ConfigError, match="'exact' is a noise-free control"):
         parse(X.TrackParams, {"regressors": "exact", "nsr": 0.1}, "test")
+
+
+def test_dirty_means_a_change_that_can_move_a_result(tmp_path):
+    """Regenerated results or the README's status block do not make a tree dirty (make reproduce writes them
+    between studies); a change to code or configs does."""
+    import subprocess
+
+    from benchmarks.runner import git_commit
+
+    def git(*args):
+        subprocess.run(["git", "-c", "user.name=t", "-c", "user.email=t@t", *args], cwd=tmp_path, check=True,
+                       capture_output=True)
+
+    for rel in ("benchmarks/a.py", "configs/b.yaml", "results/s/report.md", "README.md"):
+        (tmp_path / rel).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / rel).write_text("x\n")
+    git("init", "-q")
+    git("add", "-A")
+    git("commit", "-qm", "c")
+    clean = git_commit(tmp_path)
+    assert clean and not clean.endswith("-dirty") and clean != "unknown"
+    (tmp_path / "results/s/report.md").write_text("new\n")
+    (tmp_path / "README.md").write_text("new\n")
+    assert git_commit(tmp_path) == clean
+    (tmp_path / "configs/b.yaml").write_text("y\n")
+    assert git_commit(tmp_path) == clean + "-dirty"
