@@ -123,11 +123,14 @@ def sampling_rate_experiment(part, rows, curves, folder, checks) -> PartReport:
     table = (sel.groupby("fs_hz")["value"].agg(["median", "mean", "std", "min", "max", "count"])
              .reset_index().sort_values("fs_hz"))
     params = _pivot(rows[rows["metric"].isin(["I", "B", "K"])], part.name, [])
+    shape = _pivot(rows[rows["metric"] == "shape_diff_pct"], part.name, ["fs_hz"])
     return PartReport(figures=[(name, "Fig. 7: nonparametric (solid) and parametric (dashed) IRFs, seed "
                                 f"{int(c0['seed'].min())}")],
                       tables=[("Table I: parametric IRF fit (%VAF) by sampling rate, over seeds (published values: "
                                "checks W5 above)", table),
-                              ("I, B, K fitted at 500 Hz", params)])
+                              ("I, B, K fitted at 500 Hz", params),
+                              ("Shape difference (%) of each rate's nonparametric IRF against the 500 Hz one "
+                               "(reading R16; checks W7-shape)", shape)])
 
 
 @register("westwick2012.input_noise")
