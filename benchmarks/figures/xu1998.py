@@ -6,27 +6,14 @@ import numpy as np
 import pandas as pd
 
 from benchmarks.figures import PartReport, new_figure, register, save
+from benchmarks.tables import median_range, over_seeds
 
 VAF_FLOOR = -60.0   # VAF axes are cut here (values below are drawn on the axis, marked 'v')
 
 
-def _ok(rows: pd.DataFrame) -> pd.DataFrame:
-    return rows[rows["status"] == "ok"] if "status" in rows.columns else rows
-
-
 def _stats(rows: pd.DataFrame, by: list[str], metrics: list[str]) -> pd.DataFrame:
     """Median, min and max over seeds of each metric, per combination of ``by`` (a long frame)."""
-    sel = _ok(rows)
-    sel = sel[sel["metric"].isin(metrics)]
-    by = [b for b in by if b in sel.columns]
-    g = sel.groupby(by + ["metric"], sort=False, dropna=False)["value"]
-    return g.agg(median="median", min="min", max="max", n="count").reset_index()
-
-
-def _fmt(m: float, lo: float, hi: float, n: int) -> str:
-    if not np.isfinite(m):
-        return ""
-    return f"{m:.4g}" if n == 1 or lo == hi else f"{m:.4g} ({lo:.4g} to {hi:.4g})"
+    return over_seeds(rows, by + ["metric"], metrics)
 
 
 def _wide(rows: pd.DataFrame, by: list[str], metrics: list[str], order: dict | None = None) -> pd.DataFrame:
@@ -35,7 +22,7 @@ def _wide(rows: pd.DataFrame, by: list[str], metrics: list[str], order: dict | N
     if s.empty:
         return pd.DataFrame()
     by = [b for b in by if b in s.columns]
-    s["cell"] = [_fmt(m, lo, hi, n) for m, lo, hi, n in zip(s["median"], s["min"], s["max"], s["n"])]
+    s["cell"] = [median_range(m, lo, hi, n) for m, lo, hi, n in zip(s["median"], s["min"], s["max"], s["n"])]
     key = by or ["_all"]
     if not by:
         s["_all"] = ""
@@ -65,12 +52,10 @@ def _wide(rows: pd.DataFrame, by: list[str], metrics: list[str], order: dict | N
 
 
 def _median_curve(rows: pd.DataFrame, metric: str, x: str, **eq) -> pd.DataFrame:
-    sel = _ok(rows)
-    sel = sel[sel["metric"] == metric]
+    sel = rows[rows["metric"] == metric]
     for k, v in eq.items():
         sel = sel[sel[k] == v]
-    g = sel.groupby(x)["value"]
-    return pd.DataFrame({"median": g.median(), "min": g.min(), "max": g.max()}).sort_index()
+    return over_seeds(sel, [x]).set_index(x)[["median", "min", "max"]].sort_index()
 
 
 def _errorbar(ax, s: pd.DataFrame, floor: float | None = VAF_FLOOR, **kw):
@@ -85,6 +70,31 @@ def _errorbar(ax, s: pd.DataFrame, floor: float | None = VAF_FLOOR, **kw):
         cut = s["median"].to_numpy(float) < floor
         if cut.any():
             ax.plot(x[cut], np.full(cut.sum(), floor), "v", color=kw.get("color", "k"), ms=7)
+
+
+def _joint(part) -> dict:
+    return dict((part.experiment or {}).get("joint") or {})
+
+
+def _k_text(part) -> str:
+    """The configured K(t) as 'mean ± amplitude N·m/rad' (read from the joint model, never typed)."""
+    k = _joint(part).get("K")
+    if isinstance(k, dict) and "mean" in k and "amplitude" in k:
+        return f"{k['mean']:g} ± {k['amplitude']:g} N·m/rad"
+    return f"{k} N·m/rad"
+
+
+def _joint_text(part) -> str:
+    """'I = ..., K = ..., B a -> b -> c' from the joint model (profiles by their values)."""
+    out = []
+    for name, v in _joint(part).items():
+        if name == "model":
+            continue
+        if isinstance(v, dict) and "values" in v:
+            out.append(f"{name} " + " -> ".join(f"{x:g}" for x in v["values"]))
+        else:
+            out.append(f"{name} = {v}")
+    return ", ".join(out)
 
 
 def _forgetting(part) -> float:
@@ -242,12 +252,12 @@ def traces(part, rows, curves, folder, checks) -> PartReport:
             axes[-1, j].set_xlabel("time (s)")
         axes[0, 0].legend(fontsize=7)
         figs.append((save(fig, folder, f"{part.name}_{shape}.png"),
-                     f"{shape.capitalize()} K(t) = 40 ± 15 N·m/rad at {part.params.get('f_v', '')}: estimates (red) "
+                     f"{shape.capitalize()} K(t) = {_k_text(part)} at {part.params.get('f_v', '')}: estimates (red) "
                      f"over the truth (grey), seed {int(c0['seed'].min())}, first 8 s of the scored window."))
     t = _wide(rows, ["shape", "condition"], ["vafv_K", "vafm_K", "vafv_B", "vafm_B", "vafv_I", "vaf_output",
                                              "mean_err_K", "mean_zeta", "true_mean_zeta"],
               {"shape": ["sine", "square"], "condition": ["posture", "movement"]})
-    text = ("K(t) = 40 ± 15 N·m/rad as a sine or a square wave at the same frequency (the square wave is not in "
+    text = (f"K(t) = {_k_text(part)} as a sine or a square wave at the same frequency (the square wave is not in "
             "the paper, reading R14), damping ratio constant. The information on K comes mostly from the "
             "low-frequency angle, whose amplitude scales as 1/K: the estimates follow a fall of K faster than a "
             "rise (square-wave figure).")
@@ -270,7 +280,7 @@ def calibration(part, rows, curves, folder, checks) -> PartReport:
         axes[0, 0].set_title("Calibration arm: damping switched during the trial (Fig. 5)")
         axes[-1, 0].set_xlabel("time (s)")
         figs.append((save(fig, folder, f"{part.name}.png"),
-                     f"Calibration arm (I = 0.0687, K = 15.4, B 1.13 -> 10.1 -> 1.13): estimates (red) over the "
+                     f"Calibration arm ({_joint_text(part)}): estimates (red) over the "
                      f"truth (grey), seed {int(c0['seed'].min())}, scored window."))
     t = _wide(rows, [], ["err_pct_I", "err_pct_K", "err_pct_B", "vaf_output", "vaf_output_torque",
                          "vaf_output_angle", "vafv_B", "rmse_B", "mean_zeta"])
