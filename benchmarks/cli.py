@@ -91,7 +91,8 @@ def _list(args) -> int:
 
 
 def _nightly(args) -> int:
-    from benchmarks.harness.nightly import DEFAULT_CONFIG, load_config, run_nightly
+    from benchmarks.harness.nightly import DEFAULT_CONFIG, load_config
+    from benchmarks.nightly import run_nightly
 
     config = load_config(Path(args.config) if args.config else DEFAULT_CONFIG)
     if args.studies:

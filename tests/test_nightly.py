@@ -14,7 +14,8 @@ import pytest
 import yaml
 
 from benchmarks.config import CONFIGS
-from benchmarks.harness.nightly import load_config, run_nightly
+from benchmarks.harness.nightly import load_config
+from benchmarks.nightly import run_nightly
 from jointbench.errors import ConfigError
 from tests.harness_studies import REPO, tiny_study
 

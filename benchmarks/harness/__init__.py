@@ -14,6 +14,7 @@ in ``benchmarks/figures`` and ``benchmarks/report.py``):
 - :mod:`~benchmarks.harness.history`: every run in ``results/history.sqlite`` (SQLite, WAL,
   transactional).
 - :mod:`~benchmarks.harness.compare`: what changed between two runs (checks, metrics, timings).
-- :mod:`~benchmarks.harness.nightly` and :mod:`~benchmarks.harness.html`: ``jointbench nightly`` and its
-  static HTML report (Jinja2 templates in ``templates/``).
+- :mod:`~benchmarks.harness.nightly`, :mod:`~benchmarks.harness.nightly_pages` and :mod:`~benchmarks.harness.pages`:
+  what ``jointbench nightly`` (:mod:`benchmarks.nightly`) counts as a regression, and its static HTML
+  pages (Jinja2 templates in ``templates/``).
 """

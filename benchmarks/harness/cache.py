@@ -102,9 +102,6 @@ class Cache:
         atomic_write(self.path(key), lambda t: Path(t).write_text(text))
         self.written += 1
 
-    def key(self, case: Case) -> str:
-        return case_key(case)
-
 
 def entries(folder: Path) -> Iterable[Path]:
     return sorted(Path(folder).glob("??/*.json"))

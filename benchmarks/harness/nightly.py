@@ -1,4 +1,4 @@
-"""``jointbench nightly``: run every paper study, compare, report, and exit non-zero on a regression.
+"""What ``jointbench nightly`` runs and what counts as a regression: its config and outcome types.
 
 Each study is run afresh (``use_cache: false`` by default: every case is recomputed, so timings are
 measured and the cache is not trusted blindly) and recorded in the history as part of one nightly. Each
@@ -19,11 +19,9 @@ import math
 from pathlib import Path
 
 from benchmarks.config import CONFIGS, _check_keys, _load_yaml
-from benchmarks.harness import fingerprint, outputs
-from benchmarks.harness.compare import Rules, RunDiff, Threshold, compare_runs
-from benchmarks.harness.history import History
-from jointbench.errors import ConfigError, JointBenchError
-from jointbench.files import sweep_stale_temps
+from benchmarks.harness import fingerprint
+from benchmarks.harness.compare import Rules, RunDiff, Threshold
+from jointbench.errors import ConfigError
 
 DEFAULT_CONFIG = CONFIGS / "nightly.yaml"
 _KEYS = {"studies": True, "use_cache": False, "thresholds": True, "timing": False, "key_checks": False}
@@ -123,45 +121,3 @@ class NightlyResult:
     outcomes: list[StudyOutcome]
     index: Path
     history_page: Path
-
-
-def run_nightly(config: NightlyConfig, out_root: Path, workers: int | None = None, serial: bool = False,
-                progress: bool = True, command: str = "jointbench nightly") -> NightlyResult:
-    from benchmarks.harness.nightly_pages import write_pages
-    from benchmarks.study import HISTORY_FILE, run_study
-
-    root = Path(out_root)
-    site = root / "nightly"
-    outputs.ensure_writable(root, site)
-    sweep_stale_temps(site)
-    history = History(root / HISTORY_FILE)
-    nid = history.begin_nightly(config.text_hash)
-    outcomes: list[StudyOutcome] = []
-    try:
-        for ref in config.studies:
-            name = Path(ref).stem
-            try:
-                run = run_study(ref, out_root=root, workers=workers, serial=serial, progress=progress,
-                                command=command, kind="nightly", nightly_id=nid, read_cache=config.use_cache)
-            except JointBenchError as exc:
-                outcomes.append(StudyOutcome(ref, name, error=str(exc)))
-                continue
-            prev = history.previous_nightly_run(run.study.id, nid)
-            diff = compare_runs(history, prev, run.run_id, config.rules) if prev is not None else None
-            outcomes.append(StudyOutcome(ref, run.study.id, run, previous=prev, diff=diff))
-        regressions = [line for o in outcomes for line in o.regressions]
-        baseline = all(o.diff is None for o in outcomes if not o.error)
-        verdict = "regression" if regressions else ("baseline" if baseline else "ok")
-        index, hist_page = write_pages(history, nid, verdict, regressions, outcomes, config, site, command)
-        summary = {"regressions": regressions, "studies": {o.study: (o.run.run_id if o.run else None)
-                                                           for o in outcomes}}
-        history.finish_nightly(nid, "complete", verdict, summary)
-    except KeyboardInterrupt:
-        history.finish_nightly(nid, "interrupted", "interrupted", {"studies": [o.study for o in outcomes]})
-        raise
-    except BaseException as exc:
-        history.finish_nightly(nid, "error", "error", {"error": f"{type(exc).__name__}: {exc}"})
-        raise
-    finally:
-        history.close()
-    return NightlyResult(nid, verdict, regressions, outcomes, index, hist_page)
