@@ -182,3 +182,25 @@ def test_unknown_history_is_one_line(tmp_path, capsys):
 
     assert main(["history", "--out", str(tmp_path)]) == 2
     assert "no run history yet" in capsys.readouterr().err
+
+
+def test_regenerated_reports_do_not_make_a_run_dirty(tmp_path, monkeypatch):
+    """Dirty = uncommitted changes to tracked files outside results/, or new files in the code."""
+    git = lambda *a: subprocess.run(["git", "-c", "user.name=t", "-c", "user.email=t@t", *a], cwd=tmp_path,  # noqa: E731
+                                    check=True, capture_output=True)
+    git("init", "-q")
+    (tmp_path / "results" / "s").mkdir(parents=True)
+    (tmp_path / "results" / "s" / "report.md").write_text("old")
+    (tmp_path / "sims").mkdir()
+    (tmp_path / "sims" / "a.py").write_text("x = 1\n")
+    git("add", ".")
+    git("commit", "-qm", "c")
+    monkeypatch.setattr(fingerprint, "REPO", tmp_path)
+    assert fingerprint.git_state()[1] is False
+    (tmp_path / "results" / "s" / "report.md").write_text("regenerated")
+    assert fingerprint.git_state()[1] is False and not fingerprint.git_commit().endswith("-dirty")
+    (tmp_path / "sims" / "new_model.py").write_text("y = 2\n")
+    assert fingerprint.git_state()[1] is True
+    (tmp_path / "sims" / "new_model.py").unlink()
+    (tmp_path / "sims" / "a.py").write_text("x = 2\n")
+    assert fingerprint.git_commit().endswith("-dirty")

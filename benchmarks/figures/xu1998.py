@@ -171,8 +171,11 @@ def fig2(part, rows, curves, folder, checks) -> PartReport:
                                            "vafv_B", "vafm_I"], order)
     outs = _wide(rows, ["condition", "f_v"], ["vaf_output_filtered_torque", "vaf_output_torque",
                                               "vaf_output_angle"], order)
-    text = ("Each case: 49 s simulated, 48 s acquired at 1 kHz, 4 s discarded at each end, VAFs and errors "
-            "on the middle 40 s (readings R8, R13). Noise free. Posture is analysed without the high-pass H, "
+    exp = part.experiment or {}
+    acq = exp.get("acquisition") or {}
+    text = (f"Each case: {exp.get('duration', '?')} simulated, acquired at {acq.get('fs', '?')} ({acq.get('trim', '0 s')} "
+            f"trimmed at each end), {part.params.get('discard', '?')} discarded at each end, VAFs and errors "
+            "on the rest (readings R8, R13). Noise free. Posture is analysed without the high-pass H, "
             "movement with it (R5). `mean_err_K` = mean(K_hat) - mean(K) (check X4; at the slowest f_v it is zero "
             "within the seed spread). The output VAF of the "
             "checks is that of the filtered torque (R4); the second table gives the other candidate signals "
@@ -216,11 +219,11 @@ def fig3(part, rows, curves, folder, checks) -> PartReport:
         axes[0, 0].legend(fontsize=7)
         figs.append((save(fig, folder, f"{part.name}_traces.png"),
                      f"Estimated K(t) (red) over the true K(t) (grey) at several NSR, seed {int(c0['seed'].min())}, "
-                     "movement at 0.25 Hz (first 12 s of the scored window)."))
+                     f"movement at {part.params.get('f_v', '?')} (first 12 s of the scored window)."))
     t = _wide(rows, ["nsr"], ["vafv_K", "vafm_K", "vafv_B", "vafm_B", "vafv_I", "vafm_I", "vaf_output",
                               "mean_err_K", "mean_I"])
     drops = _wide(rows, ["nsr"], ["drop_vafv_K", "drop_vafm_K", "drop_vafv_B", "drop_vaf_output"])
-    text = (f"Movement at f_v = 0.25 Hz with white noise on the measured {channel} (reading R11), NSR = "
+    text = (f"Movement at f_v = {part.params.get('f_v', '?')} with white noise on the measured {channel} (reading R11), NSR = "
             "var(noise)/var(noise-free signal) over the acquired record. VAFM and VAFV of I stay near 100 % "
             "whatever I_hat does: with the floor of 1 of eq. 8 they measure absolute errors in kg·m² (R13); "
             "`mean_I` shows I_hat itself. Each case also fits the same record without noise; the second table "
@@ -325,8 +328,9 @@ def readings(part, rows, curves, folder, checks) -> PartReport:
             ax.legend(fontsize=8)
             break
     name = save(fig, folder, f"{part.name}.png")
-    text = ("What each candidate reading gives, on the Fig. 2 conditions at f_v = 0.5 Hz (the paper's movement "
-            "boundary) and 1.5 Hz (its posture boundary), noise free, same seeds as Fig. 2. The paper's "
+    fvs = ", ".join(f"{float(v):g}" for v in part.sweep.get("f_v", ()))
+    text = (f"What each candidate reading gives, on the Fig. 2 conditions at f_v = {fvs} Hz (the paper's movement "
+            "boundary is 0.5 Hz, its posture boundary 1.5 Hz), noise free, same seeds as Fig. 2. The paper's "
             "statements to match: VAFV and VAFM of K about 80 % at 1.5 Hz in posture and at 0.5 Hz in movement, "
             "movement worse than posture, output VAF close to 100 %. `chosen` is the configuration of every "
             f"other part. Bars below the axis are cut at {VAF_FLOOR:g} %.")
