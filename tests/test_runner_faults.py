@@ -47,10 +47,12 @@ def test_sigkill_at_a_random_point_resumes_without_orphans(tmp_path):
     delay = random.uniform(0.0, 2.0)
     time.sleep(delay)
     os.kill(p.pid, signal.SIGKILL)
+    t0 = time.monotonic()
     p.wait(10)
     assert p.returncode == -signal.SIGKILL, f"the run ended before the kill (delay {delay:.2f} s)"
     gone = wait_for(lambda: not any(alive(w) for w in workers), 5)
     assert gone, f"workers {[w for w in workers if alive(w)]} outlived their parent (kill after {delay:.2f} s)"
+    print(f"kill -9 after {delay:.2f} s: workers {workers} gone {time.monotonic() - t0:.2f} s later")
     n_kept = len(cache_entries(out))
     r = cli("run", study, "--out", out, "--workers", "2", "--quiet")
     assert r.returncode == 0, r.stderr
@@ -210,4 +212,6 @@ def test_pool_workers_exit_when_the_parent_is_killed(tmp_path, mode):
     time.sleep(0.6)                                        # the initializers have run
     os.kill(parent.pid, signal.SIGKILL)
     parent.wait(10)
+    t0 = time.monotonic()
     assert wait_for(lambda: not any(alive(w) for w in pids), 3), f"orphans: {[w for w in pids if alive(w)]}"
+    print(f"{mode}: workers gone {time.monotonic() - t0:.2f} s after the parent's kill -9")
