@@ -11,7 +11,7 @@ SHARED ?= ../shared
 .PHONY: help venv test test-slow bench reproduce westwick2012 westwick2012-fig2 westwick2012-fig3 \
         westwick2012-fig4 westwick2012-fig5 westwick2012-fig6 westwick2012-table1 westwick2012-fig7 \
         westwick2012-fig8 xu1998 xu1998-fig2 xu1998-fig3 xu1998-calibration vanderuit2018-table1 \
-        example-ankle clean-results
+        example-ankle clean-results nightly chromium
 
 help:
 	@echo "make reproduce   run every implemented paper study (results/<study>/report.md)"
@@ -21,6 +21,8 @@ help:
 	@echo "make westwick2012[-fig2|-fig3|-fig4|-fig5|-fig6|-table1|-fig7|-fig8]"
 	@echo "make xu1998[-fig2|-fig3|-calibration]"
 	@echo "make vanderuit2018-table1"
+	@echo "make nightly     every paper study against the published values and the previous nightly:"
+	@echo "                 results/nightly/index.html; exit 1 on a regression (NIGHTLY_ARGS=... for options)"
 	@echo "make example-ankle   README worked example on ../shared/data (developers only)"
 
 $(STAMP): pyproject.toml
@@ -75,6 +77,15 @@ xu1998-calibration: $(STAMP)
 
 vanderuit2018-table1: $(STAMP)
 	$(RUN) vanderuit2018_table1
+
+# Nightly regression report (jointbench nightly --help); configs/nightly.yaml says what counts as a change.
+NIGHTLY_ARGS ?=
+nightly: $(STAMP)
+	$(BIN)/jointbench nightly $(NIGHTLY_ARGS)
+
+# Headless Chromium from Debian's packages, for the test that opens the nightly report (tests/test_nightly.py).
+chromium:
+	@.ci/install-chromium
 
 # The README's worked example on real ankle recordings (needs ../shared beside the checkout).
 example-ankle: $(STAMP)

@@ -1,6 +1,9 @@
-"""Command line: ``jointbench run STUDY``, ``jointbench status``, ``jointbench estimate ...``, ``jointbench list``.
+"""Command line: ``jointbench run STUDY``, ``status``, ``history``, ``diff``, ``nightly``, ``cache``,
+``estimate``, ``list``.
 
-Errors caused by the user (config, data, options) print one line and exit with status 2.
+Errors caused by the user (config, data, options, an unwritable results folder) print one line and exit
+with status 2. Ctrl-C (and SIGTERM) stop a run within about a second, keeping every finished case: exit
+status 130 (143 for SIGTERM); run again to resume.
 """
 from __future__ import annotations
 
@@ -13,26 +16,67 @@ for _v in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
 
 import argparse  # noqa: E402
 import shlex  # noqa: E402
+import signal  # noqa: E402
 import sys  # noqa: E402
+from pathlib import Path  # noqa: E402
 
 from jointbench.errors import JointBenchError  # noqa: E402
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, turned into an exception so that every cleanup runs (temporaries, workers, history)."""
+
+    reason = "terminated (SIGTERM)"
+
+
+def _on_sigterm(signum, frame):
+    raise Terminated()
+
+
+class OneLineParser(argparse.ArgumentParser):
+    """Usage errors are one line (and exit status 2), like every other user error."""
+
+    def error(self, message: str):
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
+def positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {value}")
+    return value
+
+
+def _command() -> str:
+    return "jointbench " + " ".join(shlex.quote(a) for a in sys.argv[1:]) if sys.argv[1:] else ""
+
+
+def _root(args) -> Path:
+    from benchmarks.study import results_root
+
+    return results_root(Path(args.out) if getattr(args, "out", None) else None)
 
 
 def _run(args) -> int:
     from benchmarks.study import run_study
 
-    cmd = "jointbench " + " ".join(shlex.quote(a) for a in sys.argv[1:]) if sys.argv[1:] else ""
-    run = run_study(args.study, parts=args.parts or None, serial=args.serial, workers=args.workers,
-                    use_cache=not args.no_cache, progress=not args.quiet, command=cmd)
+    run = run_study(args.study, parts=args.parts or None, out_root=_root(args), serial=args.serial,
+                    workers=args.workers, use_cache=not args.no_cache, progress=not args.quiet,
+                    command=_command())
     from benchmarks.tables import headline
 
     comp = run.comparison
     n_pass = int((comp["status"] == "pass").sum()) if len(comp) else 0
-    print(f"{run.study.id}: {len(run.results)} cases, {len(run.failed)} failed; {headline(comp)}")
+    n_cached = sum(r.cached for r in run.results)
+    print(f"{run.study.id}: {len(run.results)} cases ({n_cached} from cache), {len(run.failed)} failed; "
+          f"{headline(comp)}")
     for r in comp.itertuples():
         print(f"  {r.status:4s}  {r.evidence:12s}  {r.check:18s} reproduced {r.reproduced:.5g}  "
               f"[{r.low:.5g}, {r.high:.5g}]")
-    print(f"wrote {run.folder}/report.md, comparison.csv, cases.csv")
+    print(f"wrote {run.folder}/report.md, comparison.csv, cases.csv; history run {run.run_id}")
     if args.strict and (len(run.failed) or n_pass < len(comp)):
         return 1
     return 0
@@ -64,17 +108,38 @@ def _list(args) -> int:
     return 0
 
 
+def _nightly(args) -> int:
+    from benchmarks.harness.nightly import DEFAULT_CONFIG, load_config
+    from benchmarks.nightly import run_nightly
+
+    config = load_config(Path(args.config) if args.config else DEFAULT_CONFIG)
+    if args.studies:
+        import dataclasses
+
+        config = dataclasses.replace(config, studies=tuple(args.studies))
+    res = run_nightly(config, _root(args), workers=args.workers, serial=args.serial, progress=not args.quiet,
+                      command=_command() or "jointbench nightly")
+    print(f"nightly {res.nightly_id}: {res.verdict}")
+    for line in res.regressions:
+        print(f"  {line}")
+    print(f"wrote {res.index} and {res.history_page.name}")
+    return 1 if res.verdict == "regression" else 0
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="jointbench", description=__doc__.splitlines()[0])
-    sub = parser.add_subparsers(dest="command", required=True)
+    from benchmarks import cli_history
+
+    parser = OneLineParser(prog="jointbench", description=__doc__.splitlines()[0])
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=OneLineParser)
     p = sub.add_parser("run", help="run a study: results/<study>/{comparison.csv,cases.csv,report.md}")
     p.add_argument("study", help="study id (configs/studies/<id>.yaml) or path to a study config")
     p.add_argument("--parts", nargs="+", metavar="PART", help="only these parts (e.g. fig4 table1)")
     p.add_argument("--serial", action="store_true", help="run cases one after another in this process")
-    p.add_argument("--workers", type=int, default=None, help="processes (default: all cores)")
+    p.add_argument("--workers", type=positive_int, default=None, help="processes (default: all cores)")
     p.add_argument("--no-cache", action="store_true", help="recompute cases even when cached")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.add_argument("--strict", action="store_true", help="exit 1 if a case fails or a check misses")
+    p.add_argument("--out", metavar="DIR", help="results folder (default: results/ of the checkout)")
     p.set_defaults(func=_run)
     p = sub.add_parser("status", help="status of every study from results/*/comparison.csv (README tables)")
     p.add_argument("--write-readme", action="store_true",
@@ -82,6 +147,16 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--results", metavar="DIR", help="results folder (default: results/ of the checkout)")
     p.add_argument("--readme", metavar="FILE", help="README to rewrite (default: README.md of the checkout)")
     p.set_defaults(func=_status)
+    p = sub.add_parser("nightly", help="run every paper study, compare with the previous nightly, write "
+                                       "results/nightly/index.html; exit 1 on a regression")
+    p.add_argument("--config", metavar="FILE", help="nightly config (default: configs/nightly.yaml)")
+    p.add_argument("--studies", nargs="+", metavar="STUDY", help="these studies instead of the config's")
+    p.add_argument("--serial", action="store_true", help="run cases one after another in this process")
+    p.add_argument("--workers", type=positive_int, default=None, help="processes (default: all cores)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.add_argument("--out", metavar="DIR", help="results folder (default: results/ of the checkout)")
+    p.set_defaults(func=_nightly)
+    cli_history.add_parsers(sub, positive_int)
     p = sub.add_parser("list", help="list studies, estimators and protocols")
     p.set_defaults(func=_list)
     from benchmarks import cli_estimate
@@ -93,6 +168,9 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
+    previous = None
+    if argv is None:                       # the real command line (not a call from a test)
+        previous = signal.signal(signal.SIGTERM, _on_sigterm)
     try:
         return int(args.func(args) or 0)
     except JointBenchError as exc:
@@ -101,9 +179,23 @@ def main(argv: list[str] | None = None) -> int:
     except BrokenPipeError:   # output piped into e.g. `head`
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 1
-    except KeyboardInterrupt:
-        print("jointbench: interrupted (finished cases are cached; run again to resume)", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as exc:
+        sigterm = isinstance(exc, Terminated) or isinstance(exc.__context__, Terminated) or \
+            "SIGTERM" in str(getattr(exc, "reason", ""))
+        what = "terminated" if sigterm else "interrupted"
+        finished, total = getattr(exc, "finished", None), getattr(exc, "total", None)
+        kept = (f": {len(finished)} of {total} cases finished and kept" if finished is not None else "")
+        run = f" (history run {exc.run_id})" if getattr(exc, "run_id", None) else ""
+        print(f"jointbench: {what}{kept}{run}; run again to resume", file=sys.stderr)
+        code = 143 if sigterm else 130
+        if argv is None:        # the real command line: everything is stored and the workers are gone;
+            sys.stdout.flush()  # skip the interpreter's teardown of numpy, scipy, pandas, matplotlib
+            sys.stderr.flush()  # (0.5-1 s on a busy machine) so that Ctrl-C returns at once
+            os._exit(code)
+        return code
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
 
 
 if __name__ == "__main__":

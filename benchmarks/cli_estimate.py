@@ -17,9 +17,8 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import os
-import tempfile
 from pathlib import Path
-from typing import Callable, Sequence
+from typing import Sequence
 
 import numpy as np
 
@@ -27,6 +26,7 @@ from benchmarks import io
 from benchmarks.metrics import vaf
 from jointbench.errors import ConfigError, InputError
 from jointbench.estimate import Estimate, FRFEstimate, IRFEstimate, ParametricEstimate
+from jointbench.files import atomic_write
 from jointbench.schema import describe, parse_assignments
 from jointbench.signal import resample_trial
 from jointbench.types import Trial
@@ -104,15 +104,15 @@ def run(args: argparse.Namespace) -> int:
     frame = est.to_frame()
     response = est.response_frame()
     written = [(out, len(frame), list(frame.columns))]
-    _write_atomic(out, lambda p: frame.to_csv(p, index=False))
+    atomic_write(out, lambda p: frame.to_csv(p, index=False))
     if response is not None:
         side = response_path(out, est)
-        _write_atomic(side, lambda p: response.to_csv(p, index=False))
+        atomic_write(side, lambda p: response.to_csv(p, index=False))
         written.append((side, len(response), list(response.columns)))
     if plot is not None:
         from benchmarks.plots_estimate import plot_estimate
 
-        _write_atomic(plot, lambda p: plot_estimate(est, p, trials=trials, fmt=plot.suffix[1:].lower()))
+        atomic_write(plot, lambda p: plot_estimate(est, p, trials=trials, fmt=plot.suffix[1:].lower()))
         written.append((plot, None, None))
     print(summary_text(args.estimator, estimator.settings, raw, trials, est, written,
                        torque_sign=args.torque_sign))
@@ -257,22 +257,3 @@ def _check_outputs(out: Path, plot: Path | None, sources: Sequence[io.Source]) -
     for t in targets:
         if os.path.abspath(t) in inputs:
             raise ConfigError(f"refusing to overwrite input file {t}")
-
-
-def _write_atomic(path: Path, write: Callable[[str], object]) -> None:
-    """Call ``write(tmp)`` on a temporary file beside ``path``, then move it into place."""
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    except OSError as exc:
-        raise InputError(f"{path}: cannot write: {exc.strerror or exc}") from None
-    os.close(fd)
-    try:
-        write(tmp)
-        os.chmod(tmp, 0o644)  # mkstemp makes 0600; outputs are ordinary readable files
-        os.replace(tmp, path)
-    except OSError as exc:
-        raise InputError(f"{path}: cannot write: {exc.strerror or exc}") from None
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)

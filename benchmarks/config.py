@@ -24,11 +24,41 @@ REPO = Path(__file__).resolve().parents[1]
 CONFIGS = REPO / "configs"
 
 
+class _DuplicateKey(yaml.YAMLError):
+    def __init__(self, key: Any, line: int, first: int):
+        super().__init__(f"line {line}: duplicate key {key!r} (first given on line {first})")
+
+
+class StrictLoader(yaml.SafeLoader):
+    """``yaml.SafeLoader`` that rejects a key given twice in one mapping (PyYAML keeps the last one
+    silently). Keys brought in by a merge (``<<: *anchor``) may be overridden: that is what merges
+    are for."""
+
+    def construct_mapping(self, node, deep=False):
+        if isinstance(node, yaml.MappingNode):
+            seen: dict = {}
+            for key_node, _ in node.value:
+                if key_node.tag == "tag:yaml.org,2002:merge":
+                    continue
+                key = self.construct_object(key_node, deep=True)
+                line = key_node.start_mark.line + 1
+                try:
+                    if key in seen:
+                        raise _DuplicateKey(key, line, seen[key])
+                    seen[key] = line
+                except TypeError:         # an unhashable key: PyYAML reports it itself
+                    continue
+        return super().construct_mapping(node, deep=deep)
+
+
 def _load_yaml(path: Path) -> Any:
+    """Parse a YAML file strictly (duplicate keys are errors naming the file, key and line)."""
     if not path.is_file():
         raise ConfigError(f"{path}: file not found")
     try:
-        return yaml.safe_load(path.read_text())
+        return yaml.load(path.read_text(), Loader=StrictLoader)  # noqa: S506 - a SafeLoader subclass
+    except _DuplicateKey as exc:
+        raise ConfigError(f"{path}: {exc}") from None
     except yaml.YAMLError as exc:
         raise ConfigError(f"{path}: not valid YAML: {exc}") from None
 
@@ -184,13 +214,21 @@ def _resolve_joint(experiment: Mapping, where: str, models_dir: Path) -> dict:
     return exp
 
 
+#: most seeds one part may run (a typo such as ``seeds: 1000000000`` must not exhaust the memory)
+MAX_SEEDS = 100_000
+
+
 def _seeds(value: Any, where: str) -> tuple[int, ...]:
     if value is None:
         return (0,)
     if isinstance(value, int) and not isinstance(value, bool):
         if value < 1:
             raise ConfigError(f"{where}: key 'seeds': need at least 1 seed, got {value}")
+        if value > MAX_SEEDS:
+            raise ConfigError(f"{where}: key 'seeds': {value} seeds is more than the {MAX_SEEDS} a part may run")
         return tuple(range(value))
+    if isinstance(value, list) and len(value) > MAX_SEEDS:
+        raise ConfigError(f"{where}: key 'seeds': {len(value)} seeds is more than the {MAX_SEEDS} a part may run")
     if isinstance(value, list) and value and all(isinstance(v, int) and not isinstance(v, bool)
                                                  for v in value):
         if len(set(value)) != len(value):
@@ -330,9 +368,10 @@ def load_checks(path: Path, parts: Mapping[str, Part]) -> tuple[Check, ...]:
 
 
 def _not_reproduced(value: Any, where: str) -> tuple[NotReproduced, ...]:
-    if not isinstance(value, list) or not value:
+    if not isinstance(value, list):
         raise ConfigError(f"{where}: key 'not_reproduced': a list of {{item, reason}} naming every published "
-                          f"table, figure and value left out (write the list even when it is short)")
+                          f"table, figure and value left out (write the list even when it is short; [] for a "
+                          f"study that leaves nothing out)")
     out = []
     for i, v in enumerate(value):
         _check_keys(v, {"item": True, "reason": True}, f"{where}: not_reproduced[{i}]")

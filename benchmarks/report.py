@@ -193,7 +193,9 @@ def render(study: Study, comparison: pd.DataFrame, part_reports: dict, failed: l
         lines += ["", "Tracebacks are in `failures.log`.", ""]
     lines += ["## Not reproduced", "",
               "Published tables, figures and values this study leaves out, and why (from the study config):", ""]
-    lines += [f"- **{n.item}**: {n.reason}" for n in m["not_reproduced"]] + [""]
+    lines += [f"- **{n.item}**: {n.reason}" for n in m["not_reproduced"]] or ["_(nothing: the study config "
+                                                                               "lists no left-out item)_"]
+    lines.append("")
     lines += ["## Interpretation", "",
               "Every reading chosen for an ambiguous or underspecified passage (also a comment in the config):", ""]
     for r in m["readings"]:

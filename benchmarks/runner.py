@@ -1,186 +1,73 @@
-"""Expand a study into independent cases and run them (process pool, cache, failures recorded).
+"""Expand a study into independent cases and run them (any executor, verified cache, nothing lost).
 
-A case is a pure function of its specification and seed: ``run_case(case) -> CaseResult``. Cases are
-JSON-serialisable and keyed by a hash of their specification and of the code, so they can be run on
-any machine and served from ``results/<study>/cache/`` (a crash loses no finished case).
+A case is a pure function of its specification and seed (:mod:`benchmarks.harness.case`). Cases are
+JSON-serialisable and cached by a key of everything that can change their numbers
+(:mod:`benchmarks.harness.cache`), so a crash or Ctrl-C loses no finished case and the next run resumes.
 """
 from __future__ import annotations
 
 import concurrent.futures as cf
-import dataclasses
-import hashlib
-import json
+import math
 import os
-import subprocess
+import queue
 import sys
-import time
-import traceback
-from pathlib import Path
-from typing import Any, Callable, Iterable, Mapping
+from typing import Callable, Iterable
 
-import estimators
-import sims
-from benchmarks import protocols
-from benchmarks.config import REPO, Part, Study
+from benchmarks.config import Part, Study
+from benchmarks.harness.cache import Cache
+from benchmarks.harness.case import Case, CaseResult, parse_inputs, run_case
+from benchmarks.harness.pool import InlineExecutor, WorkerPool
 from jointbench.errors import ConfigError
-from jointbench.schema import parse
+
+__all__ = ["Case", "CaseResult", "Cache", "RunInterrupted", "expand", "run_case", "run_cases"]
+
+#: most cases one run may expand to (a typo in a sweep or seed count must not exhaust the memory)
+MAX_CASES = 1_000_000
 
 
-@dataclasses.dataclass(frozen=True)
-class Case:
-    """One independent unit of work."""
+class RunInterrupted(KeyboardInterrupt):
+    """Ctrl-C or SIGTERM during :func:`run_cases`; ``finished`` holds every case finished (and cached)
+    before it, ``total`` the number asked for."""
 
-    study: str
-    part: str
-    protocol: str
-    params: Mapping[str, Any]
-    sweep: Mapping[str, Any]
-    experiment: Mapping[str, Any] | None
-    estimators: Mapping[str, Mapping[str, Any]]
-    seed: int
-    where: str
-
-    def spec(self) -> dict:
-        return dataclasses.asdict(self)
-
-    @property
-    def case_id(self) -> str:
-        sw = "".join(f"-{k}={v}" for k, v in self.sweep.items())
-        return f"{self.part}{sw}-seed{self.seed}"
-
-    def key(self, fingerprint: str) -> str:
-        blob = json.dumps(self.spec(), sort_keys=True, default=str) + fingerprint
-        return hashlib.sha256(blob.encode()).hexdigest()[:24]
+    def __init__(self, finished: list[CaseResult], total: int, reason: str = "interrupted"):
+        super().__init__(reason)
+        self.finished, self.total, self.reason = finished, total, reason
 
 
-@dataclasses.dataclass
-class CaseResult:
-    case: Case
-    status: str                    # "ok" or "failed"
-    rows: list[dict]
-    curves: list[dict]
-    wall_time_s: float
-    error: str = ""
-    detail: str = ""               # traceback of a failure (for the log, not the table)
-
-    def to_json(self) -> dict:
-        d = dataclasses.asdict(self)
-        d["case"] = self.case.spec()
-        return d
-
-    @classmethod
-    def from_json(cls, d: dict) -> "CaseResult":
-        d = dict(d)
-        d["case"] = Case(**d["case"])
-        return cls(**d)
-
-
-def _parse_inputs(case: Case):
-    proto = protocols.REGISTRY.get(case.protocol)
-    params = parse(proto.Params, {**case.params, **case.sweep}, f"{case.where}: params")
-    exp = None
-    if case.experiment is not None:
-        exp = sims.Experiment.from_mapping(case.experiment, f"{case.where}: experiment")
-    ests = {name: estimators.make(name, settings, f"{case.where}: estimators.{name}")
-            for name, settings in case.estimators.items()}
-    return proto, params, exp, ests
+def _check_estimators(part: Part, experiment, ests: dict) -> None:
+    """An estimator that cannot run on the part's perturbation is a config error, not a failed case."""
+    if experiment is None:
+        return
+    for name, est in ests.items():
+        supports = getattr(type(est), "supports", None)
+        reason = supports(experiment) if callable(supports) else None
+        if reason:
+            raise ConfigError(f"{part.where}: estimators.{name}: cannot run on this part's experiment: "
+                              f"{reason}; remove it from the part or change the perturbation")
 
 
 def expand(study: Study, parts: Iterable[str] | None = None) -> list[Case]:
     """All cases of the selected parts, validated up front (config errors surface before any run)."""
-    names = list(study.parts) if parts is None else list(parts)
+    names = list(study.parts) if parts is None else list(dict.fromkeys(parts))
     unknown = [p for p in names if p not in study.parts]
     if unknown:
         raise ConfigError(f"{study.path}: unknown part {unknown[0]!r}; parts: {', '.join(study.parts)}")
+    total = sum(math.prod(len(v) for v in study.parts[n].sweep.values()) * len(study.parts[n].seeds)
+                for n in names)
+    if total > MAX_CASES:
+        raise ConfigError(f"{study.path}: the selected parts expand to {total} cases, more than the "
+                          f"{MAX_CASES} a run may hold; lower the seeds or the sweeps")
     cases = []
     for name in names:
         part: Part = study.parts[name]
         for combo in part.grid():
             for seed in part.seeds:
-                case = Case(study=study.id, part=name, protocol=part.protocol, params=dict(part.params),
-                            sweep=combo, experiment=part.experiment, estimators=dict(part.estimators),
-                            seed=seed, where=part.where)
-                cases.append(case)
-        _parse_inputs(cases[-1])   # validate once per part
+                cases.append(Case(study=study.id, part=name, protocol=part.protocol, params=dict(part.params),
+                                  sweep=combo, experiment=part.experiment, estimators=dict(part.estimators),
+                                  seed=seed, where=part.where))
+        _, _, exp, ests = parse_inputs(cases[-1])   # validate once per part
+        _check_estimators(part, exp, ests)
     return cases
-
-
-def run_case(case: Case) -> CaseResult:
-    """Run one case; never raises: a failure is returned as ``status='failed'`` with its error."""
-    t0 = time.perf_counter()
-    try:
-        proto, params, exp, ests = _parse_inputs(case)
-        ctx = protocols.Context(part=case.part, seed=case.seed, params=params, experiment=exp,
-                                estimators=ests)
-        proto.fn(ctx)
-        return CaseResult(case, "ok", ctx.rows, ctx.curves, time.perf_counter() - t0)
-    except Exception as exc:  # noqa: BLE001 - a failing case must not stop the others
-        return CaseResult(case, "failed", [], [], time.perf_counter() - t0,
-                          error=f"{type(exc).__name__}: {exc}", detail=traceback.format_exc())
-
-
-def code_fingerprint() -> str:
-    """Hash of the package sources: a cached case is reused only with identical code."""
-    h = hashlib.sha256()
-    for pkg in ("jointbench", "sims", "estimators", "benchmarks"):
-        for p in sorted((REPO / pkg).rglob("*.py")):
-            h.update(p.relative_to(REPO).as_posix().encode())
-            h.update(p.read_bytes())
-    return h.hexdigest()[:16]
-
-
-#: the paths whose uncommitted changes can change a result (generated outputs such as results/ and the
-#: README's status block cannot: `make reproduce` rewrites them between studies)
-RESULT_INPUTS = ("jointbench", "sims", "estimators", "benchmarks", "configs", "pyproject.toml")
-
-
-def git_commit(repo: Path = REPO) -> str:
-    """Short commit of HEAD, with ``-dirty`` when a tracked file that can change a result
-    (:data:`RESULT_INPUTS`) has uncommitted changes; 'unknown' outside a git checkout."""
-    try:
-        out = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=repo, capture_output=True,
-                             text=True, timeout=10)
-        if out.returncode:
-            return "unknown"
-        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no", "--", *RESULT_INPUTS],
-                               cwd=repo, capture_output=True, text=True, timeout=10).stdout.strip()
-        return out.stdout.strip() + ("-dirty" if dirty else "")
-    except (OSError, subprocess.SubprocessError):
-        return "unknown"
-
-
-class Cache:
-    """One JSON file per finished case, written atomically."""
-
-    def __init__(self, folder: Path, fingerprint: str, enabled: bool = True):
-        self.folder, self.fingerprint, self.enabled = folder, fingerprint, enabled
-        self.hits = 0     # entries served by get()
-
-    def _path(self, case: Case) -> Path:
-        return self.folder / f"{case.case_id}-{case.key(self.fingerprint)}.json"
-
-    def get(self, case: Case) -> CaseResult | None:
-        p = self._path(case)
-        if not self.enabled or not p.is_file():
-            return None
-        try:
-            res = CaseResult.from_json(json.loads(p.read_text()))
-        except (ValueError, TypeError, KeyError):
-            return None   # a damaged entry is recomputed
-        self.hits += 1
-        return res
-
-    def put(self, res: CaseResult) -> None:
-        if not self.enabled or res.status != "ok":
-            return
-        self.folder.mkdir(parents=True, exist_ok=True)
-        p = self._path(res.case)
-        tmp = p.with_suffix(".tmp")
-        tmp.write_text(json.dumps(res.to_json()))
-        os.replace(tmp, p)
-        for old in self.folder.glob(f"{res.case.case_id}-*.json"):   # entries of older code or specs
-            if old != p:
-                old.unlink(missing_ok=True)
 
 
 def _progress(total: int, enabled: bool):
@@ -191,25 +78,55 @@ def _progress(total: int, enabled: bool):
     return tqdm(total=total, unit="case", file=sys.stderr, dynamic_ncols=True)
 
 
-def _one_blas_thread() -> None:
-    """Worker initializer: one BLAS thread per worker process (the pool already uses every core; nested
-    BLAS threads would oversubscribe them, which slowed a 0.16 s KBR fit to seconds on 2 cores). Serial
-    runs use one thread too, so that serial and parallel runs give bit-identical numbers."""
-    from threadpoolctl import threadpool_limits
+def _outcome(fut, case: Case) -> CaseResult:
+    try:
+        return fut.result()
+    except Exception as exc:  # noqa: BLE001 - e.g. a worker killed by the OS
+        return CaseResult(case, "failed", [], [], 0.0, error=f"{type(exc).__name__}: {exc}")
 
-    threadpool_limits(limits=1)
+
+def _stop(executor) -> None:
+    terminate = getattr(executor, "terminate_workers", None)
+    if callable(terminate):
+        terminate()
+    else:
+        executor.shutdown(wait=False, cancel_futures=True)
 
 
 def run_cases(cases: list[Case], cache: Cache, workers: int | None = None, serial: bool = False,
-              progress: bool = True, on_result: Callable[[CaseResult], None] | None = None
-              ) -> list[CaseResult]:
-    """Run cases (cached ones are reused) on a process pool, or serially; order is preserved."""
+              progress: bool = True, on_result: Callable[[CaseResult], None] | None = None,
+              executor: cf.Executor | None = None) -> list[CaseResult]:
+    """Run cases (verified cached ones are reused); order is preserved.
+
+    Parameters
+    ----------
+    cases, cache
+        What to run and where finished cases are kept (each is stored the moment it finishes).
+    workers, serial
+        Processes of the default :class:`~benchmarks.harness.pool.WorkerPool` (default: all cores), or
+        run in this process.
+    on_result
+        Called with each result as it finishes (cached ones included), in completion order.
+    executor
+        Any ``concurrent.futures``-style executor to use instead (``submit`` returning futures with
+        ``add_done_callback``; ``terminate_workers()`` when it can stop at once). It is not shut down.
+
+    Raises
+    ------
+    RunInterrupted
+        On Ctrl-C or SIGTERM: pending cases are cancelled, the workers terminated, and every case that
+        finished is stored before this is raised (within about a second).
+    """
+    if workers is not None and workers < 1:
+        raise ConfigError(f"workers: need at least 1 process, got {workers}")
     results: dict[int, CaseResult] = {}
     todo = []
     for i, c in enumerate(cases):
         hit = cache.get(c)
         if hit is not None:
             results[i] = hit
+            if on_result:
+                on_result(hit)
         else:
             todo.append(i)
     bar = _progress(len(cases), progress)
@@ -217,9 +134,12 @@ def run_cases(cases: list[Case], cache: Cache, workers: int | None = None, seria
         bar.update(len(results))
         bar.set_postfix_str(f"{len(results)} cached")
 
-    def done(i: int, res: CaseResult) -> None:
+    stored: set[int] = set()
+
+    def finish(i: int, res: CaseResult) -> None:
         results[i] = res
         cache.put(res)
+        stored.add(i)
         if on_result:
             on_result(res)
         if bar is not None:
@@ -228,22 +148,63 @@ def run_cases(cases: list[Case], cache: Cache, workers: int | None = None, seria
                 bar.write(f"case {res.case.case_id} failed: {res.error}")
 
     workers = workers or os.cpu_count() or 1
-    if serial or workers == 1 or len(todo) <= 1:
+    own = executor is None
+    limits = None
+    if own and (serial or workers == 1 or len(todo) <= 1):
         from threadpoolctl import threadpool_limits
 
-        with threadpool_limits(limits=1):   # as in the workers: same BLAS reductions, same numbers
-            for i in todo:
-                done(i, run_case(cases[i]))
+        executor, capacity = InlineExecutor(), 1
+        limits = threadpool_limits(limits=1)     # as in the workers: same BLAS reductions, same numbers
+    elif own:
+        executor = WorkerPool(min(workers, len(todo)))
+        capacity = 2 * min(workers, len(todo))
     else:
-        with cf.ProcessPoolExecutor(max_workers=min(workers, len(todo)), initializer=_one_blas_thread) as pool:
-            futs = {pool.submit(run_case, cases[i]): i for i in todo}
-            for fut in cf.as_completed(futs):
-                i = futs[fut]
-                try:
-                    res = fut.result()
-                except Exception as exc:  # noqa: BLE001 - e.g. a worker killed by the OS
-                    res = CaseResult(cases[i], "failed", [], [], 0.0, error=f"{type(exc).__name__}: {exc}")
-                done(i, res)
+        capacity = 2 * (getattr(executor, "_max_workers", None) or workers)
+    done_q: queue.SimpleQueue = queue.SimpleQueue()
+    inflight: dict = {}
+    pending = iter(todo)
+    try:
+        while True:
+            while len(inflight) < capacity:
+                i = next(pending, None)
+                if i is None:
+                    break
+                fut = executor.submit(run_case, cases[i])
+                inflight[fut] = i
+                fut.add_done_callback(done_q.put)
+            if not inflight:
+                break
+            try:
+                fut = done_q.get(timeout=0.25)
+            except queue.Empty:
+                continue
+            finish(inflight[fut], _outcome(fut, cases[inflight[fut]]))
+            del inflight[fut]
+    except KeyboardInterrupt as exc:
+        _stop(executor)
+        try:                  # keep every finished case: those not yet stored, those done meanwhile
+            for i, res in list(results.items()):
+                if i not in stored and not res.cached:
+                    cache.put(res)
+            for fut, i in list(inflight.items()):   # a result, not the error of a terminated worker
+                if fut.done() and not fut.cancelled() and fut.exception() is None and i not in results:
+                    finish(i, fut.result())
+        except KeyboardInterrupt:
+            pass
+        if bar is not None:
+            bar.close()
+        raise RunInterrupted([results[i] for i in sorted(results)], len(cases),
+                             getattr(exc, "reason", "interrupted")) from exc
+    except BaseException:
+        _stop(executor)
+        if bar is not None:
+            bar.close()
+        raise
+    finally:
+        if limits is not None:
+            limits.restore_original_limits()
+    if own:
+        executor.shutdown(wait=True)
     if bar is not None:
         bar.close()
     return [results[i] for i in range(len(cases))]

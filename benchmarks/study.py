@@ -1,8 +1,11 @@
-"""Run a whole study: expand, run cases, write tidy results, comparison, figures and the report.
+"""Run a whole study: expand, run cases, write tidy results, comparison, figures and the report, and
+record the run in the history.
 
 Outputs in ``results/<study>/``: ``cases.csv`` (tidy rows), ``curves.csv.gz`` (curves behind the
 figures), ``comparison.csv`` (one row per published check), ``report.md`` and its PNG figures,
-``failures.log`` (tracebacks of failed cases, when any), and ``cache/`` (finished cases).
+``failures.log`` (tracebacks of failed cases, when any). Beside them, shared by every study:
+``results/cache/`` (finished cases, :mod:`benchmarks.harness.cache`) and ``results/history.sqlite``
+(every run, :mod:`benchmarks.harness.history`).
 """
 from __future__ import annotations
 
@@ -16,8 +19,16 @@ import pandas as pd
 
 from benchmarks import figures, report
 from benchmarks.config import REPO, Study, load_study
-from benchmarks.runner import Cache, CaseResult, code_fingerprint, expand, git_commit, run_cases
+from benchmarks.harness import fingerprint, outputs
+from benchmarks.harness.cache import Cache, case_key
+from benchmarks.harness.history import History
+from benchmarks.runner import CaseResult, RunInterrupted, expand, run_cases
 from benchmarks.tables import cases_frame, compare, curves_frame, swap_survival
+from jointbench.files import atomic_write, sweep_stale_temps, write_text
+
+HISTORY_FILE = "history.sqlite"
+CACHE_FOLDER = "cache"
+PROGRESS_EVERY_S = 2.0
 
 
 @dataclasses.dataclass
@@ -27,85 +38,154 @@ class StudyRun:
     results: list[CaseResult]
     rows: pd.DataFrame
     comparison: pd.DataFrame
+    run_id: int | None = None
+    part_reports: dict = dataclasses.field(default_factory=dict)
+    wall_s: float = 0.0
+    history: Path | None = None
 
     @property
     def failed(self) -> list[CaseResult]:
         return [r for r in self.results if r.status != "ok"]
 
 
-def _write(path: Path, write) -> None:
-    """Write through a temporary file so an interrupted run never leaves half a file."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + ".tmp")
-    write(tmp)
-    os.replace(tmp, path)
+def results_root(out_root: Path | None = None) -> Path:
+    return Path(out_root) if out_root is not None else REPO / "results"
+
+
+def config_hash(study: Study) -> str:
+    """Hash of the study as loaded (parts with their resolved models, checks, readings), without paths."""
+    parts = {n: {k: v for k, v in dataclasses.asdict(p).items() if k != "where"} for n, p in study.parts.items()}
+    return fingerprint.sha({"id": study.id, "title": study.title, "paper": study.paper, "parts": parts,
+                            "checks": [dataclasses.asdict(c) for c in study.checks],
+                            "readings": [dataclasses.asdict(r) for r in study.readings]}, 16)
+
+
+def _part_reports(study, shown, results, rows, curves, folder) -> dict:
+    out = {}
+    for name in shown:
+        part = study.parts[name]
+        if part.protocol not in figures.REGISTRY:
+            out[name] = None
+            continue
+        if not any(r.status == "ok" and r.case.part == name for r in results):
+            out[name] = "no case of this part succeeded (see Failed cases)"
+            continue
+        try:
+            out[name] = figures.REGISTRY.get(part.protocol)(
+                part, rows[rows["part"] == name], curves[curves["part"] == name] if len(curves) else curves,
+                folder, study.checks)
+        except Exception as exc:  # noqa: BLE001 - a broken plot must not lose the tables
+            out[name] = f"{type(exc).__name__}: {exc}"
+            traceback.print_exc()
+    return out
 
 
 def run_study(ref: str | Path, parts: list[str] | None = None, out_root: Path | None = None,
               serial: bool = False, workers: int | None = None, use_cache: bool = True,
-              progress: bool = True, command: str = "") -> StudyRun:
-    """Run study ``ref`` (an id under ``configs/studies`` or a path) and write its outputs.
+              progress: bool = True, command: str = "", kind: str = "run", nightly_id: int | None = None,
+              read_cache: bool = True, executor=None) -> StudyRun:
+    """Run study ``ref`` (an id under ``configs/studies`` or a path), write its outputs, record the run.
 
     With ``parts``, only those parts are run; the outputs still cover every other part whose cases
     are all in the cache for the current code (so ``make westwick2012-fig4`` after ``make
-    westwick2012`` rewrites fig4 without dropping the rest of the report).
+    westwick2012`` rewrites fig4 without dropping the rest of the report). ``read_cache=False``
+    recomputes every case but still stores the results (the nightly run does this).
+
+    Raises
+    ------
+    ConfigError, OutputError
+        Bad config or options; results folder not writable (before any case runs).
+    RunInterrupted
+        Ctrl-C or SIGTERM: the finished cases are cached and recorded in the history (status
+        ``interrupted``); ``run_id`` is set on the exception.
     """
     study = load_study(ref)
     cases = expand(study, parts)
-    folder = (out_root or REPO / "results") / study.id
-    cache = Cache(folder / "cache", code_fingerprint(), use_cache)
+    root = results_root(out_root)
+    folder = outputs.study_folder(root, study.id, study.path)
+    cache_dir = root / CACHE_FOLDER
+    outputs.ensure_writable(root, folder, cache_dir)
+    for f in (folder, root):
+        sweep_stale_temps(f)
+    sweep_stale_temps(cache_dir, recursive=True)
+    cache = Cache(cache_dir, enabled=use_cache, read=read_cache)
+    history = History(root / HISTORY_FILE)
+    run_parts = list(dict.fromkeys(c.part for c in cases))
+    n_workers = 1 if serial else (workers or os.cpu_count() or 1)
+    run_id = history.begin_run(study.id, run_parts, config_hash(study), len(cases), kind=kind,
+                               nightly_id=nightly_id, command=command or f"jointbench run {study.id}",
+                               workers=n_workers)
+    done = [0, time.monotonic()]
+
+    def on_result(_res: CaseResult) -> None:
+        done[0] += 1
+        if time.monotonic() - done[1] > PROGRESS_EVERY_S:
+            done[1] = time.monotonic()
+            history.progress(run_id, done[0])
+
+    keys = {c.case_id: case_key(c) for c in cases}
+    check_metrics = {c.id: str(c.select.get("metric", "")) for c in study.checks}
     t0 = time.perf_counter()
-    results = run_cases(cases, cache, workers=workers, serial=serial, progress=progress)
+    try:
+        results = run_cases(cases, cache, workers=workers, serial=serial, progress=progress,
+                            on_result=on_result, executor=executor)
+    except RunInterrupted as exc:
+        history.finish_run(run_id, "interrupted", exc.finished, keys, wall_s=time.perf_counter() - t0,
+                           error=exc.reason)
+        exc.run_id = run_id
+        raise
+    except BaseException as exc:
+        history.finish_run(run_id, "error", [], keys, wall_s=time.perf_counter() - t0,
+                           error=f"{type(exc).__name__}: {exc}")
+        raise
     wall = time.perf_counter() - t0
     n_cached = cache.hits
-    run_parts = list(dict.fromkeys(c.part for c in cases))
     from_cache = []
-    if parts is not None and use_cache:
+    if parts is not None and use_cache and read_cache:
         for name in study.parts:
             if name in run_parts:
                 continue
-            hits = [cache.get(c) for c in expand(study, [name])]
+            extra = expand(study, [name])
+            hits = [cache.get(c) for c in extra]
             if all(h is not None for h in hits):
                 results += hits
+                keys.update({c.case_id: case_key(c) for c in extra})
                 from_cache.append(name)
-    commit = git_commit()
+    commit = fingerprint.git_commit()
     rows = cases_frame(results, commit)
     curves = curves_frame(results)
     shown = [p for p in study.parts if p in run_parts or p in from_cache]
     comparison = compare(study.checks, rows, set(shown), commit)
-    _write(folder / "cases.csv", lambda p: rows.to_csv(p, index=False))
-    _write(folder / "curves.csv.gz", lambda p: curves.to_csv(p, index=False, compression="gzip"))
-    _write(folder / "comparison.csv", lambda p: comparison.to_csv(p, index=False))
-    failed = [r for r in results if r.status != "ok"]
-    log = folder / "failures.log"
-    if failed:
-        _write(log, lambda p: p.write_text("\n\n".join(f"== {r.case.case_id}\n{r.detail or r.error}"
-                                                         for r in failed)))
-    elif log.exists():
-        log.unlink()
-    part_reports = {}
-    for name in shown:
-        part = study.parts[name]
-        if part.protocol not in figures.REGISTRY:
-            part_reports[name] = None
-            continue
-        if not any(r.status == "ok" and r.case.part == name for r in results):
-            part_reports[name] = "no case of this part succeeded (see Failed cases)"
-            continue
-        try:
-            part_reports[name] = figures.REGISTRY.get(part.protocol)(
-                part, rows[rows["part"] == name], curves[curves["part"] == name] if len(curves) else curves,
-                folder, study.checks)
-        except Exception as exc:  # noqa: BLE001 - a broken plot must not lose the tables
-            part_reports[name] = f"{type(exc).__name__}: {exc}"
-            traceback.print_exc()
-    meta = {"commit": commit, "command": command or f"jointbench run {study.id}", "n_cases": len(cases),
-            "n_cached": n_cached, "wall_s": wall, "workers": 1 if serial else (workers or os.cpu_count()),
-            "parts": run_parts, "from_cache": from_cache}
-    swap = study.method_swap
-    if swap is not None and swap.part in shown:
-        meta["method_swap"] = {**swap_survival(study.checks, rows, swap.part, swap.estimators),
-                               "part": swap.part, "estimators": swap.estimators}
-    text = report.render(study, comparison, part_reports, failed, meta)
-    _write(folder / "report.md", lambda p: p.write_text(text))
-    return StudyRun(study, folder, results, rows, comparison)
+    try:
+        with outputs.study_lock(folder, f"run {run_id} (pid {os.getpid()})"):
+            atomic_write(folder / "cases.csv", lambda p: rows.to_csv(p, index=False))
+            atomic_write(folder / "curves.csv.gz", lambda p: curves.to_csv(p, index=False, compression="gzip"))
+            atomic_write(folder / "comparison.csv", lambda p: comparison.to_csv(p, index=False))
+            failed = [r for r in results if r.status != "ok"]
+            log = folder / "failures.log"
+            if failed:
+                write_text(log, "\n\n".join(f"== {r.case.case_id}\n{r.detail or r.error}" for r in failed))
+            elif log.exists():
+                log.unlink()
+            part_reports = _part_reports(study, shown, results, rows, curves, folder)
+            meta = {"commit": commit, "command": command or f"jointbench run {study.id}", "n_cases": len(cases),
+                    "n_cached": n_cached, "wall_s": wall, "workers": n_workers, "parts": run_parts,
+                    "from_cache": from_cache}
+            swap = study.method_swap
+            if swap is not None and swap.part in shown:
+                meta["method_swap"] = {**swap_survival(study.checks, rows, swap.part, swap.estimators),
+                                       "part": swap.part, "estimators": swap.estimators}
+            write_text(folder / "report.md", report.render(study, comparison, part_reports, failed, meta))
+    except KeyboardInterrupt as exc:
+        history.finish_run(run_id, "interrupted", results, keys, comparison, check_metrics, wall,
+                           error="interrupted while writing the outputs")
+        stop = RunInterrupted(results, len(results), "interrupted while writing the outputs")
+        stop.run_id = run_id
+        raise stop from exc
+    except BaseException as exc:
+        history.finish_run(run_id, "error", results, keys, comparison, check_metrics, wall,
+                           error=f"{type(exc).__name__}: {exc}")
+        raise
+    history.finish_run(run_id, "ok", results, keys, comparison, check_metrics, wall)
+    history.close()
+    return StudyRun(study, folder, results, rows, comparison, run_id, part_reports, wall, root / HISTORY_FILE)

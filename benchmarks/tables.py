@@ -268,13 +268,32 @@ def swap_survival(checks, rows: pd.DataFrame, part: str, estimators: tuple[str, 
             "differences": len(between)}
 
 
+def over_seeds(rows: pd.DataFrame, by: list[str], metrics: list[str] | None = None) -> pd.DataFrame:
+    """Median, min, max and count of ``value`` over seeds, per combination of the ``by`` columns that
+    exist (successful cases only; ``metrics`` keeps only those metrics). The one summary every table and
+    figure of the reports uses; :func:`median_range` writes one of its rows as text."""
+    sel = rows[rows["status"] == "ok"] if "status" in rows.columns else rows
+    if metrics is not None:
+        sel = sel[sel["metric"].isin(metrics)]
+    by = [b for b in by if b in sel.columns]
+    g = sel.groupby(by, dropna=False, sort=False)["value"]
+    return g.agg(median="median", min="min", max="max", n="count").reset_index()
+
+
+def median_range(median: float, low: float, high: float, n: int, digits: int | None = None) -> str:
+    """'median (min to max)' over seeds: the median alone for one seed or no spread, empty for none;
+    ``digits`` decimals, or four significant digits."""
+    if median is None or not np.isfinite(median):
+        return ""
+    spec = f".{digits}f" if digits is not None else ".4g"
+    if n <= 1 or low == high:
+        return format(median, spec)
+    return f"{median:{spec}} ({low:{spec}} to {high:{spec}})"
+
+
 def summarize(rows: pd.DataFrame, part: str, by: list[str]) -> pd.DataFrame:
     """Median and min-max over seeds of every metric of a part, grouped by ``by`` columns."""
-    sel = rows[(rows["part"] == part) & (rows["status"] == "ok")]
-    by = [b for b in by if b in sel.columns]
-    keys = by + ["estimator", "metric"]
-    g = sel.groupby(keys, dropna=False, sort=False)["value"]
-    return g.agg(median="median", min="min", max="max", n="count").reset_index()
+    return over_seeds(rows[rows["part"] == part], by + ["estimator", "metric"])
 
 
 def markdown(df: pd.DataFrame, floatfmt: str = ".4g") -> str:

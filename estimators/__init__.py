@@ -40,6 +40,20 @@ class Estimator(ABC):
 
     name: ClassVar[str] = "?"
     Settings: ClassVar[type] = NoSettings
+    #: perturbation kinds whose data this estimator can identify from (empty: any)
+    perturbations: ClassVar[tuple[str, ...]] = ()
+
+    @classmethod
+    def supports(cls, experiment: Any) -> str | None:
+        """Why data of ``experiment`` (anything with ``perturbation.kind``) cannot be fitted, or None.
+
+        The harness asks this when it expands a study, so that an impossible pairing (skirt on a PRBS)
+        is a config error before any case runs, not a failed case."""
+        kind = getattr(getattr(experiment, "perturbation", None), "kind", None)
+        if cls.perturbations and kind is not None and kind not in cls.perturbations:
+            return (f"{cls.name} needs a {' or '.join(repr(k) for k in cls.perturbations)} perturbation, "
+                    f"the experiment has {kind!r}")
+        return None
 
     def __init__(self, settings: Any = None):
         self.settings = self.Settings() if settings is None else settings

@@ -244,6 +244,8 @@ class KBR(Estimator):
     identification with a frequency-domain kernel-based estimator. IET Control Theory Appl. 11(4), 457-465.
     """
 
+    perturbations = ("multisine",)   # it fits the excited lines of a sparse multisine
+
     @dataclasses.dataclass(frozen=True)
     class Settings:
         na: int = param(2, ge=0, le=6, doc="denominator order Na (eq. 9; a_0 = 1)")

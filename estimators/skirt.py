@@ -242,6 +242,8 @@ class Skirt(Estimator):
     Louarroudi (2012), Automatica 48(4).
     """
 
+    perturbations = ("multisine",)   # it decomposes the skirts around the lines of a sparse multisine
+
     @dataclasses.dataclass(frozen=True)
     class Settings:
         n_p: int = param(7, ge=0, doc="order N_p of the time variation: basis b_0 ... b_Np (eq. 14)")

@@ -14,3 +14,8 @@ class ConfigError(JointBenchError, ValueError):
 
 class InputError(JointBenchError, ValueError):
     """A data record cannot be used (NaN, non-uniform time, mismatched lengths, too short...)."""
+
+
+class OutputError(JointBenchError, OSError):
+    """A result or output file cannot be written (read-only folder, full disk, a path outside the
+    results folder...)."""

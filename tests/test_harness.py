@@ -89,21 +89,27 @@ def test_same_seed_same_numbers_serial_and_parallel(tmp_path):
         d["parts"]["fig6"]["seeds"] = 2
         d["parts"]["fig6"]["experiment"]["duration"] = "8 s"
     cases = expand(load_study(write_study(tmp_path, edit)), ["fig6"])
-    off = Cache(tmp_path / "c", "x", enabled=False)
+    off = Cache(tmp_path / "c", enabled=False)
     a = run_cases(cases, off, serial=True, progress=False)
     b = run_cases(cases, off, workers=2, progress=False)
     assert [r.rows for r in a] == [r.rows for r in b]
     assert a[0].rows != a[1].rows                       # different seeds differ
 
 
-def test_cache_serves_finished_cases(tmp_path):
+def test_cache_serves_finished_cases(tmp_path, monkeypatch):
+    from benchmarks.harness import fingerprint
+
     cases = expand(load_study("westwick2012"), ["fig4"])
-    cache = Cache(tmp_path, "fp")
+    cache = Cache(tmp_path)
     first = run_cases(cases, cache, serial=True, progress=False)
-    assert len(list(tmp_path.glob("*.json"))) == 1
+    assert len(list(tmp_path.glob("??/*.json"))) == 1
     hit = cache.get(cases[0])
-    assert hit is not None and hit.rows == first[0].rows
-    assert Cache(tmp_path, "other-code").get(cases[0]) is None   # code change invalidates
+    assert hit is not None and hit.rows == first[0].rows and hit.cached
+    monkeypatch.setattr(fingerprint, "code_hash", lambda: "other-code")
+    assert Cache(tmp_path).get(cases[0]) is None                 # code change invalidates
+    monkeypatch.undo()
+    monkeypatch.setattr(fingerprint, "key_environment", lambda: {"python": "3.11.7", "numpy": "0.0"})
+    assert Cache(tmp_path).get(cases[0]) is None                 # a library upgrade invalidates
 
 
 def test_compare_aggregates_and_flags_misses():
@@ -209,3 +215,98 @@ def test_bad_report_section(tmp_path):
     p = write_study(tmp_path, lambda d: d["parts"]["fig4"].update(report_section="appendix"))
     with pytest.raises(ConfigError, match="'report_section': 'appendix' not allowed; allowed: results, interpretation"):
         load_study(p)
+
+
+# ---------------------------------------------------------------- issue 11: one clear line, exit 2
+def one_line_error(capsys, argv: list[str]) -> str:
+    """Run the CLI in-process; it must exit 2 with exactly one line on stderr (no traceback)."""
+    from benchmarks.cli import main
+
+    try:
+        code = main([str(a) for a in argv])
+    except SystemExit as exc:            # argparse errors
+        code = exc.code
+    err = capsys.readouterr().err.strip()
+    assert code == 2, err
+    assert len(err.splitlines()) == 1 and "Traceback" not in err, err
+    return err
+
+
+def test_duplicate_yaml_key_names_file_key_and_line(tmp_path, capsys):
+    from tests.harness_studies import tiny_study
+
+    p = tiny_study(tmp_path)
+    text = p.read_text().replace("  fit:\n    protocol: parametric_fit\n",
+                                 "  fit:\n    protocol: parametric_fit\n    protocol: parametric_fit\n")
+    p.write_text(text)
+    line = text.splitlines().index("    protocol: parametric_fit") + 2
+    err = one_line_error(capsys, ["run", p, "--out", tmp_path / "out"])
+    assert f"{p}: line {line}: duplicate key 'protocol' (first given on line {line - 1})" in err
+
+
+def test_duplicate_part_name_blames_the_study_file(tmp_path, capsys):
+    from tests.harness_studies import tiny_study
+
+    p = tiny_study(tmp_path)
+    text = p.read_text()
+    fit = text[text.index("  fit:\n"):]
+    p.write_text(text + fit)                       # the part 'fit' twice
+    err = one_line_error(capsys, ["run", p, "--out", tmp_path / "out"])
+    assert err.startswith(f"jointbench: error: {p}: line ") and "duplicate key 'fit'" in err
+    assert "published" not in err
+
+
+def test_yaml_merge_keys_may_override(tmp_path):
+    from benchmarks.config import _load_yaml
+
+    p = tmp_path / "m.yaml"
+    p.write_text("base: &b {x: 1, y: 2}\nderived:\n  <<: *b\n  x: 3\n")
+    assert _load_yaml(p)["derived"] == {"x": 3, "y": 2}
+
+
+@pytest.mark.parametrize("seeds, message", [
+    (1_000_000_000, "key 'seeds': 1000000000 seeds is more than the 100000 a part may run"),
+    ("1e9", "key 'seeds': expected a count (e.g. 7) or a list of whole numbers, got '1e9'"),
+    (1.0e9, "key 'seeds': expected a count"),
+])
+def test_absurd_seed_counts_are_one_line(tmp_path, capsys, seeds, message):
+    from tests.harness_studies import tiny_study
+
+    p = tiny_study(tmp_path)
+    data = yaml.safe_load(p.read_text())
+    data["parts"]["fit"]["seeds"] = seeds
+    p.write_text(yaml.safe_dump(data))
+    assert message in one_line_error(capsys, ["run", p, "--out", tmp_path / "out"])
+
+
+@pytest.mark.parametrize("workers", ["-2", "0", "two"])
+def test_bad_worker_count_is_one_line(capsys, workers):
+    err = one_line_error(capsys, ["run", "westwick2012", "--workers", workers])
+    assert "argument --workers: expected a whole number >= 1" in err
+
+
+def test_estimator_that_cannot_run_on_the_perturbation_is_refused_at_expansion(tmp_path, capsys):
+    """skirt needs a multisine: on a PRBS it is a config error before any case runs, not a dropped or
+    failed estimator."""
+    from tests.harness_studies import tiny_study
+
+    p = tiny_study(tmp_path, perturbation={"kind": "prbs", "amplitude": 0.02, "clock": "0.01 s"},
+                   estimators={"ibk_spectral": {}, "skirt": {}})
+    err = one_line_error(capsys, ["run", p, "--out", tmp_path / "out"])
+    assert (f"{p}: parts.fit: estimators.skirt: cannot run on this part's experiment: skirt needs a "
+            "'multisine' perturbation, the experiment has 'prbs'") in err
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("study_id", ["../../x", "a/b", "..", ".hidden", "x y"])
+def test_study_id_cannot_leave_the_results_folder(tmp_path, capsys, study_id):
+    from tests.harness_studies import tiny_study
+
+    p = tiny_study(tmp_path / "cfg")
+    data = yaml.safe_load(p.read_text())
+    data["study"] = study_id
+    p.write_text(yaml.safe_dump(data))
+    out = tmp_path / "deep" / "er" / "results"
+    err = one_line_error(capsys, ["run", p, "--out", out])
+    assert f"{p}: key 'study': {study_id!r} is not a plain name" in err
+    assert not (tmp_path / "x").exists() and not (tmp_path / "deep").exists()

@@ -196,7 +196,8 @@ def test_cli_summary_line_is_the_headline(tmp_path, capsys, monkeypatch):
                         lambda *a, **k: orig(*a, **{**k, "out_root": tmp_path / "out", "serial": True}))
     assert cli.main(["run", "westwick2012", "--parts", "fig2", "fig4", "--quiet"]) == 0
     out = capsys.readouterr().out.splitlines()
-    assert out[0] == "westwick2012: 2 cases, 0 failed; reproduction 4 of 4 pass; beside them: sanity 3 of 3"
+    assert out[0] == ("westwick2012: 2 cases (0 from cache), 0 failed; reproduction 4 of 4 pass; "
+                      "beside them: sanity 3 of 3")
     assert out[1].split()[:3] == ["pass", "reproduction", "W1-h1-idft"]
 
 
@@ -518,7 +519,7 @@ def test_dirty_means_a_change_that_can_move_a_result(tmp_path):
     between studies); a change to code or configs does."""
     import subprocess
 
-    from benchmarks.runner import git_commit
+    from benchmarks.harness.fingerprint import git_commit
 
     def git(*args):
         subprocess.run(["git", "-c", "user.name=t", "-c", "user.email=t@t", *args], cwd=tmp_path, check=True,

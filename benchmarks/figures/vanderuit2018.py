@@ -13,6 +13,7 @@ import pandas as pd
 
 from benchmarks.figures import PartReport, new_figure, register, save
 from benchmarks.protocols.vanderuit2018 import TABLE1_METRICS
+from benchmarks.tables import median_range, over_seeds
 
 LABELS = {"vaf_self": "VAF_self (%)", "vaf_optim": "VAF_optim (%)", "vaf_val": "VAF_val (%)",
           "rmse_k": "RMSE_k (N·m/rad)"}
@@ -76,19 +77,15 @@ def outliers(rows: pd.DataFrame, floor: float = 50.0) -> str:
 
 
 def _fmt(med: float, lo: float, hi: float, n: int, digits: int) -> str:
-    if not np.isfinite(med):
-        return ""
-    if n <= 1:
-        return f"{med:.{digits}f}"
-    return f"{med:.{digits}f} ({lo:.{digits}f}-{hi:.{digits}f})"
+    return median_range(med, lo, hi, n, digits)
 
 
 def _stats(rows: pd.DataFrame) -> pd.DataFrame:
-    ok = rows[rows["status"] == "ok"].copy()
+    ok = rows.copy()
     ok["snr_db"] = ok["snr_db"].astype(float)
     ok["estimator"] = ok["estimator"].fillna("")
-    g = ok.groupby(["variation", "estimator", "snr_db", "metric"], sort=False)["value"]
-    return g.agg(median="median", min="min", max="max", n="count")
+    keys = ["variation", "estimator", "snr_db", "metric"]
+    return over_seeds(ok, keys).set_index(keys)
 
 
 def table1_frame(rows: pd.DataFrame, published: dict) -> pd.DataFrame:
@@ -250,12 +247,14 @@ def table1(part, rows, curves, folder, checks) -> PartReport:
         f3 = stiffness_figure(curves, squares, folder, f"{part.name}_fig3_square.png",
                               "Fig. 3: square-wave stiffness")
         if f3:
-            figs.append((f3, "Fig. 3 style: true frozen |G(jω₁, t)| at 0.1 Hz (black) and the KBR (red) and skirt "
+            f_min = ((part.experiment or {}).get("perturbation") or {}).get("f_min", "the lowest line")
+            figs.append((f3, f"Fig. 3 style: true frozen |G(jω₁, t)| at {f_min} (black) and the KBR (red) and skirt "
                              "(blue) estimates for the square waves, per noise level; grey spans: transients "
                              "outside the scored [0, 30] s."))
         f4 = stiffness_figure(curves, others, folder, f"{part.name}_fig4_sine.png", "Fig. 4: sinusoidal stiffness")
         if f4:
-            figs.append((f4, "Fig. 4 style: the same for the sinusoidal stiffness (period 20 s)."))
+            periods = ", ".join(str((part.params.get("variations") or {}).get(v, {}).get("period", "?")) for v in others)
+            figs.append((f4, f"Fig. 4 style: the same for the sinusoidal stiffness (period {periods})."))
         f7 = tf_figure(curves, folder, f"{part.name}_tf_image.png")
         if f7:
             figs.append((f7, "Figs. 7(b)/8(a) style: |G(jω, t)| (log scale) at the 25 excited lines over the "

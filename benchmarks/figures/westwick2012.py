@@ -5,7 +5,7 @@ import numpy as np
 import pandas as pd
 
 from benchmarks.figures import PartReport, new_figure, register, save
-from benchmarks.tables import summarize
+from benchmarks.tables import median_range, summarize
 
 
 def _curve(curves: pd.DataFrame, name: str, **eq) -> pd.DataFrame:
@@ -21,8 +21,7 @@ def _first_seed(curves: pd.DataFrame) -> pd.DataFrame:
 
 def _pivot(rows: pd.DataFrame, part: str, by: list[str]) -> pd.DataFrame:
     s = summarize(rows, part, by)
-    s["value"] = [f"{m:.4g}" if n == 1 else f"{m:.4g} ({lo:.4g} to {hi:.4g})"
-                  for m, lo, hi, n in zip(s["median"], s["min"], s["max"], s["n"])]
+    s["value"] = [median_range(m, lo, hi, n) for m, lo, hi, n in zip(s["median"], s["min"], s["max"], s["n"])]
     return s.drop(columns=["median", "min", "max"])
 
 
@@ -57,7 +56,9 @@ def sampling_rate(part, rows, curves, folder, checks) -> PartReport:
         c = _curve(curves, "irf_over_fs2", fs_hz=fs)
         ax.stem(c["x"], c["y"], basefmt="k-")
         ax.set_ylabel(f"{fs:g} Hz")
-    axes[0].set_title("Ankle impedance IRF / fs^2 (I = 0.01, B = 0.8, K = 140)")
+    joint = part.params.get("joint") or {}
+    axes[0].set_title("Ankle impedance IRF / fs^2 (" + ", ".join(f"{k} = {joint[k]}" for k in ("I", "B", "K")
+                                                                 if k in joint) + ")")
     axes[-1].set_xlabel("lag (samples)")
     name = save(fig, folder, f"{part.name}.png")
     t = _pivot(rows, part.name, ["fs_hz"])
@@ -72,7 +73,9 @@ def input_bandlimit(part, rows, curves, folder, checks) -> PartReport:
     ax.set_xlim(-100, 100)
     ax.set_xlabel("lag (ms)")
     ax.set_ylabel("impedance IRF (N·m/rad per sample)")
-    ax.set_title("Elbow impedance IRF at 200 Hz, 5 Hz input, angle SNR 30-60 dB (eq. 17)")
+    snr = [float(v) for v in np.atleast_1d(part.params.get("snr_db", []))]
+    ax.set_title(f"Elbow impedance IRF at {part.params.get('fs', '?')}, {part.params.get('cutoff', '?')} input, "
+                 f"angle SNR {min(snr, default=np.nan):g}-{max(snr, default=np.nan):g} dB (eq. 17)")
     ax.legend(fontsize=8)
     name = save(fig, folder, f"{part.name}.png")
     return PartReport(figures=[(name, part.description)],
@@ -116,7 +119,7 @@ def sampling_rate_experiment(part, rows, curves, folder, checks) -> PartReport:
             ax.plot(c["x"] / fs * 1e3, c["y"], style, label=series)
         ax.set_ylabel(f"{fs:g} Hz")
     axes[0].legend(fontsize=8)
-    axes[0].set_title("Band-limited (20 Hz) impedance IRFs / fs^2 (Fig. 7)")
+    axes[0].set_title(f"Band-limited ({part.params.get('bandlimit', '?')}) impedance IRFs / fs^2 (Fig. 7)")
     axes[-1].set_xlabel("lag (ms)")
     name = save(fig, folder, "fig7.png")
     sel = rows[(rows["metric"] == "vaf_parametric_irf") & (rows["status"] == "ok")]
@@ -128,7 +131,8 @@ def sampling_rate_experiment(part, rows, curves, folder, checks) -> PartReport:
                                 f"{int(c0['seed'].min())}")],
                       tables=[("Table I: parametric IRF fit (%VAF) by sampling rate, over seeds (published values: "
                                "checks W5 above)", table),
-                              ("I, B, K fitted at 500 Hz", params),
+                              (f"I, B, K fitted at {max(float(f) for f in part.params['fs']):g} Hz"
+                               if part.params.get("fs") else "I, B, K", params),
                               ("Shape difference (%) of each rate's nonparametric IRF against the 500 Hz one "
                                "(reading R16; checks W7-shape)", shape)])
 
@@ -152,7 +156,8 @@ def input_noise(part, rows, curves, folder, checks) -> PartReport:
     b.set_ylabel("|impedance| (N·m/rad)")
     b.set_xlabel("frequency (Hz)")
     b.legend(fontsize=7)
-    a.set_title("25 dB angle noise, 2 Hz input (Fig. 8)")
+    cutoff = ((part.experiment or {}).get("perturbation") or {}).get("cutoff", "?")
+    a.set_title(f"{part.params.get('snr_db', '?')} dB angle noise, {cutoff} input (Fig. 8)")
     name = save(fig, folder, f"{part.name}.png")
     return PartReport(figures=[(name, part.description)],
                       tables=[("Fall-away frequency and prediction error", _pivot(rows, part.name, []))])

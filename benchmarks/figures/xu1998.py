@@ -6,27 +6,14 @@ import numpy as np
 import pandas as pd
 
 from benchmarks.figures import PartReport, new_figure, register, save
+from benchmarks.tables import median_range, over_seeds
 
 VAF_FLOOR = -60.0   # VAF axes are cut here (values below are drawn on the axis, marked 'v')
 
 
-def _ok(rows: pd.DataFrame) -> pd.DataFrame:
-    return rows[rows["status"] == "ok"] if "status" in rows.columns else rows
-
-
 def _stats(rows: pd.DataFrame, by: list[str], metrics: list[str]) -> pd.DataFrame:
     """Median, min and max over seeds of each metric, per combination of ``by`` (a long frame)."""
-    sel = _ok(rows)
-    sel = sel[sel["metric"].isin(metrics)]
-    by = [b for b in by if b in sel.columns]
-    g = sel.groupby(by + ["metric"], sort=False, dropna=False)["value"]
-    return g.agg(median="median", min="min", max="max", n="count").reset_index()
-
-
-def _fmt(m: float, lo: float, hi: float, n: int) -> str:
-    if not np.isfinite(m):
-        return ""
-    return f"{m:.4g}" if n == 1 or lo == hi else f"{m:.4g} ({lo:.4g} to {hi:.4g})"
+    return over_seeds(rows, by + ["metric"], metrics)
 
 
 def _wide(rows: pd.DataFrame, by: list[str], metrics: list[str], order: dict | None = None) -> pd.DataFrame:
@@ -35,7 +22,7 @@ def _wide(rows: pd.DataFrame, by: list[str], metrics: list[str], order: dict | N
     if s.empty:
         return pd.DataFrame()
     by = [b for b in by if b in s.columns]
-    s["cell"] = [_fmt(m, lo, hi, n) for m, lo, hi, n in zip(s["median"], s["min"], s["max"], s["n"])]
+    s["cell"] = [median_range(m, lo, hi, n) for m, lo, hi, n in zip(s["median"], s["min"], s["max"], s["n"])]
     key = by or ["_all"]
     if not by:
         s["_all"] = ""
@@ -65,12 +52,10 @@ def _wide(rows: pd.DataFrame, by: list[str], metrics: list[str], order: dict | N
 
 
 def _median_curve(rows: pd.DataFrame, metric: str, x: str, **eq) -> pd.DataFrame:
-    sel = _ok(rows)
-    sel = sel[sel["metric"] == metric]
+    sel = rows[rows["metric"] == metric]
     for k, v in eq.items():
         sel = sel[sel[k] == v]
-    g = sel.groupby(x)["value"]
-    return pd.DataFrame({"median": g.median(), "min": g.min(), "max": g.max()}).sort_index()
+    return over_seeds(sel, [x]).set_index(x)[["median", "min", "max"]].sort_index()
 
 
 def _errorbar(ax, s: pd.DataFrame, floor: float | None = VAF_FLOOR, **kw):
@@ -85,6 +70,31 @@ def _errorbar(ax, s: pd.DataFrame, floor: float | None = VAF_FLOOR, **kw):
         cut = s["median"].to_numpy(float) < floor
         if cut.any():
             ax.plot(x[cut], np.full(cut.sum(), floor), "v", color=kw.get("color", "k"), ms=7)
+
+
+def _joint(part) -> dict:
+    return dict((part.experiment or {}).get("joint") or {})
+
+
+def _k_text(part) -> str:
+    """The configured K(t) as 'mean ± amplitude N·m/rad' (read from the joint model, never typed)."""
+    k = _joint(part).get("K")
+    if isinstance(k, dict) and "mean" in k and "amplitude" in k:
+        return f"{k['mean']:g} ± {k['amplitude']:g} N·m/rad"
+    return f"{k} N·m/rad"
+
+
+def _joint_text(part) -> str:
+    """'I = ..., K = ..., B a -> b -> c' from the joint model (profiles by their values)."""
+    out = []
+    for name, v in _joint(part).items():
+        if name == "model":
+            continue
+        if isinstance(v, dict) and "values" in v:
+            out.append(f"{name} " + " -> ".join(f"{x:g}" for x in v["values"]))
+        else:
+            out.append(f"{name} = {v}")
+    return ", ".join(out)
 
 
 def _forgetting(part) -> float:
@@ -161,8 +171,11 @@ def fig2(part, rows, curves, folder, checks) -> PartReport:
                                            "vafv_B", "vafm_I"], order)
     outs = _wide(rows, ["condition", "f_v"], ["vaf_output_filtered_torque", "vaf_output_torque",
                                               "vaf_output_angle"], order)
-    text = ("Each case: 49 s simulated, 48 s acquired at 1 kHz, 4 s discarded at each end, VAFs and errors "
-            "on the middle 40 s (readings R8, R13). Noise free. Posture is analysed without the high-pass H, "
+    exp = part.experiment or {}
+    acq = exp.get("acquisition") or {}
+    text = (f"Each case: {exp.get('duration', '?')} simulated, acquired at {acq.get('fs', '?')} ({acq.get('trim', '0 s')} "
+            f"trimmed at each end), {part.params.get('discard', '?')} discarded at each end, VAFs and errors "
+            "on the rest (readings R8, R13). Noise free. Posture is analysed without the high-pass H, "
             "movement with it (R5). `mean_err_K` = mean(K_hat) - mean(K) (check X4; at the slowest f_v it is zero "
             "within the seed spread). The output VAF of the "
             "checks is that of the filtered torque (R4); the second table gives the other candidate signals "
@@ -206,11 +219,11 @@ def fig3(part, rows, curves, folder, checks) -> PartReport:
         axes[0, 0].legend(fontsize=7)
         figs.append((save(fig, folder, f"{part.name}_traces.png"),
                      f"Estimated K(t) (red) over the true K(t) (grey) at several NSR, seed {int(c0['seed'].min())}, "
-                     "movement at 0.25 Hz (first 12 s of the scored window)."))
+                     f"movement at {part.params.get('f_v', '?')} (first 12 s of the scored window)."))
     t = _wide(rows, ["nsr"], ["vafv_K", "vafm_K", "vafv_B", "vafm_B", "vafv_I", "vafm_I", "vaf_output",
                               "mean_err_K", "mean_I"])
     drops = _wide(rows, ["nsr"], ["drop_vafv_K", "drop_vafm_K", "drop_vafv_B", "drop_vaf_output"])
-    text = (f"Movement at f_v = 0.25 Hz with white noise on the measured {channel} (reading R11), NSR = "
+    text = (f"Movement at f_v = {part.params.get('f_v', '?')} with white noise on the measured {channel} (reading R11), NSR = "
             "var(noise)/var(noise-free signal) over the acquired record. VAFM and VAFV of I stay near 100 % "
             "whatever I_hat does: with the floor of 1 of eq. 8 they measure absolute errors in kg·m² (R13); "
             "`mean_I` shows I_hat itself. Each case also fits the same record without noise; the second table "
@@ -242,12 +255,12 @@ def traces(part, rows, curves, folder, checks) -> PartReport:
             axes[-1, j].set_xlabel("time (s)")
         axes[0, 0].legend(fontsize=7)
         figs.append((save(fig, folder, f"{part.name}_{shape}.png"),
-                     f"{shape.capitalize()} K(t) = 40 ± 15 N·m/rad at {part.params.get('f_v', '')}: estimates (red) "
+                     f"{shape.capitalize()} K(t) = {_k_text(part)} at {part.params.get('f_v', '')}: estimates (red) "
                      f"over the truth (grey), seed {int(c0['seed'].min())}, first 8 s of the scored window."))
     t = _wide(rows, ["shape", "condition"], ["vafv_K", "vafm_K", "vafv_B", "vafm_B", "vafv_I", "vaf_output",
                                              "mean_err_K", "mean_zeta", "true_mean_zeta"],
               {"shape": ["sine", "square"], "condition": ["posture", "movement"]})
-    text = ("K(t) = 40 ± 15 N·m/rad as a sine or a square wave at the same frequency (the square wave is not in "
+    text = (f"K(t) = {_k_text(part)} as a sine or a square wave at the same frequency (the square wave is not in "
             "the paper, reading R14), damping ratio constant. The information on K comes mostly from the "
             "low-frequency angle, whose amplitude scales as 1/K: the estimates follow a fall of K faster than a "
             "rise (square-wave figure).")
@@ -270,7 +283,7 @@ def calibration(part, rows, curves, folder, checks) -> PartReport:
         axes[0, 0].set_title("Calibration arm: damping switched during the trial (Fig. 5)")
         axes[-1, 0].set_xlabel("time (s)")
         figs.append((save(fig, folder, f"{part.name}.png"),
-                     f"Calibration arm (I = 0.0687, K = 15.4, B 1.13 -> 10.1 -> 1.13): estimates (red) over the "
+                     f"Calibration arm ({_joint_text(part)}): estimates (red) over the "
                      f"truth (grey), seed {int(c0['seed'].min())}, scored window."))
     t = _wide(rows, [], ["err_pct_I", "err_pct_K", "err_pct_B", "vaf_output", "vaf_output_torque",
                          "vaf_output_angle", "vafv_B", "rmse_B", "mean_zeta"])
@@ -336,8 +349,9 @@ def readings(part, rows, curves, folder, checks) -> PartReport:
             ax.legend(fontsize=8)
             break
     name = save(fig, folder, f"{part.name}.png")
-    text = ("What each candidate reading gives, on the Fig. 2 conditions at f_v = 0.5 Hz (the paper's movement "
-            "boundary) and 1.5 Hz (its posture boundary), noise free, same seeds as Fig. 2. The paper's "
+    fvs = ", ".join(f"{float(v):g}" for v in part.sweep.get("f_v", ()))
+    text = (f"What each candidate reading gives, on the Fig. 2 conditions at f_v = {fvs} Hz (the paper's movement "
+            "boundary is 0.5 Hz, its posture boundary 1.5 Hz), noise free, same seeds as Fig. 2. The paper's "
             "statements to match: VAFV and VAFM of K about 80 % at 1.5 Hz in posture and at 0.5 Hz in movement, "
             "movement worse than posture, output VAF close to 100 %. `chosen` is the configuration of every "
             f"other part. Bars below the axis are cut at {VAF_FLOOR:g} %.")

@@ -1,0 +1,106 @@
+"""One case: a JSON-serialisable specification and the function that computes it.
+
+``run_case(case) -> CaseResult`` is a pure function of the case: its numbers depend only on what the
+protocol can see (the :class:`~benchmarks.protocols.Context`: part name, seed, parameters with the
+sweep values, experiment and estimators), on the code this module imports (its import closure,
+:func:`benchmarks.harness.fingerprint.case_modules`) and on the numerical libraries. The cache key is
+built from exactly those (:func:`Case.key_material`). Keep this module free of harness imports (config,
+tables, figures, reports): everything it imports is hashed into the key.
+"""
+from __future__ import annotations
+
+import dataclasses
+import time
+import traceback
+from typing import Any, Mapping
+
+import estimators
+import sims
+from benchmarks import protocols
+from jointbench.schema import parse
+
+
+@dataclasses.dataclass(frozen=True)
+class Case:
+    """One independent unit of work."""
+
+    study: str
+    part: str
+    protocol: str
+    params: Mapping[str, Any]
+    sweep: Mapping[str, Any]
+    experiment: Mapping[str, Any] | None
+    estimators: Mapping[str, Mapping[str, Any]]
+    seed: int
+    where: str            # "<config file>: parts.<name>", for messages only (not part of the key)
+
+    def spec(self) -> dict:
+        return dataclasses.asdict(self)
+
+    @property
+    def case_id(self) -> str:
+        sw = "".join(f"-{k}={v}" for k, v in self.sweep.items())
+        return f"{self.part}{sw}-seed{self.seed}"
+
+    def key_material(self) -> dict:
+        """What the protocol sees: every field but ``study`` and ``where`` (no paths)."""
+        return {"protocol": self.protocol, "part": self.part, "params": self.params, "sweep": self.sweep,
+                "experiment": self.experiment, "estimators": self.estimators, "seed": self.seed}
+
+
+@dataclasses.dataclass
+class CaseResult:
+    case: Case
+    status: str                    # "ok" or "failed"
+    rows: list[dict]
+    curves: list[dict]
+    wall_time_s: float
+    error: str = ""
+    detail: str = ""               # traceback of a failure (for the log, not the table)
+    cached: bool = False           # served from the cache rather than computed in this run
+
+    def to_json(self) -> dict:
+        d = dataclasses.asdict(self)
+        d["case"] = self.case.spec()
+        return d
+
+    @classmethod
+    def from_json(cls, d: dict) -> "CaseResult":
+        d = dict(d)
+        d["case"] = Case(**d["case"])
+        return cls(**d)
+
+
+def parse_inputs(case: Case):
+    """The protocol, parsed parameters, experiment and estimators of a case (raises ConfigError)."""
+    proto = protocols.REGISTRY.get(case.protocol)
+    params = parse(proto.Params, {**case.params, **case.sweep}, f"{case.where}: params")
+    exp = None
+    if case.experiment is not None:
+        exp = sims.Experiment.from_mapping(case.experiment, f"{case.where}: experiment")
+    ests = {name: estimators.make(name, settings, f"{case.where}: estimators.{name}")
+            for name, settings in case.estimators.items()}
+    return proto, params, exp, ests
+
+
+def run_case(case: Case) -> CaseResult:
+    """Run one case; never raises: a failure is returned as ``status='failed'`` with its error."""
+    t0 = time.perf_counter()
+    try:
+        proto, params, exp, ests = parse_inputs(case)
+        ctx = protocols.Context(part=case.part, seed=case.seed, params=params, experiment=exp,
+                                estimators=ests)
+        proto.fn(ctx)
+        return CaseResult(case, "ok", ctx.rows, ctx.curves, time.perf_counter() - t0)
+    except Exception as exc:  # noqa: BLE001 - a failing case must not stop the others
+        return CaseResult(case, "failed", [], [], time.perf_counter() - t0,
+                          error=f"{type(exc).__name__}: {exc}", detail=traceback.format_exc())
+
+
+def one_blas_thread() -> None:
+    """One BLAS thread per process (the pool already uses every core; nested BLAS threads would
+    oversubscribe them, which slowed a 0.16 s KBR fit to seconds on 2 cores). Serial runs use one
+    thread too, so that serial and parallel runs give bit-identical numbers."""
+    from threadpoolctl import threadpool_limits
+
+    threadpool_limits(limits=1)

@@ -1,0 +1,181 @@
+"""What a number depends on besides its case: the code that computes it, the libraries, the machine.
+
+The code hash covers the **import closure of** :mod:`benchmarks.harness.case` (the module that runs a
+case) within this repository, found statically: start from that module; follow every import of a
+project module (``import a.b``, ``from a import b``, relative imports, and imports inside functions);
+a package whose ``__init__`` calls ``import_submodules`` (the registries of protocols, estimators,
+joint models, perturbations) brings in all its modules. Today that is ``jointbench/``, ``sims/``,
+``estimators/``, ``benchmarks/protocols/`` and ``benchmarks/metrics.py``, and never the config loader,
+tables, figures, reports, CLI or this harness: editing a caption or a report does not recompute a case.
+A test checks that every project module a case actually loads is in the closure.
+
+Library versions that can change a number: Python, numpy, scipy (and mujoco when installed), with the
+processor architecture. The git state (commit, dirty flag) is recorded with each run but is not part of
+the cache key (the code hash is the precise form of it).
+"""
+from __future__ import annotations
+
+import ast
+import functools
+import hashlib
+import importlib.metadata
+import json
+import os
+import platform
+import socket
+import subprocess
+import sys
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[2]
+PACKAGES = ("jointbench", "sims", "estimators", "benchmarks")
+CASE_ENTRY = "benchmarks.harness.case"
+#: libraries whose version is part of every cache key
+KEY_LIBRARIES = ("numpy", "scipy", "mujoco")
+#: libraries recorded with each run (history), besides the key libraries
+RECORDED_LIBRARIES = ("pandas", "matplotlib", "pyyaml", "jinja2", "threadpoolctl", "dm-control", "tqdm")
+#: the tracked paths whose uncommitted changes can change a result; generated outputs (results/, the
+#: README's status block) cannot: `make reproduce` rewrites them between studies
+RESULT_INPUTS = PACKAGES + ("configs", "pyproject.toml")
+
+
+def _module_file(name: str) -> Path | None:
+    parts = name.split(".")
+    if parts[0] not in PACKAGES:
+        return None
+    base = REPO.joinpath(*parts)
+    if (base / "__init__.py").is_file():
+        return base / "__init__.py"
+    if base.with_suffix(".py").is_file():
+        return base.with_suffix(".py")
+    return None
+
+
+def _imports(name: str, path: Path) -> set[str]:
+    """Project modules that module ``name`` (file ``path``) may import."""
+    tree = ast.parse(path.read_text(encoding="utf-8"), str(path))
+    package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+    out: set[str] = set()
+
+    def add(mod: str) -> None:
+        bits = mod.split(".")
+        for i in range(1, len(bits) + 1):        # importing a.b.c runs a, a.b and a.b.c
+            out.add(".".join(bits[:i]))
+
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            for a in node.names:
+                add(a.name)
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package.split(".")
+                base = base[: len(base) - node.level + 1]
+                mod = ".".join(base + ([node.module] if node.module else []))
+            else:
+                mod = node.module or ""
+            add(mod)
+            for a in node.names:                 # "from pkg import submodule"
+                out.add(f"{mod}.{a.name}")
+        elif (isinstance(node, ast.Call) and isinstance(node.func, ast.Name)
+              and node.func.id == "import_submodules" and path.name == "__init__.py"):
+            for sub in sorted(path.parent.glob("*.py")):
+                if sub.name != "__init__.py":
+                    out.add(f"{name}.{sub.stem}")
+            for sub in sorted(path.parent.glob("*/__init__.py")):
+                out.add(f"{name}.{sub.parent.name}")
+    return {m for m in out if _module_file(m) is not None}
+
+
+@functools.lru_cache(maxsize=None)
+def case_modules(entry: str = CASE_ENTRY) -> tuple[Path, ...]:
+    """Files of the import closure of ``entry`` within the repository, sorted."""
+    seen: dict[str, Path] = {}
+    bits = entry.split(".")
+    todo = [".".join(bits[:i]) for i in range(1, len(bits) + 1)]   # its packages run first
+    while todo:
+        name = todo.pop()
+        if name in seen:
+            continue
+        path = _module_file(name)
+        if path is None:
+            continue
+        seen[name] = path
+        todo.extend(_imports(name, path) - set(seen))
+    return tuple(sorted(set(seen.values())))
+
+
+@functools.lru_cache(maxsize=None)
+def code_hash() -> str:
+    """SHA-256 of the sources of :func:`case_modules` (paths relative to the repository)."""
+    h = hashlib.sha256()
+    for p in case_modules():
+        h.update(p.relative_to(REPO).as_posix().encode() + b"\0")
+        h.update(p.read_bytes() + b"\0")
+    return h.hexdigest()[:20]
+
+
+def _version(dist: str) -> str | None:
+    try:
+        return importlib.metadata.version(dist)
+    except importlib.metadata.PackageNotFoundError:
+        return None
+
+
+@functools.lru_cache(maxsize=None)
+def key_environment() -> dict:
+    """Python and library versions and the processor architecture: part of every cache key."""
+    env = {"python": platform.python_version(), "machine": platform.machine()}
+    for lib in KEY_LIBRARIES:
+        v = _version(lib)
+        if v is not None:
+            env[lib] = v
+    return env
+
+
+def environment() -> dict:
+    """Everything recorded about where a run ran (history)."""
+    env = dict(key_environment())
+    env.update({"implementation": platform.python_implementation(), "system": platform.system(),
+                "release": platform.release(), "host": socket.gethostname(), "cpus": os.cpu_count(),
+                "executable": sys.executable})
+    env["packages"] = {lib: v for lib in KEY_LIBRARIES + RECORDED_LIBRARIES if (v := _version(lib))}
+    return env
+
+
+def canonical(obj) -> str:
+    """A stable JSON text of ``obj`` (sorted keys; non-JSON values by ``str``)."""
+    return json.dumps(obj, sort_keys=True, separators=(",", ":"), default=str, allow_nan=True)
+
+
+def sha(obj, n: int = 32) -> str:
+    return hashlib.sha256(canonical(obj).encode()).hexdigest()[:n]
+
+
+def _git(*args: str, cwd: Path | None = None) -> str | None:
+    try:
+        out = subprocess.run(["git", *args], cwd=REPO if cwd is None else cwd, capture_output=True,
+                             text=True, timeout=20)
+    except (OSError, subprocess.SubprocessError):
+        return None
+    return out.stdout.strip() if out.returncode == 0 else None
+
+
+def git_state(repo: Path | None = None) -> tuple[str, bool]:
+    """(short commit, dirty). Dirty means uncommitted changes to tracked files that can change a result
+    (:data:`RESULT_INPUTS`; regenerated reports and the README's status block do not count) or untracked
+    files in the code packages or configs."""
+    repo = REPO if repo is None else repo
+    commit = _git("rev-parse", "--short", "HEAD", cwd=repo)
+    if commit is None:
+        return "unknown", False
+    tracked = _git("status", "--porcelain", "--untracked-files=no", "--", *RESULT_INPUTS, cwd=repo) or ""
+    untracked = _git("status", "--porcelain", "--untracked-files=all", "--", *PACKAGES, "configs",
+                     cwd=repo) or ""
+    dirty = bool(tracked) or any(line.startswith("??") for line in untracked.splitlines())
+    return commit, dirty
+
+
+def git_commit(repo: Path | None = None) -> str:
+    """``<commit>`` or ``<commit>-dirty`` (the stamp of reports and tidy rows); 'unknown' outside git."""
+    commit, dirty = git_state(repo)
+    return commit + ("-dirty" if dirty else "")

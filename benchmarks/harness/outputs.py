@@ -1,0 +1,81 @@
+"""Where a study writes: ``<results>/<study>/``, checked before any case runs, locked while written.
+
+- The study id names a folder: it must be a plain name, and the folder must lie inside the results
+  folder (a config saying ``study: ../../x`` is refused, naming the file and key).
+- The folders must be writable: a read-only ``results/`` is one line (exit 2), before hours of work.
+- Two runs of one study may run at once (cases and cache entries are written atomically under unique
+  names); each writes its outputs under an exclusive lock of the study folder, so every set of
+  ``cases.csv``, ``comparison.csv``, report and figures comes from one run. The second waits for the
+  first to finish writing (a few seconds) and says so.
+"""
+from __future__ import annotations
+
+import contextlib
+import os
+import re
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from jointbench.errors import ConfigError, OutputError
+
+STUDY_ID = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,99}")
+
+
+def study_folder(root: Path, study_id: str, config: Path | str) -> Path:
+    """``root / study_id``, refusing an id that is not a plain name or leaves ``root``."""
+    if not STUDY_ID.fullmatch(study_id) or ".." in study_id:
+        raise ConfigError(f"{config}: key 'study': {study_id!r} is not a plain name (letters, digits, '_', "
+                          f"'-', '.'; no '..'): it names the results folder <results>/<study>")
+    root = Path(root).resolve()
+    folder = (root / study_id).resolve()
+    if folder.parent != root:
+        raise ConfigError(f"{config}: key 'study': {study_id!r} would write outside {root}")
+    return folder
+
+
+def ensure_writable(*folders: Path) -> None:
+    """Create the folders and prove each writable now (one clear error instead of a traceback later)."""
+    for folder in folders:
+        try:
+            folder.mkdir(parents=True, exist_ok=True)
+            fd, probe = tempfile.mkstemp(prefix=f".probe.{os.getpid()}.", suffix=".tmp", dir=folder)
+            os.close(fd)
+            os.unlink(probe)
+        except OSError as exc:
+            raise OutputError(f"{folder}: cannot write results here ({exc.strerror or exc}); make it "
+                              f"writable or choose another results folder with --out DIR") from None
+
+
+@contextlib.contextmanager
+def study_lock(folder: Path, owner: str, wait_message: bool = True):
+    """Hold an exclusive lock on ``folder/.lock`` (blocks while another run holds it)."""
+    path = folder / ".lock"
+    try:
+        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+    except OSError as exc:
+        raise OutputError(f"{path}: cannot create the lock file ({exc.strerror or exc})") from None
+    try:
+        try:
+            import fcntl
+        except ImportError:            # not POSIX: no lock (atomic writes still keep each file whole)
+            fcntl = None
+        if fcntl is not None:
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                holder = os.pread(fd, 200, 0).decode(errors="replace").strip() or "another run"
+                if wait_message:
+                    print(f"jointbench: {folder.name}: {holder} is writing the results; waiting for it to "
+                          "finish", file=sys.stderr)
+                t0 = time.monotonic()
+                fcntl.flock(fd, fcntl.LOCK_EX)
+                if wait_message:
+                    print(f"jointbench: {folder.name}: lock acquired after {time.monotonic() - t0:.1f} s",
+                          file=sys.stderr)
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, owner.encode(), 0)
+        yield
+    finally:
+        os.close(fd)                   # closing releases the lock

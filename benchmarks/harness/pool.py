@@ -1,0 +1,95 @@
+"""Executors that run cases: in this process, or on a pool of worker processes that survive what
+schedulers and impatient people do.
+
+:func:`benchmarks.runner.run_cases` takes any ``concurrent.futures``-style executor (``submit`` returning
+futures with ``add_done_callback``, ``shutdown``); a pool that can be stopped at once also offers
+``terminate_workers()``. :class:`WorkerPool` is the default:
+
+- a worker exits when its parent dies, even by ``kill -9``: on Linux the kernel sends it SIGKILL
+  (``prctl(PR_SET_PDEATHSIG)``); everywhere a watchdog thread checks that its parent is still the
+  process that started it, twice a second;
+- a worker ignores SIGINT: Ctrl-C in a terminal reaches the whole process group, and the parent alone
+  decides what to do (keep the finished cases, terminate the workers, return within 2 s);
+- a worker uses one BLAS thread (:func:`benchmarks.harness.case.one_blas_thread`).
+"""
+from __future__ import annotations
+
+import concurrent.futures as cf
+import ctypes
+import ctypes.util
+import os
+import signal
+import sys
+import threading
+import time
+
+from benchmarks.harness.case import one_blas_thread
+
+PR_SET_PDEATHSIG = 1
+WATCHDOG_PERIOD_S = 0.5
+
+
+def _die_with(parent: int) -> None:
+    if sys.platform.startswith("linux"):
+        try:
+            libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6", use_errno=True)
+            libc.prctl(PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+        except (OSError, AttributeError):
+            pass                                   # the watchdog below still works
+    if os.getppid() != parent:                     # the parent died before prctl took effect
+        os._exit(1)
+
+    def watchdog() -> None:
+        while True:
+            time.sleep(WATCHDOG_PERIOD_S)
+            if os.getppid() != parent:
+                os._exit(1)
+
+    threading.Thread(target=watchdog, name="jointbench-parent-watchdog", daemon=True).start()
+
+
+def init_worker(parent: int) -> None:
+    """Initializer of every pool worker (see the module docstring)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)   # a fork inherits the CLI's SIGTERM handler
+    _die_with(parent)
+    one_blas_thread()
+
+
+class WorkerPool(cf.ProcessPoolExecutor):
+    """A process pool whose workers die with the parent, ignore Ctrl-C and can be stopped at once."""
+
+    def __init__(self, max_workers: int):
+        super().__init__(max_workers=max_workers, initializer=init_worker, initargs=(os.getpid(),))
+
+    def worker_pids(self) -> list[int]:
+        return [p.pid for p in list(getattr(self, "_processes", {}).values()) if p.pid]
+
+    def terminate_workers(self, grace_s: float = 0.5) -> None:
+        """Stop now: cancel what has not started, SIGTERM the workers, SIGKILL those still alive
+        after ``grace_s``."""
+        procs = list(getattr(self, "_processes", {}).values())
+        self.shutdown(wait=False, cancel_futures=True)
+        for p in procs:
+            if p.is_alive():
+                p.terminate()
+        deadline = time.monotonic() + grace_s
+        for p in procs:
+            p.join(max(0.0, deadline - time.monotonic()))
+            if p.is_alive():
+                p.kill()
+                p.join(0.5)
+
+
+class InlineExecutor(cf.Executor):
+    """Runs each submitted call at once in this process (``--serial``); futures come back done."""
+
+    def submit(self, fn, /, *args, **kwargs):
+        fut: cf.Future = cf.Future()
+        try:
+            fut.set_result(fn(*args, **kwargs))
+        except BaseException as exc:  # noqa: BLE001 - KeyboardInterrupt must reach the caller
+            if not isinstance(exc, Exception):
+                raise
+            fut.set_exception(exc)
+        return fut

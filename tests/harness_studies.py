@@ -1,0 +1,104 @@
+"""Tiny study configs (a temporary config folder) and process helpers for the harness tests."""
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import yaml
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def tiny_study(folder: Path, study: str = "tiny", seeds: int = 4, duration: str = "4 s",
+               extra_parts: dict | None = None, estimators: dict | None = None, perturbation: dict | None = None) -> Path:
+    """A one-part study (second-order joint on a position servo, ibk_spectral) with one check on K.
+
+    One case takes about ``0.004 s`` per simulated second on this machine (``duration: 120 s`` is about
+    half a second)."""
+    folder.mkdir(parents=True, exist_ok=True)
+    pub = folder / f"{study}_published.yaml"
+    pub.write_text(yaml.safe_dump({"study": study, "source": "test", "checks": [
+        {"id": "T-K", "part": "fit", "description": "K of the fit", "source": "-", "published": 50,
+         "low": 45, "high": 55, "select": {"metric": "K", "estimator": "ibk_spectral"},
+         "evidence": "sanity", "tolerance_reason": "test band"},
+        {"id": "T-vaf", "part": "fit", "description": "torque VAF", "source": "-", "published": 95,
+         "low": 90, "high": 100, "select": {"metric": "vaf_torque", "estimator": "ibk_spectral"},
+         "evidence": "sanity", "tolerance_reason": "test band"}]}))
+    part = {"protocol": "parametric_fit", "description": "second-order fit on filtered noise", "seeds": seeds,
+            "experiment": {"joint": {"model": "second_order", "I": 0.01, "B": 0.5, "K": 50},
+                           "perturbation": perturbation or {"kind": "filtered_noise", "cutoff": "20 Hz", "order": 2,
+                                                            "rms": "0.02 rad"},
+                           "apparatus": {"kind": "position_servo", "stiffness": "30000 N.m/rad"},
+                           "fs_sim": "2 kHz", "duration": duration, "acquisition": {"fs": "500 Hz"}},
+            "estimators": estimators or {"ibk_spectral": {"fmin": "0 Hz", "fmax": "20 Hz", "segment": "2 s",
+                                                          "overlap": 0.5}}}
+    data = {"study": study, "title": f"Tiny test study {study}", "paper": "none", "published": str(pub),
+            "not_reproduced": [], "parts": {"fit": part, **(extra_parts or {})}}
+    path = folder / f"{study}.yaml"
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    return path
+
+
+def cli_env() -> dict:
+    env = dict(os.environ)
+    env["PYTHONUNBUFFERED"] = "1"
+    return env
+
+
+def cli(*args, timeout: float = 300, **kw) -> subprocess.CompletedProcess:
+    """``jointbench ARGS`` in a fresh process."""
+    return subprocess.run([sys.executable, "-m", "benchmarks", *map(str, args)], cwd=REPO, capture_output=True,
+                          text=True, timeout=timeout, env=cli_env(), **kw)
+
+
+def start(*args, log: Path, prefix: list[str] | None = None) -> subprocess.Popen:
+    """``jointbench ARGS`` in the background, in its own session (its own process group, as a
+    terminal's foreground job), stdout and stderr to ``log``."""
+    f = open(log, "w")
+    return subprocess.Popen([*(prefix or []), sys.executable, "-m", "benchmarks", *map(str, args)], cwd=REPO,
+                            stdout=f, stderr=subprocess.STDOUT, env=cli_env(), start_new_session=True)
+
+
+def children(pid: int) -> list[int]:
+    """Process ids whose parent is ``pid`` (from /proc)."""
+    out = []
+    for d in Path("/proc").iterdir():
+        if not d.name.isdigit():
+            continue
+        try:
+            stat = (d / "stat").read_bytes()
+        except OSError:
+            continue
+        fields = stat.rsplit(b")", 1)[1].split()
+        if int(fields[1]) == pid and fields[0] != b"Z":
+            out.append(int(d.name))
+    return out
+
+
+def alive(pid: int) -> bool:
+    """The process exists and is not a zombie."""
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_bytes()
+    except OSError:
+        return False
+    return stat.rsplit(b")", 1)[1].split()[0] != b"Z"
+
+
+def wait_for(cond, timeout: float, step: float = 0.05) -> bool:
+    t_end = time.monotonic() + timeout
+    while time.monotonic() < t_end:
+        if cond():
+            return True
+        time.sleep(step)
+    return bool(cond())
+
+
+def cache_entries(out: Path) -> list[Path]:
+    return sorted((out / "cache").glob("??/*.json"))
+
+
+def temporaries(root: Path) -> list[Path]:
+    return sorted(p for p in root.rglob("*.tmp"))

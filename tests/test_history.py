@@ -1,0 +1,206 @@
+"""Run history (SQLite), the verified case cache and its key, ``jointbench history/diff/cache``."""
+from __future__ import annotations
+
+import json
+import re
+import shutil
+import sqlite3
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+
+from benchmarks.config import load_study
+from benchmarks.harness import fingerprint
+from benchmarks.harness.cache import Cache, case_key
+from benchmarks.harness.history import History
+from benchmarks.runner import expand, run_cases
+from benchmarks.study import run_study
+from tests.harness_studies import REPO, tiny_study
+
+
+def test_swapped_cache_entry_is_detected_and_recomputed(tmp_path, capsys):
+    cases = expand(load_study(tiny_study(tmp_path / "cfg", seeds=2)))
+    cache = Cache(tmp_path / "cache")
+    first = run_cases(cases, cache, serial=True, progress=False)
+    a, b = (cache.path(case_key(c)) for c in cases)
+    shutil.copyfile(a, b)                                  # seed 0's entry now sits in seed 1's file
+    again = Cache(tmp_path / "cache")
+    second = run_cases(cases, again, serial=True, progress=False)
+    assert again.hits == 1 and again.rejected == 1
+    assert "for case fit-seed1 refused: the entry is keyed" in capsys.readouterr().err
+    assert [r.rows for r in second] == [r.rows for r in first]          # recomputed, not served
+    assert not second[1].cached and second[0].cached
+    assert Cache(tmp_path / "cache").get(cases[1]).rows == first[1].rows  # and the entry repaired
+
+
+def test_edited_or_damaged_entry_is_refused(tmp_path):
+    cases = expand(load_study(tiny_study(tmp_path / "cfg", seeds=1)))
+    cache = Cache(tmp_path / "cache")
+    run_cases(cases, cache, serial=True, progress=False)
+    p = cache.path(case_key(cases[0]))
+    entry = json.loads(p.read_text())
+    entry["result"]["rows"][0]["value"] += 1.0
+    p.write_text(json.dumps(entry))
+    c = Cache(tmp_path / "cache", warn=lambda m: None)
+    assert c.get(cases[0]) is None and "checksum" in c.problems[0]
+    p.write_text(p.read_text()[:100])
+    assert c.get(cases[0]) is None and "unreadable" in c.problems[1]
+
+
+def test_key_has_no_paths_but_everything_a_protocol_sees(tmp_path):
+    one = expand(load_study(tiny_study(tmp_path / "a", seeds=2)))
+    two = expand(load_study(tiny_study(tmp_path / "elsewhere" / "b", seeds=2)))   # same study, other folder
+    assert [c.where for c in one] != [c.where for c in two]
+    assert [case_key(c) for c in one] == [case_key(c) for c in two]
+    assert case_key(one[0]) != case_key(one[1])                                    # seed
+    other = expand(load_study(tiny_study(tmp_path / "c", seeds=1, duration="5 s")))
+    assert case_key(other[0]) != case_key(one[0])                                  # experiment
+    for c in one:
+        assert str(tmp_path) not in fingerprint.canonical(c.key_material())
+
+
+def test_put_never_deletes_other_entries(tmp_path, monkeypatch):
+    cases = expand(load_study(tiny_study(tmp_path / "cfg", seeds=1)))
+    run_cases(cases, Cache(tmp_path / "cache"), serial=True, progress=False)
+    monkeypatch.setattr(fingerprint, "code_hash", lambda: "edited-code")
+    run_cases(cases, Cache(tmp_path / "cache"), serial=True, progress=False)
+    assert len(list((tmp_path / "cache").glob("??/*.json"))) == 2
+
+
+def test_code_hash_covers_what_computes_a_case_and_nothing_else():
+    files = {p.relative_to(REPO).as_posix() for p in fingerprint.case_modules()}
+    assert {"benchmarks/harness/case.py", "benchmarks/metrics.py", "benchmarks/protocols/xu1998.py",
+            "estimators/kbr.py", "estimators/_kbr_solve.py", "sims/backend_ltv.py", "jointbench/schema.py"} <= files
+    assert not {f for f in files if f.startswith(("benchmarks/figures/", "benchmarks/harness/nightly"))}
+    assert not files & {"benchmarks/report.py", "benchmarks/tables.py", "benchmarks/cli.py", "benchmarks/config.py",
+                        "benchmarks/study.py", "benchmarks/runner.py", "benchmarks/harness/cache.py"}
+
+
+def test_every_module_a_case_loads_is_hashed(tmp_path):
+    """The static closure is checked against what a case really imports, in a fresh interpreter that
+    imports only the case module."""
+    case = expand(load_study(tiny_study(tmp_path, seeds=1)))[0]
+    code = textwrap.dedent("""
+        import json, sys
+        from benchmarks.harness.case import Case, run_case
+        res = run_case(Case(**json.loads(sys.argv[1])))
+        assert res.status == "ok", res.error
+        print(json.dumps(sorted(m.__file__ for m in list(sys.modules.values()) if getattr(m, "__file__", None))))
+    """)
+    out = subprocess.run([sys.executable, "-c", code, json.dumps(case.spec())], cwd=REPO, capture_output=True,
+                         text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    loaded = {Path(f).resolve() for f in json.loads(out.stdout)}
+    ours = {p for p in loaded if REPO in p.parents and p.parts[len(REPO.parts)] in fingerprint.PACKAGES}
+    assert len(ours) > 20
+    missing = ours - set(fingerprint.case_modules())
+    assert not missing, f"loaded by a case but not in the code hash: {sorted(missing)}"
+
+
+def test_history_records_runs_and_a_crash_mid_write_leaves_no_half_run(tmp_path):
+    study = tiny_study(tmp_path / "cfg", seeds=2)
+    out = tmp_path / "out"
+    run = run_study(study, out_root=out, serial=True, progress=False)
+    code = textwrap.dedent(f"""
+        import os
+        from benchmarks.harness.history import History
+        from benchmarks.study import run_study
+        h = History.finish_run
+        def crash(self, run_id, status, results, *a, **k):
+            real = self.db.executemany
+            calls = []
+            class DB:
+                def __getattr__(s, name):
+                    return getattr(real.__self__, name)
+                def executemany(s, sql, rows):
+                    real(sql, rows)
+                    if sql.startswith("INSERT INTO results"):
+                        os._exit(9)           # killed inside the final transaction
+            self.db = DB()
+            return h(self, run_id, status, results, *a, **k)
+        History.finish_run = crash
+        run_study({str(study)!r}, out_root=__import__("pathlib").Path({str(out)!r}), serial=True, progress=False)
+    """)
+    p = subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True, text=True, timeout=300)
+    assert p.returncode == 9, p.stderr
+    with History(out / "history.sqlite") as h:
+        runs = h.runs().sort_values("id")
+        assert list(runs["status"]) == ["ok", "crashed"]
+        assert len(h.cases(run.run_id)) == 2 and len(h.rows(run.run_id)) > 0
+        crashed = int(runs["id"].iloc[1])
+        assert h.cases(crashed).empty and h.rows(crashed).empty and h.checks(crashed).empty
+        r = h.run(run.run_id)
+        assert r["environment"]["numpy"] and r["code_hash"] == fingerprint.code_hash() and r["parts"] == ["fit"]
+    with sqlite3.connect(out / "history.sqlite") as db:
+        assert db.execute("PRAGMA journal_mode").fetchone()[0] == "wal"
+
+
+def test_history_and_diff_commands(tmp_path, capsys, monkeypatch):
+    from benchmarks.cli import main
+
+    study = tiny_study(tmp_path / "cfg", seeds=2)
+    out = tmp_path / "out"
+    run_study(study, out_root=out, serial=True, progress=False)
+    monkeypatch.setattr(fingerprint, "code_hash", lambda: "a-new-version")
+    run_study(study, out_root=out, serial=True, progress=False)       # recomputed under new "code"
+    with sqlite3.connect(out / "history.sqlite") as db:                # ... which changed one metric
+        db.execute("UPDATE results SET value = value + 1 WHERE run_id = 2 AND metric = 'B'")
+    capsys.readouterr()
+    assert main(["history", "--out", str(out)]) == 0
+    listing = capsys.readouterr().out
+    assert "tiny" in listing and listing.count(" ok ") == 2
+    assert main(["history", "2", "--out", str(out)]) == 0
+    shown = capsys.readouterr().out
+    assert "run 2 (run): study tiny, status ok" in shown and "T-K" in shown and "a-new-version" in shown
+    assert main(["diff", "1", "2", "--out", str(out), "--strict"]) == 1
+    d = capsys.readouterr().out
+    assert "a-new-version" in d and re.search(r"fit\s+ibk_spectral\s+B\s+2\s+1.0\s", d)
+    assert "drifted beyond their threshold: fit/ibk_spectral:B" in d
+    assert main(["history", "9", "--out", str(out)]) == 2
+    assert "no run 9 (runs 1 to 2)" in capsys.readouterr().err
+
+
+def test_cache_prune_keeps_what_recent_runs_used(tmp_path, capsys, monkeypatch):
+    from benchmarks.cli import main
+
+    study = tiny_study(tmp_path / "cfg", seeds=2)
+    out = tmp_path / "out"
+    run_study(study, out_root=out, serial=True, progress=False)
+    monkeypatch.setattr(fingerprint, "code_hash", lambda: "newer")
+    run_study(study, out_root=out, serial=True, progress=False)
+    assert len(list((out / "cache").glob("??/*.json"))) == 4
+    assert main(["cache", "prune", "--keep-runs", "1", "--out", str(out)]) == 0
+    assert "removed 2 of 4 entries" in capsys.readouterr().out
+    left = {p.stem for p in (out / "cache").glob("??/*.json")}
+    assert left == {case_key(c) for c in expand(load_study(study))}
+
+
+def test_unknown_history_is_one_line(tmp_path, capsys):
+    from benchmarks.cli import main
+
+    assert main(["history", "--out", str(tmp_path)]) == 2
+    assert "no run history yet" in capsys.readouterr().err
+
+
+def test_regenerated_reports_do_not_make_a_run_dirty(tmp_path, monkeypatch):
+    """Dirty = uncommitted changes to tracked files outside results/, or new files in the code."""
+    git = lambda *a: subprocess.run(["git", "-c", "user.name=t", "-c", "user.email=t@t", *a], cwd=tmp_path,  # noqa: E731
+                                    check=True, capture_output=True)
+    git("init", "-q")
+    (tmp_path / "results" / "s").mkdir(parents=True)
+    (tmp_path / "results" / "s" / "report.md").write_text("old")
+    (tmp_path / "sims").mkdir()
+    (tmp_path / "sims" / "a.py").write_text("x = 1\n")
+    git("add", ".")
+    git("commit", "-qm", "c")
+    monkeypatch.setattr(fingerprint, "REPO", tmp_path)
+    assert fingerprint.git_state()[1] is False
+    (tmp_path / "results" / "s" / "report.md").write_text("regenerated")
+    assert fingerprint.git_state()[1] is False and not fingerprint.git_commit().endswith("-dirty")
+    (tmp_path / "sims" / "new_model.py").write_text("y = 2\n")
+    assert fingerprint.git_state()[1] is True
+    (tmp_path / "sims" / "new_model.py").unlink()
+    (tmp_path / "sims" / "a.py").write_text("x = 2\n")
+    assert fingerprint.git_commit().endswith("-dirty")
