@@ -10,7 +10,7 @@ from jointbench.signal import decimate_fft
 from sims import JOINTS, PERTURBATIONS, PROFILES, Experiment, simulate
 from sims.apparatus import Handle, PositionServo, TorqueDrive
 from sims.backend_lti import LTIBackend
-from sims.backend_ltv import LTVBackend, affine_scan, derivative, step_matrices
+from sims.backend_ltv import LTVBackend, affine_recursion, derivative, step_matrices
 from sims.joint_second_order import SecondOrderJoint
 from sims.joint_time_varying import TimeVaryingJoint
 from sims.joint_wrist_contact import WristContactJoint
@@ -93,10 +93,15 @@ def test_damping_ratio_gives_b_from_k():
 
 # ------------------------------------------------------------------------------------------ ltv backend
 def test_step_matrices_equal_expm():
+    """The two-coefficient form against scipy's expm of the augmented matrix: under-damped (elbow), the
+    wrist's stiff contact, critically damped (double eigenvalue), a singular A (p = 0), A = 0 and a
+    positive-feedback case (real eigenvalues of both signs)."""
     import scipy.linalg
-    p, q, h = np.array([-900.0, -35000.0]), np.array([-3.0, -3345.0]), 1 / 2500
+    p = np.array([-900.0, -35000.0, -100.0, 0.0, 0.0, 400.0])
+    q = np.array([-3.0, -3345.0, -20.0, -5.0, 0.0, 10.0])
+    h = 1 / 2500
     E, J1, J2 = step_matrices(p, q, h)
-    for i in range(2):
+    for i in range(len(p)):
         M = np.zeros((6, 6))
         M[:2, :2] = np.array([[0, 1], [p[i], q[i]]]) * h
         M[:2, 2:4] = np.eye(2) * h
@@ -106,17 +111,20 @@ def test_step_matrices_equal_expm():
             assert np.allclose(np.reshape([c[i] for c in got], (2, 2)), ref, rtol=1e-12, atol=1e-14 * abs(ref).max())
 
 
-def test_affine_scan_equals_loop():
-    rng = np.random.default_rng(0)
-    n = 777
+@pytest.mark.parametrize("n", [2, 20, 33, 35, 777, 32 * 32 + 3, 32 * 32 * 32 + 100])
+def test_affine_recursion_equals_loop(n):
+    """Blocks of 32 steps: within one block, exactly one, one and a bit, two and three levels of blocks."""
+    rng = np.random.default_rng(n)
     E = tuple(rng.uniform(-0.5, 0.5, n - 1) for _ in range(4))
     v0, v1 = rng.standard_normal(n - 1), rng.standard_normal(n - 1)
-    x, y = affine_scan(E, v0, v1, (0.3, -0.2))
+    x, y = affine_recursion(E, v0, v1, (0.3, -0.2))
+    assert x.shape == y.shape == (n,)
     xs, ys = [0.3], [-0.2]
+    e00, e01, e10, e11, w0, w1 = (c.tolist() for c in (*E, v0, v1))
     for k in range(n - 1):
         a, b = xs[-1], ys[-1]
-        xs.append(E[0][k] * a + E[1][k] * b + v0[k])
-        ys.append(E[2][k] * a + E[3][k] * b + v1[k])
+        xs.append(e00[k] * a + e01[k] * b + w0[k])
+        ys.append(e10[k] * a + e11[k] * b + w1[k])
     assert np.allclose(x, xs, atol=1e-12) and np.allclose(y, ys, atol=1e-12)
 
 
