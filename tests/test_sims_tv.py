@@ -303,6 +303,29 @@ def test_multisine_has_exactly_the_requested_lines_and_rms():
     assert np.allclose(a[f[excited] <= 6], a[0]) and a[-1] == pytest.approx(a[0] * 6 / 19.3, rel=1e-9)
 
 
+@pytest.mark.parametrize("settings, fs, duration, periods", [
+    ({}, 2500.0, 50.0, 1),                                                  # the study: one period = 25 000 samples
+    ({"quiet": 5.0003}, 2500.0, 60.0, 1),                                   # quiet margin between samples
+    ({"quiet": 0.0}, 44.0, 40.0, 1),
+    ({"period": 10 / 3, "f_min": 0.3, "spacing": 0.6, "f_max": 10}, 1000.0, 30.0, 3),    # 3 periods = 10 000 samples
+    ({"period": 10 / 3, "f_min": 0.3, "spacing": 0.6, "f_max": 10}, 1000.37, 30.0, None),  # direct sum
+])
+def test_multisine_equals_the_sum_of_cosines(settings, fs, duration, periods):
+    """The inverse-FFT synthesis against the defining formula summed sample by sample, quiet margins included."""
+    from sims.perturbation_multisine import _periods_in_whole_samples
+    m = Multisine(**settings)
+    n = int(duration * fs)
+    assert _periods_in_whole_samples(m.period * fs, n) == periods     # which path is tested
+    u = m.generate(n, fs, np.random.default_rng(4))
+    phases = np.random.default_rng(4).uniform(0.0, 2 * np.pi, len(m.bins))
+    t = np.arange(n) / fs
+    active = (t >= m.quiet - 1e-9) & (t < n / fs - m.quiet - 1e-9)
+    a = m.amplitudes() * m.rms / np.sqrt(np.sum(m.amplitudes() ** 2) / 2)
+    ref = np.where(active, np.cos(2 * np.pi * np.outer(t - m.quiet, m.lines) + phases) @ a, 0.0)
+    assert np.array_equal(u == 0, ref == 0)
+    assert np.max(np.abs(u - ref)) <= 5e-12 * m.rms      # the direct sum's own rounding (large arguments)
+
+
 def test_decimate_fft_keeps_lines_exactly():
     t = np.arange(125000) / 2500
     x = np.sin(2 * np.pi * 0.8 * t) + 0.3 * np.cos(2 * np.pi * 19.3 * t) + 0.1 * np.sin(2 * np.pi * 300 * t)
