@@ -29,6 +29,7 @@ from sims.experiment import Response
 
 _TAYLOR_TERMS = 12  # at |A tau| <= 0.25 the next term is below 1e-16
 BLOCK = 32          # steps per block of affine_recursion (16 ... 64 were about equally fast at 1e5 steps)
+CHUNK = 8192        # steps per chunk of step_coefficients (its temporaries then stay in cache)
 
 
 def step_coefficients(p: np.ndarray, q: np.ndarray, h: float):
@@ -40,7 +41,8 @@ def step_coefficients(p: np.ndarray, q: np.ndarray, h: float):
     are evaluated by Horner's rule (``X (a I + b A) = tau (p b I + (a + q b) A)``), then ``m`` doublings.
 
     Steps with the same ``(p, q)`` as the step before (a square wave or steps hold the coefficients for
-    many steps) share one computation when runs are long (bit for bit the same numbers).
+    many steps) share one computation when runs are long, and long stacks are computed in chunks of
+    :data:`CHUNK` steps with the same ``m`` (bit for bit the same numbers either way).
 
     Returns
     -------
@@ -57,8 +59,20 @@ def step_coefficients(p: np.ndarray, q: np.ndarray, h: float):
         if len(starts) <= p.size // 16:
             lengths = np.diff(np.append(starts, p.size))
             return tuple(tuple(np.repeat(c, lengths) for c in M) for M in step_coefficients(p[starts], q[starts], h))
-    norm = float(np.max(np.abs(p) + np.abs(q) + 1.0)) * h
+    norm = float(np.max(np.abs(p) + np.abs(q) + 1.0)) * h if p.size else 0.0
     m = max(0, int(np.ceil(np.log2(norm / 0.25)))) if norm > 0.25 else 0
+    if p.size <= CHUNK:
+        return _series(p, q, h, m)
+    out = [np.empty_like(p) for _ in range(6)]
+    for i in range(0, p.size, CHUNK):   # chunks whose temporaries stay in cache; elementwise, so the same numbers
+        part = _series(p[i:i + CHUNK], q[i:i + CHUNK], h, m)
+        for o, c in zip(out, (c for M in part for c in M)):
+            o[i:i + CHUNK] = c
+    return (out[0], out[1]), (out[2], out[3]), (out[4], out[5])
+
+
+def _series(p: np.ndarray, q: np.ndarray, h: float, m: int):
+    """:func:`step_coefficients` for one chunk, with the number ``m`` of doublings given."""
     tau = h / 2.0 ** m
     tp, tq = p * tau, q * tau
     # S_2 by Horner, then S_1 = I + X S_2 and E = S_0 = I + X S_1

@@ -111,6 +111,18 @@ def test_step_matrices_equal_expm():
             assert np.allclose(np.reshape([c[i] for c in got], (2, 2)), ref, rtol=1e-12, atol=1e-14 * abs(ref).max())
 
 
+def test_step_coefficients_shortcuts_are_bit_identical():
+    """Chunks (long stacks) and shared runs (square waves) give exactly the numbers of one plain pass."""
+    from sims.backend_ltv import CHUNK, _series, step_coefficients
+    n = 3 * CHUNK + 123
+    t = np.arange(n) / 2500
+    for k in (5.6 + 0.9 * np.sin(2 * np.pi * t / 20), np.where(np.mod(t / 10, 1) < 0.5, 6.5, 4.7)):
+        p, q, h = -(k + 100) / 0.003, np.full(n, -10.035 / 0.003), 1 / 2500
+        m = int(np.ceil(np.log2(np.max(np.abs(p) + np.abs(q) + 1.0) * h / 0.25)))
+        for got, want in zip(step_coefficients(p, q, h), _series(p, q, h, m)):
+            assert all(np.array_equal(g, w) for g, w in zip(got, want))
+
+
 @pytest.mark.parametrize("n", [2, 20, 33, 35, 777, 32 * 32 + 3, 32 * 32 * 32 + 100])
 def test_affine_recursion_equals_loop(n):
     """Blocks of 32 steps: within one block, exactly one, one and a bit, two and three levels of blocks."""
