@@ -8,7 +8,7 @@ STAMP  := $(VENV)/.installed-stamp
 RUN    := $(BIN)/jointbench run
 SHARED ?= ../shared
 
-.PHONY: help venv test test-slow bench reproduce westwick2012 westwick2012-fig2 westwick2012-fig3 \
+.PHONY: help venv test test-slow bench bench-save bench-studies reproduce westwick2012 westwick2012-fig2 westwick2012-fig3 \
         westwick2012-fig4 westwick2012-fig5 westwick2012-fig6 westwick2012-table1 westwick2012-fig7 \
         westwick2012-fig8 xu1998 xu1998-fig2 xu1998-fig3 xu1998-calibration vanderuit2018-table1 \
         example-ankle clean-results nightly chromium
@@ -17,7 +17,10 @@ help:
 	@echo "make reproduce   run every implemented paper study (results/<study>/report.md)"
 	@echo "make test        run the tests (creates .venv when missing)"
 	@echo "make test-slow   exact-value tests of the full studies (slow marker)"
-	@echo "make bench       speed benchmarks (pytest-benchmark), JSON in results/benchmarks.json"
+	@echo "make bench       speed benchmarks against the last stored run (fails on a median 20 % slower;"
+	@echo "                 stores a passing run) + study wall times (.benchmarks/study_times.csv)"
+	@echo "make bench-save  store a benchmark run as the reference without comparing"
+	@echo "make bench-studies   only the study wall times (no cache, results/ untouched)"
 	@echo "make westwick2012[-fig2|-fig3|-fig4|-fig5|-fig6|-table1|-fig7|-fig8]"
 	@echo "make xu1998[-fig2|-fig3|-calibration]"
 	@echo "make vanderuit2018-table1"
@@ -40,10 +43,13 @@ test: $(STAMP)
 test-slow: $(STAMP)
 	$(BIN)/python -m pytest -q --slow -m slow
 
+# Benchmarks: pytest-benchmark runs stored in .benchmarks/<machine>/ (not committed); see tests/benchmarks/bench.py.
 bench: $(STAMP)
-	mkdir -p results
-	$(BIN)/python -m pytest -q tests/benchmarks --benchmark-enable --benchmark-sort=mean --benchmark-columns=median,iqr,min,mean,rounds \
-	    --benchmark-json=results/benchmarks.json
+	$(BIN)/python -m tests.benchmarks.bench
+bench-save: $(STAMP)
+	$(BIN)/python -m tests.benchmarks.bench --save-only
+bench-studies: $(STAMP)
+	$(BIN)/python -m tests.benchmarks.bench --studies-only
 
 # The studies, then the README's status tables from their comparison.csv files (never typed by hand).
 reproduce: westwick2012 xu1998 vanderuit2018-table1

@@ -1,9 +1,17 @@
-"""Excited lines of a sparse multisine on the DFT grid of a record (shared by the multisine estimators).
+"""Excited lines of a sparse multisine on the DFT grid of a record: the one rule of the multisine estimators.
 
 Private module (the leading underscore keeps it out of the estimator registry). A record of ``n``
 samples at ``fs`` Hz holding a whole number of periods of a multisine has its lines exactly on DFT
 bins ``k`` (frequency ``k fs / n``) and (numerically) nothing in the other bins. Bins are counted
 ``1 ... (n - 1) // 2``: DC and, for even ``n``, the Nyquist bin are never lines.
+
+:func:`multisine_bins` is what an estimator calls (skirt, KBR): the lines given by a setting
+(:func:`bins_of_lines`, each checked to be excited) or detected (:func:`excited_bins`). The rule for a
+detected line: its bin stands ``threshold_db`` above the floor (the median bin power, at least
+:data:`NUMERICAL_FLOOR_DB` below the strongest bin) and above both neighbouring bins; the lines lie on
+a grid ``k0 + d Z`` with ``d >= 2`` (empty bins between them); and at most ``max_leakage`` of the
+input's power lies off them (a record that is not a whole number of periods leaks). Each estimator keeps
+its own threshold setting.
 
 References
 ----------
@@ -26,6 +34,9 @@ from jointbench.errors import InputError
 #: synthesised multisine has only rounding errors between its lines, and they are not flat.
 NUMERICAL_FLOOR_DB = 100.0
 
+#: Largest fraction of the input's power (above DC) allowed off the detected lines.
+MAX_LEAKAGE = 0.01
+
 
 def bin_power(x: np.ndarray) -> np.ndarray:
     """``|X(k)|^2`` for ``k = 0 ... (n - 1) // 2`` (index = bin; DC included, Nyquist excluded)."""
@@ -33,13 +44,49 @@ def bin_power(x: np.ndarray) -> np.ndarray:
     return np.abs(np.fft.rfft(x)[:(len(x) - 1) // 2 + 1]) ** 2
 
 
-def excited_bins(name: str, x: np.ndarray, fs: float, threshold_db: float) -> np.ndarray:
+def _floor(ac: np.ndarray) -> float:
+    """Power of an empty bin: the median over bins 1 ... (n-1)//2, at least NUMERICAL_FLOOR_DB below the top."""
+    return max(float(np.median(ac)), float(ac.max()) * 10 ** (-NUMERICAL_FLOOR_DB / 10))
+
+
+def _power_above_dc(name: str, x: np.ndarray) -> np.ndarray:
+    p = bin_power(x)
+    if p.size < 4 or not p[1:].max() > 1e-20 * p.sum():
+        raise InputError(f"{name}: the input is constant (no power above DC); nothing to identify")
+    return p
+
+
+def multisine_bins(name: str, x: np.ndarray, fs: float, threshold_db: float, lines_hz=None,
+                   max_leakage: float = MAX_LEAKAGE) -> np.ndarray:
+    """Excited DFT bins of the record ``x``: the given ``lines_hz``, each checked to be excited (at least
+    ``threshold_db`` above the floor of empty bins), or, when None, detected by :func:`excited_bins`.
+
+    Raises
+    ------
+    InputError
+        See :func:`bins_of_lines` and :func:`excited_bins`; a given line that is not excited.
+    """
+    if lines_hz is None:
+        return excited_bins(name, x, fs, threshold_db, max_leakage)
+    bins = bins_of_lines(name, lines_hz, len(x), fs)
+    p = _power_above_dc(name, x)
+    weak = p[bins] <= _floor(p[1:]) * 10 ** (threshold_db / 10)
+    if weak.any():
+        raise InputError(f"{name}: line {bins[np.argmax(weak)] * fs / len(x):g} Hz of lines_hz is not excited "
+                         f"in the input (not {threshold_db:g} dB above the median bin power)")
+    return bins
+
+
+def excited_bins(name: str, x: np.ndarray, fs: float, threshold_db: float,
+                 max_leakage: float = MAX_LEAKAGE) -> np.ndarray:
     """Isolated lines: bins standing ``threshold_db`` above the median bin power and above both neighbours.
 
     The median over bins ``1 ... (n - 1) // 2`` is the floor of a sparse multisine (its lines are a
     small fraction of the bins); it is taken at least :data:`NUMERICAL_FLOOR_DB` below the strongest
     bin. A line must also exceed its two neighbouring bins (one at the ends) by ``threshold_db``:
-    smooth spectra (a trend left in the record, leakage, filtered noise) then give no lines.
+    smooth spectra (a trend left in the record, leakage, filtered noise) then give no lines. The lines
+    must lie on a grid with empty bins between them, and hold all but ``max_leakage`` of the power above
+    DC (lines leak into their neighbours when the record is not a whole number of periods).
 
     Parameters
     ----------
@@ -51,6 +98,8 @@ def excited_bins(name: str, x: np.ndarray, fs: float, threshold_db: float) -> np
         Sampling rate (Hz), for the messages.
     threshold_db : float
         How far above the floor and above its neighbours a line must stand (dB).
+    max_leakage : float
+        Largest fraction of the power above DC off the lines.
 
     Returns
     -------
@@ -61,14 +110,13 @@ def excited_bins(name: str, x: np.ndarray, fs: float, threshold_db: float) -> np
     ------
     InputError
         No power above DC; no line (noise, or lines leaking because the record does not hold a whole
-        number of periods, e.g. a record shorter than one period); lines not on a regular grid.
+        number of periods, e.g. a record shorter than one period); lines not on a regular grid; more
+        than ``max_leakage`` of the power off the lines.
     """
-    p = bin_power(x)
+    p = _power_above_dc(name, x)
     T = len(x) / fs
-    if p.size < 4 or not p[1:].max() > 1e-20 * p.sum():
-        raise InputError(f"{name}: the input has no power above DC; nothing to identify")
     ac = p[1:]
-    floor = max(float(np.median(ac)), ac.max() * 10 ** (-NUMERICAL_FLOOR_DB / 10))
+    floor = _floor(ac)
     gain = 10 ** (threshold_db / 10)
     left = np.concatenate([[0.0], ac[:-1]])
     right = np.concatenate([ac[1:], [0.0]])
@@ -81,6 +129,12 @@ def excited_bins(name: str, x: np.ndarray, fs: float, threshold_db: float) -> np
     if hit.size >= 2 and reduce(gcd, np.diff(hit).tolist()) < 2:
         raise InputError(f"{name}: the excited bins of the input ({_hz(hit, T)}) are not on a regular grid "
                          f"with empty bins between the lines; the input is not a sparse multisine")
+    off = 1.0 - float(ac[hit - 1].sum() / ac.sum())
+    if off > max_leakage:
+        raise InputError(f"{name}: the input is not a sparse multisine with a whole number of periods in the "
+                         f"record: {100 * off:.3g} % of its power lies off the {hit.size} detected line(s) (at "
+                         f"most {100 * max_leakage:g} %); is the record ({T:g} s) shorter than one period, or not "
+                         f"a whole number of periods? (or give 'lines_hz')")
     return hit
 
 

@@ -6,6 +6,7 @@ Time-varying ``I``, ``B``, ``K`` of ``tau = I theta'' + B theta' + K theta``: ze
 from __future__ import annotations
 
 import dataclasses
+import functools
 from typing import Literal
 
 import numpy as np
@@ -39,7 +40,7 @@ def highpass(x: np.ndarray, fs: float, cutoff: float, order: int, ripple: float)
     ----------
     Xu & Hollerbach (1998), eq. 3 and Sec. III-B ("fourth-order Chebyshev filter ... 1 Hz").
     """
-    sos = sps.cheby1(order, ripple, cutoff, btype="highpass", fs=fs, output="sos")
+    sos = _highpass_sos(order, ripple, cutoff, fs).copy()
     n = x.shape[-1]
     w = max(2, min(n // 4, int(round(fs / cutoff))))
     pad = int(np.ceil(10.0 * highpass_time_constant(cutoff, order, ripple) * fs))
@@ -54,6 +55,15 @@ def highpass(x: np.ndarray, fs: float, cutoff: float, order: int, ripple: float)
     return sps.sosfiltfilt(sos, ext, axis=-1, padtype=None)[..., pad:pad + n]
 
 
+@functools.lru_cache(maxsize=32)
+def _highpass_sos(order: int, ripple: float, cutoff: float, fs: float) -> np.ndarray:
+    """Second-order sections of the high-pass of :func:`highpass`, designed once per setting (read-only)."""
+    sos = sps.cheby1(order, ripple, cutoff, btype="highpass", fs=fs, output="sos")
+    sos.flags.writeable = False
+    return sos
+
+
+@functools.lru_cache(maxsize=32)
 def highpass_time_constant(cutoff: float, order: int, ripple: float) -> float:
     """Slowest time constant (s) of the analog Chebyshev high-pass (0.97 s at 1 Hz, order 4, 0.5 dB).
 
@@ -140,16 +150,57 @@ def rk4_coefficients(lam: float, h: float) -> tuple[float, float, float, float]:
     return c, h / 6 * (1.0 - z + z * z / 2.0 - z ** 3 / 4.0), h / 6 * (4.0 - 2.0 * z + z * z / 2.0), h / 6
 
 
+def _products(Phi: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """``[unique entries of Phi Phi^T, Phi y]`` per sample, summed over records, shape (9, n).
+
+    ``Phi`` has shape (3, n_records, n) (regressor first: each product is one contiguous pass), ``y``
+    (n_records, n).
+    """
+    out = np.empty((9, y.shape[-1]))
+    for m, (i, j) in enumerate(zip(*_IU)):
+        np.einsum("rn,rn->n", Phi[i], Phi[j], out=out[m])
+    for i in range(3):
+        np.einsum("rn,rn->n", Phi[i], y, out=out[6 + i])
+    return out
+
+
 def _forcing(Phi: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """``[unique entries of Phi Phi^T, Phi y]`` per sample, summed over records: shape (n, 9)."""
-    prod = np.einsum("rni,rnj->nij", Phi, Phi)[:, _IU[0], _IU[1]]
-    return np.concatenate([prod, np.einsum("rni,rn->ni", Phi, y)], axis=1)
+    """``[unique entries of Phi Phi^T, Phi y]`` per sample, summed over records: shape (n, 9).
+
+    ``Phi`` has shape (n_records, n, 3), ``y`` (n_records, n).
+    """
+    return _products(np.moveaxis(Phi, -1, 0), y).T
 
 
 def _unpack(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     R = np.empty(x.shape[:-1] + (3, 3))
     R[..., _IU[0], _IU[1]] = R[..., _IU[1], _IU[0]] = x[..., :6]
     return R, x[..., 6:]
+
+
+def _solve_spd3(x: np.ndarray) -> np.ndarray:
+    """``R^-1 r`` per sample from ``x`` = [unique entries of R, r], shape (9, n); ``R`` symmetric positive
+    definite. Returns shape (n, 3).
+
+    Columns scaled so that the mean diagonal of ``R`` is 1, then ``R = L D L^T`` written out for 3 x 3
+    (no pivoting is needed for a positive definite matrix) and two triangular solves, every step one
+    vectorised operation over the samples.
+    """
+    s = 1.0 / np.sqrt(x[[0, 3, 5]].mean(axis=1))
+    a00, a01, a02, a11, a12, a22 = (x[k] * (s[i] * s[j]) for k, (i, j) in enumerate(zip(*_IU)))
+    b0, b1, b2 = x[6] * s[0], x[7] * s[1], x[8] * s[2]
+    l10, l20 = a01 / a00, a02 / a00
+    d1 = a11 - l10 * a01
+    e12 = a12 - l20 * a01
+    l21 = e12 / d1
+    d2 = a22 - l20 * a02 - l21 * e12
+    if not (np.all(d1 > 0) and np.all(d2 > 0) and np.all(a00 > 0)):
+        raise np.linalg.LinAlgError("EWLS information matrix is not positive definite")
+    z1 = b1 - l10 * b0
+    x2 = (b2 - l20 * b0 - l21 * z1) / d2
+    x1 = (z1 - e12 * x2) / d1
+    x0 = (b0 - a01 * x1 - a02 * x2) / a00
+    return np.stack([x0 * s[0], x1 * s[1], x2 * s[2]], axis=1)
 
 
 def ewls(Phi: np.ndarray, y: np.ndarray, dt: float, lam: float, R0: np.ndarray,
@@ -160,9 +211,11 @@ def ewls(Phi: np.ndarray, y: np.ndarray, dt: float, lam: float, R0: np.ndarray,
     ``r' = -lam r + Phi y``, ``Theta = R^-1 r`` (records pool by summing ``Phi Phi^T`` and ``Phi y``).
     RK4 with ``Phi`` and ``y`` linearly interpolated at the mid-points is then exactly the recursion of
     :func:`rk4_coefficients` on the products at the samples and at the mid-points, run by
-    :func:`scipy.signal.lfilter`, followed by a stacked, column-scaled 3 x 3 solve. RK4 is not invariant
-    under the change of variables ``(P, Theta) -> (R, r)``: the result differs from RK4 on eq. 6 itself
-    (:func:`_ewls_riccati_rk4`) by RK4's truncation error, ``O(dt^4)``; the tests check they agree.
+    :func:`scipy.signal.lfilter`, followed by a column-scaled 3 x 3 solve per sample (:func:`_solve_spd3`).
+    RK4 is not invariant under the change of variables ``(P, Theta) -> (R, r)``: the result differs
+    from RK4 on eq. 6 itself (:func:`_ewls_riccati_rk4`) by RK4's truncation error, ``O(dt^4)``; the tests
+    check they agree. The nine products are laid out one per row (9, n), so every step of the
+    arithmetic (about 200 flops per sample) is one contiguous vectorised pass.
 
     ``Phi`` has shape (n_records, n, 3), ``y`` (n_records, n); ``dt`` is the step (s), ``lam`` the
     forgetting rate (1/s), ``R0 = P(0)^-1`` and ``r0 = P(0)^-1 Theta(0)``. Returns ``[I, B, K]`` per
@@ -173,14 +226,17 @@ def ewls(Phi: np.ndarray, y: np.ndarray, dt: float, lam: float, R0: np.ndarray,
     Xu & Hollerbach (1998), eqs. 5-6 and Sec. II-D.
     """
     c, w0, wm, w1 = rk4_coefficients(lam, dt)
-    f = _forcing(Phi, y)
-    fm = _forcing(0.5 * (Phi[:, 1:] + Phi[:, :-1]), 0.5 * (y[:, 1:] + y[:, :-1]))
+    P = np.ascontiguousarray(np.moveaxis(Phi, -1, 0))           # (3, n_records, n)
+    y = np.ascontiguousarray(y)
+    f = _products(P, y)
+    fm = _products(0.5 * (P[..., 1:] + P[..., :-1]), 0.5 * (y[:, 1:] + y[:, :-1]))
     drive = np.empty_like(f)
-    drive[0] = np.concatenate([R0[_IU], r0])
-    drive[1:] = w0 * f[:-1] + wm * fm + w1 * f[1:]
-    R, r = _unpack(sps.lfilter([1.0], [1.0, -c], drive, axis=0))
-    scale = 1.0 / np.sqrt(np.einsum("nii->i", R) / len(R))
-    return np.linalg.solve(R * np.multiply.outer(scale, scale), (r * scale)[..., None])[..., 0] * scale
+    drive[:, 0] = np.concatenate([R0[_IU], r0])
+    d = drive[:, 1:]
+    np.multiply(f[:, :-1], w0, out=d)
+    d += wm * fm
+    d += w1 * f[:, 1:]
+    return _solve_spd3(sps.lfilter([1.0], [1.0, -c], drive, axis=-1))
 
 
 def ewls_start(Phi: np.ndarray, y: np.ndarray, fs: float, init_window: float) -> tuple[np.ndarray, np.ndarray]:

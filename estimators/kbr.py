@@ -7,6 +7,7 @@ import numpy as np
 import pandas as pd
 
 from estimators import Estimator, _kbr_solve as ks, register
+from estimators._multisine_lines import multisine_bins
 from jointbench.errors import InputError
 from jointbench.estimate import Estimate
 from jointbench.schema import param
@@ -174,10 +175,6 @@ class Problem:
     sv2: np.ndarray
 
 
-def _rfft_power(x: np.ndarray) -> np.ndarray:
-    return np.abs(np.fft.rfft(x - x.mean())) ** 2
-
-
 @register("kbr", tags=("ltv", "parametric", "multisine"))
 class KBR(Estimator):
     """Kernel-based regression of a time-varying differential equation (one multisine trial).
@@ -192,8 +189,10 @@ class KBR(Estimator):
     Readings and choices (also in the report):
 
     * Excited lines: ``lines_hz``, or the input's DFT bins whose power is ``line_threshold_db`` above
-      the median bin power. The input must be a sparse multisine holding a whole number of periods
-      (at most ``max_leakage`` of its power off the lines), else :class:`InputError`.
+      the median bin power and above both neighbours, on a grid with empty bins between them (the rule
+      of every multisine estimator, :func:`estimators._multisine_lines.multisine_bins`). The input must
+      be a sparse multisine holding a whole number of periods (at most ``max_leakage`` of its power off
+      the lines), else :class:`InputError`.
     * Derivatives: band-limited differentiators applied by FFT, ``D_n = (j w)^n G(w)``, one Kaiser
       low-pass ``G`` for all orders, flat to the band top + ``noise_guard`` (at least two bins). The
       record is not periodic, so the equation error is kept only where the filters are exact (their
@@ -280,37 +279,9 @@ class KBR(Estimator):
 
     # ------------------------------------------------------------------------------------- lines
     def _lines(self, trial: Trial) -> np.ndarray:
-        s, n, fs = self.settings, trial.n, trial.fs
-        where = f"{self.name}: trial '{trial.name}'"
-        if s.lines_hz is not None:
-            k = np.array(s.lines_hz) * n / fs
-            off = np.abs(k - np.round(k)) > 1e-6 * np.maximum(1.0, k)
-            if off.any():
-                raise InputError(f"{where}: line {s.lines_hz[int(np.argmax(off))]:g} Hz (setting 'lines_hz') is "
-                                 f"not on the DFT grid of the {n / fs:g} s record (1/T = {fs / n:g} Hz): the "
-                                 f"record must hold a whole number of multisine periods")
-            k = np.sort(np.round(k).astype(int))
-            if k[-1] >= n / 2:
-                raise InputError(f"{where}: line {k[-1] * fs / n:g} Hz (setting 'lines_hz') is not below the "
-                                 f"Nyquist frequency {fs / 2:g} Hz")
-            return k
-        x = trial.input
-        if not np.std(x) > 1e-12 * np.abs(x).max():
-            raise InputError(f"{where}: the input is constant; nothing to identify")
-        p = _rfft_power(x)[1:(n + 1) // 2]
-        floor = max(10 ** (s.line_threshold_db / 10) * np.median(p), 1e-12 * p.max())
-        k = np.flatnonzero(p > floor) + 1
-        off = 1.0 - p[k - 1].sum() / p.sum()
-        if off > s.max_leakage:
-            raise InputError(f"{where}: the input is not a sparse multisine with a whole number of periods in "
-                             f"the record: {100 * off:.3g} % of its power lies off the {len(k)} detected line(s) "
-                             f"(max_leakage = {s.max_leakage:g}); is the record ({n / fs:g} s) shorter than one "
-                             f"period? (or give 'lines_hz')")
-        if 2 * len(k) > k[-1] - k[0] + 1:
-            raise InputError(f"{where}: the input is not a sparse multisine: {len(k)} of the {k[-1] - k[0] + 1} "
-                             f"bins from {k[0] * fs / n:g} to {k[-1] * fs / n:g} Hz are excited; KBR needs "
-                             f"non-excited bins between the lines (noise estimate, skirts) (or give 'lines_hz')")
-        return k
+        s = self.settings
+        return multisine_bins(f"{self.name}: trial '{trial.name}'", trial.input, trial.fs, s.line_threshold_db,
+                              s.lines_hz, s.max_leakage)
 
     # ----------------------------------------------------------------------------------- problem
     def problem(self, trial: Trial) -> Problem:

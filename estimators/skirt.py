@@ -26,7 +26,7 @@ import numpy as np
 import pandas as pd
 
 from estimators import Estimator, register
-from estimators._multisine_lines import bin_power, bins_of_lines, excited_bins
+from estimators._multisine_lines import multisine_bins
 from jointbench.errors import InputError
 from jointbench.estimate import Estimate
 from jointbench.schema import param
@@ -206,7 +206,9 @@ class Skirt(Estimator):
     and each has its own transient polynomial.
 
     Lines are detected from the input's DFT (bins more than ``threshold_db`` above the median bin
-    power, on a regular grid with empty bins between them) or given as ``lines_hz``. Requirements
+    power and above both neighbours, on a regular grid with empty bins between them, with at most 1 %
+    of the power off them: the rule of every multisine estimator,
+    :func:`estimators._multisine_lines.multisine_bins`) or given as ``lines_hz``. Requirements
     (each an :class:`~jointbench.errors.InputError` otherwise): at least three lines; successive
     lines at least ``2M + 1`` bins apart, so that the skirts (``+-M`` bins) of neighbouring lines
     never share a bin (each (co)sine pair is equivalent to one unknown at ``k_e - m`` and one at
@@ -297,18 +299,8 @@ class Skirt(Estimator):
     def _lines(self, trials: list[Trial]) -> np.ndarray:
         """Excited bins, detected or given, the same in every record."""
         s = self.settings
-        n, fs = trials[0].n, trials[0].fs
-        if s.lines_hz is not None:
-            bins = bins_of_lines(self.name, s.lines_hz, n, fs)
-            for t in trials:
-                p = bin_power(t.input)
-                weak = p[bins] <= np.median(p[1:]) * 10 ** (s.threshold_db / 10)
-                if weak.any():
-                    raise InputError(f"{self.name}: line {bins[np.argmax(weak)] * fs / n:g} Hz of lines_hz is not "
-                                     f"excited in record '{t.name}' (not {s.threshold_db:g} dB above the median bin "
-                                     f"power of the input)")
-            return bins
-        found = [excited_bins(f"{self.name}: record '{t.name}'", t.input, fs, s.threshold_db) for t in trials]
+        found = [multisine_bins(f"{self.name}: record '{t.name}'", t.input, t.fs, s.threshold_db, s.lines_hz)
+                 for t in trials]
         for t, b in zip(trials[1:], found[1:]):
             if not np.array_equal(b, found[0]):
                 raise InputError(f"{self.name}: record '{t.name}' is excited at other lines than record "

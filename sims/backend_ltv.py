@@ -8,10 +8,15 @@ step is taken exactly for inputs that vary linearly over the step (first-order h
 rule: second-order accurate in the time variation, exact for constant coefficients (it then agrees with
 backend ``lti``), and stable for stiff contacts (e.g. the wrist's 3 kHz pole at 2.5 kHz sampling).
 
-The per-step matrices E = e^{A h}, J1 = ∫_0^h e^{A s} ds, J2 = ∫_0^h J1(s) ds are computed for all steps
-at once (Taylor series at h / 2^m, then m doublings: E(2h) = E², J1(2h) = J1 + E J1,
-J2(2h) = J2 + h J1 + E J2), and the recursion ``x_k+1 = E_k x_k + v_k`` is solved by a parallel prefix
-scan over affine maps (log2 n vectorised passes), so there is no Python loop over samples.
+The per-step matrices E = e^{A h}, J1 = ∫_0^h e^{A s} ds, J2 = ∫_0^h J1(s) ds are power series in A, and
+by Cayley–Hamilton (A² = q A + p I for A = [[0, 1], [p, q]]) each is ``c0 I + c1 A``: two coefficient
+arrays instead of four matrix entries, and a product of two such matrices costs five multiplications
+(:func:`step_coefficients`). They are computed for all steps at once (Taylor series at h / 2^m, then m
+doublings: E(2h) = E², J1(2h) = J1 + E J1, J2(2h) = J2 + h J1 + E J2). The recursion
+``x_k+1 = E_k x_k + v_k`` is solved blockwise (:func:`affine_recursion`): each block of 32 steps runs
+sequentially, vectorised over all blocks at once, from a zero state and from its true start state, and
+the block ends, themselves such a recursion 32 times shorter, are solved the same way; so there is no
+Python loop over samples.
 """
 from __future__ import annotations
 
@@ -23,75 +28,130 @@ from sims import BACKENDS
 from sims.experiment import Response
 
 _TAYLOR_TERMS = 12  # at |A tau| <= 0.25 the next term is below 1e-16
+BLOCK = 32          # steps per block of affine_recursion (16 ... 64 were about equally fast at 1e5 steps)
+CHUNK = 8192        # steps per chunk of step_coefficients (its temporaries then stay in cache)
 
 
-def _mul(a, b):
-    """Products of stacks of 2x2 matrices given as 4-tuples (a00, a01, a10, a11) of arrays."""
-    a00, a01, a10, a11 = a
-    b00, b01, b10, b11 = b
-    return (a00 * b00 + a01 * b10, a00 * b01 + a01 * b11, a10 * b00 + a11 * b10, a10 * b01 + a11 * b11)
+def step_coefficients(p: np.ndarray, q: np.ndarray, h: float):
+    """E, J1, J2 for ``A = [[0, 1], [p, q]]`` (stacks over steps) and step ``h``, as ``c0 I + c1 A``.
 
+    Every matrix here is a power series in ``A``; with ``A² = q A + p I`` (Cayley–Hamilton) it is
+    ``c0 I + c1 A``, and ``(a I + b A)(c I + d A) = (a c + p b d) I + (a d + b c + q b d) A``.
+    The Taylor sums ``S_j = sum_k X^k / (k + j)!`` of ``X = A tau`` (``tau = h / 2^m``, ``|X| <= 1/4``)
+    are evaluated by Horner's rule (``X (a I + b A) = tau (p b I + (a + q b) A)``), then ``m`` doublings.
 
-def _add(a, b):
-    return tuple(x + y for x, y in zip(a, b))
-
-
-def step_matrices(p: np.ndarray, q: np.ndarray, h: float):
-    """E, J1, J2 for ``A = [[0, 1], [p, q]]`` (stacks over steps) and step ``h``.
+    Steps with the same ``(p, q)`` as the step before (a square wave or steps hold the coefficients for
+    many steps) share one computation when runs are long, and long stacks are computed in chunks of
+    :data:`CHUNK` steps with the same ``m`` (bit for bit the same numbers either way).
 
     Returns
     -------
-    E, J1, J2 : tuple of 4 ndarrays each
-        Components (00, 01, 10, 11) of e^{A h}, ∫_0^h e^{A s} ds and ∫_0^h ∫_0^s e^{A r} dr ds.
+    E, J1, J2 : tuple of 2 ndarrays each
+        Coefficients ``(c0, c1)`` of e^{A h}, ∫_0^h e^{A s} ds and ∫_0^h ∫_0^s e^{A r} dr ds.
+
+    References
+    ----------
+    Moler & Van Loan 2003, SIAM Review 45(1), methods 3 (scaling and squaring) and 8 (Cayley–Hamilton).
     """
-    norm = float(np.max(np.abs(p) + np.abs(q) + 1.0)) * h
+    p, q = np.asarray(p, float), np.asarray(q, float)
+    if p.size > 16:
+        starts = np.flatnonzero(np.concatenate([[True], (p[1:] != p[:-1]) | (q[1:] != q[:-1])]))
+        if len(starts) <= p.size // 16:
+            lengths = np.diff(np.append(starts, p.size))
+            return tuple(tuple(np.repeat(c, lengths) for c in M) for M in step_coefficients(p[starts], q[starts], h))
+    norm = float(np.max(np.abs(p) + np.abs(q) + 1.0)) * h if p.size else 0.0
     m = max(0, int(np.ceil(np.log2(norm / 0.25)))) if norm > 0.25 else 0
+    if p.size <= CHUNK:
+        return _series(p, q, h, m)
+    out = [np.empty_like(p) for _ in range(6)]
+    for i in range(0, p.size, CHUNK):   # chunks whose temporaries stay in cache; elementwise, so the same numbers
+        part = _series(p[i:i + CHUNK], q[i:i + CHUNK], h, m)
+        for o, c in zip(out, (c for M in part for c in M)):
+            o[i:i + CHUNK] = c
+    return (out[0], out[1]), (out[2], out[3]), (out[4], out[5])
+
+
+def _series(p: np.ndarray, q: np.ndarray, h: float, m: int):
+    """:func:`step_coefficients` for one chunk, with the number ``m`` of doublings given."""
     tau = h / 2.0 ** m
-    zero, one = np.zeros_like(p), np.ones_like(p)
-    A = (zero, one * tau, p * tau, q * tau)
-    ident = (one, zero, zero, one)
-    # S_j = sum_{k=0}^{T} X^k / (k + j)! for X = A tau: Horner for S_2, then S_1 = I + X S_2, S_0 = I + X S_1
-    S2 = tuple(c / math.factorial(_TAYLOR_TERMS + 2) for c in ident)
+    tp, tq = p * tau, q * tau
+    # S_2 by Horner, then S_1 = I + X S_2 and E = S_0 = I + X S_1
+    a, b = np.full_like(tp, 1.0 / math.factorial(_TAYLOR_TERMS + 2)), np.zeros_like(tp)
     for k in range(_TAYLOR_TERMS - 1, -1, -1):
-        S2 = _add(_mul(A, S2), tuple(c / math.factorial(k + 2) for c in ident))
-    S1 = _add(ident, _mul(A, S2))
-    E = _add(ident, _mul(A, S1))
-    J1 = tuple(c * tau for c in S1)
-    J2 = tuple(c * tau * tau for c in S2)
+        a, b = tp * b + 1.0 / math.factorial(k + 2), tau * a + tq * b
+    s1a, s1b = tp * b + 1.0, tau * a + tq * b
+    E = (tp * s1b + 1.0, tau * s1a + tq * s1b)
+    J1 = (s1a * tau, s1b * tau)
+    J2 = (a * (tau * tau), b * (tau * tau))
     for _ in range(m):
-        J2 = _add(_add(J2, tuple(c * tau for c in J1)), _mul(E, J2))
-        J1 = _add(J1, _mul(E, J1))
-        E = _mul(E, E)
+        (ea, eb), (j1a, j1b), (j2a, j2b) = E, J1, J2
+        pe, qe = p * eb, q * eb      # E (x I + y A) = (ea x + pe y) I + (ea y + eb x + qe y) A
+        J2 = (j2a + tau * j1a + ea * j2a + pe * j2b, j2b + tau * j1b + ea * j2b + eb * j2a + qe * j2b)
+        J1 = (j1a + ea * j1a + pe * j1b, j1b + ea * j1b + eb * j1a + qe * j1b)
+        E = (ea * ea + pe * eb, 2.0 * ea * eb + qe * eb)
         tau *= 2.0
     return E, J1, J2
 
 
-def affine_scan(E, v0: np.ndarray, v1: np.ndarray, x0: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
-    """States of ``x_k+1 = E_k x_k + v_k`` (k = 0 ... n-2) from ``x_0``, by a parallel prefix scan.
+def step_matrices(p: np.ndarray, q: np.ndarray, h: float):
+    """E, J1, J2 of :func:`step_coefficients` written out as components (00, 01, 10, 11) of 2x2 matrices."""
+    return tuple((a, b, b * p, a + b * q) for a, b in step_coefficients(p, q, h))
 
-    ``E`` holds 4 component arrays of length n-1, ``v0``, ``v1`` the two components of v_k.
+
+def _blocks(c: np.ndarray, nb: int, fill: float) -> np.ndarray:
+    """``c`` padded with ``fill`` to ``nb * BLOCK`` and laid out (BLOCK, nb): row j = step j of every block."""
+    pad = nb * BLOCK - len(c)
+    if pad:
+        c = np.concatenate([c, np.full(pad, fill)])
+    return c.reshape(nb, BLOCK).T.copy()
+
+
+def affine_recursion(E, v0: np.ndarray, v1: np.ndarray, x0: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
+    """States of ``x_k+1 = E_k x_k + v_k`` (k = 0 ... n-2) from ``x_0``, blockwise.
+
+    ``E`` holds 4 component arrays (00, 01, 10, 11) of length n-1, ``v0``, ``v1`` the two components of
+    v_k. The steps are cut into blocks of :data:`BLOCK`; every block is run step by step, all blocks at
+    once (one vectorised operation per step of a block), first from a zero state, which gives its end
+    state as an affine map of its start state; the start states then follow from the same recursion
+    over the block ends (recursively, until at most BLOCK steps remain, which a plain loop does); a
+    second pass runs every block from its true start state. Each state is thus computed by the plain
+    recursion from a nearby exact start: the rounding differs from a sequential loop by a few ulp.
     Returns the two state components, length n.
     """
-    P = [c.copy() for c in E]
-    q0, q1 = v0.copy(), v1.copy()
-    n1 = len(q0)
-    s = 1
-    while s < n1:
-        a = [c[s:] for c in P]
-        b = [c[:-s] for c in P]
-        nq0 = a[0] * q0[:-s] + a[1] * q1[:-s] + q0[s:]
-        nq1 = a[2] * q0[:-s] + a[3] * q1[:-s] + q1[s:]
-        nP = _mul(a, b)
-        for c, new in zip(P, nP):
-            c[s:] = new
-        q0[s:], q1[s:] = nq0, nq1
-        s *= 2
-    x = np.empty(n1 + 1)
-    y = np.empty(n1 + 1)
-    x[0], y[0] = x0
-    x[1:] = P[0] * x0[0] + P[1] * x0[1] + q0
-    y[1:] = P[2] * x0[0] + P[3] * x0[1] + q1
-    return x, y
+    n1 = len(v0)
+    if n1 <= BLOCK:
+        e00, e01, e10, e11 = (c.tolist() for c in E)
+        w0, w1 = v0.tolist(), v1.tolist()
+        x, y = float(x0[0]), float(x0[1])
+        xs, ys = [x], [y]
+        for k in range(n1):
+            x, y = e00[k] * x + e01[k] * y + w0[k], e10[k] * x + e11[k] * y + w1[k]
+            xs.append(x)
+            ys.append(y)
+        return np.array(xs), np.array(ys)
+    nb = -(-n1 // BLOCK)
+    e00, e01, e10, e11 = (_blocks(c, nb, fill) for c, fill in zip(E, (1.0, 0.0, 0.0, 1.0)))
+    w0, w1 = _blocks(v0, nb, 0.0), _blocks(v1, nb, 0.0)
+    # pass 1: each block from a zero state: x_end = P x_start + (x, y), P the product of its matrices
+    x, y = w0[0].copy(), w1[0].copy()
+    P00, P01, P10, P11 = e00[0].copy(), e01[0].copy(), e10[0].copy(), e11[0].copy()
+    for j in range(1, BLOCK):
+        a00, a01, a10, a11 = e00[j], e01[j], e10[j], e11[j]
+        x, y = a00 * x + a01 * y + w0[j], a10 * x + a11 * y + w1[j]
+        P00, P01, P10, P11 = (a00 * P00 + a01 * P10, a00 * P01 + a01 * P11,
+                              a10 * P00 + a11 * P10, a10 * P01 + a11 * P11)
+    # the block starts: the same recursion over the blocks
+    sx, sy = affine_recursion((P00, P01, P10, P11), x, y, x0)
+    # pass 2: every block from its true start state
+    X, Y = np.empty((BLOCK, nb)), np.empty((BLOCK, nb))
+    x, y = sx[:-1], sy[:-1]
+    for j in range(BLOCK):
+        x, y = e00[j] * x + e01[j] * y + w0[j], e10[j] * x + e11[j] * y + w1[j]
+        X[j], Y[j] = x, y
+    out_x, out_y = np.empty(n1 + 1), np.empty(n1 + 1)
+    out_x[0], out_y[0] = x0
+    out_x[1:], out_y[1:] = X.T.ravel()[:n1], Y.T.ravel()[:n1]
+    return out_x, out_y
 
 
 def derivative(d: np.ndarray, h: float) -> np.ndarray:
@@ -150,14 +210,17 @@ class LTVBackend:
         Im, Bm, Km = joint.coefficients_at(t[:-1] + h / 2)
         p = -(Km + c.k_a) / Im
         q = -(Bm + c.b_a) / Im
-        E, J1, J2 = step_matrices(p, q, h)
+        (ea, eb), (j1a, j1b), (j2a, j2b) = step_coefficients(p, q, h)
         d_dot = derivative(d, h) if c.g_d else np.zeros_like(d)
         w = c.g * d + c.g_d * d_dot + tv     # the whole input, held linearly over each step
         inv_i = 1.0 / Im
-        # v_k = (J1 - J2/h) b w_k + (J2/h) b w_k+1, with b = [0, 1/I]: only column 1 of J1, J2 matters
-        c0 = (J1[1] - J2[1] / h) * w[:-1] + J2[1] / h * w[1:]
-        c1 = (J1[3] - J2[3] / h) * w[:-1] + J2[3] / h * w[1:]
-        theta, vel = affine_scan(E, c0 * inv_i, c1 * inv_i, (float(x0[0]), float(x0[1])))
+        # v_k = (J1 - J2/h) b w_k + (J2/h) b w_k+1, with b = [0, 1/I]: only column 1 of J1, J2 matters,
+        # (c0 I + c1 A)[:, 1] = (c1, c0 + q c1)
+        J1_01, J1_11, J2_01, J2_11 = j1b, j1a + q * j1b, j2b, j2a + q * j2b
+        c0 = (J1_01 - J2_01 / h) * w[:-1] + J2_01 / h * w[1:]
+        c1 = (J1_11 - J2_11 / h) * w[:-1] + J2_11 / h * w[1:]
+        E = (ea, eb, p * eb, ea + q * eb)
+        theta, vel = affine_recursion(E, c0 * inv_i, c1 * inv_i, (float(x0[0]), float(x0[1])))
         I, B, K = joint.coefficients_at(t)
         t_a = c.torque(d, d_dot, theta, vel)
         acc = (t_a + tv - B * vel - K * theta) / I

@@ -87,14 +87,48 @@ class Multisine:
                               f"leaves less than one period ({self.period:g} s)")
 
     def generate(self, n: int, fs: float, rng: np.random.Generator) -> np.ndarray:
-        """``n`` samples at ``fs`` Hz; phases drawn from ``rng``."""
+        """``n`` samples at ``fs`` Hz; phases drawn from ``rng``.
+
+        The active part is periodic: when a whole number ``M`` of samples spans one period (or a few
+        periods: ``r <= 1000`` periods within the active part), one such stretch is synthesised by an
+        inverse FFT of length ``M`` (line ``k`` of the period at DFT bin ``r k``, with the phase of the first
+        active sample) and tiled; otherwise every sample is summed directly. Both give the formula above;
+        the FFT is also the more accurate (about 1e-15 of the rms against 1e-12 for cosines of arguments
+        up to thousands of radians).
+        """
         phases = rng.uniform(0.0, 2 * np.pi, len(self.bins))
         t = np.arange(n) / fs
         active = (t >= self.quiet - 1e-9) & (t < n / fs - self.quiet - 1e-9)
-        tau = t[active] - self.quiet
         # exact rms of the periodic signal: sum A² / 2; scale the amplitudes rather than the samples
         a = self.amplitudes()
         a = a * (self.rms / np.sqrt(np.sum(a ** 2) / 2.0))
         u = np.zeros(n)
-        u[active] = np.cos(2 * np.pi * np.outer(tau, self.lines) + phases) @ a
+        idx = np.flatnonzero(active)
+        if idx.size == 0:
+            return u
+        r = _periods_in_whole_samples(self.period * fs, idx.size)
+        if r is None or 2 * r * self.bins[-1] >= round(r * self.period * fs):   # no stretch, or lines above Nyquist
+            u[idx] = np.cos(2 * np.pi * np.outer(t[idx] - self.quiet, self.lines) + phases) @ a
+            return u
+        M = int(round(r * self.period * fs))
+        tau0 = t[idx[0]] - self.quiet          # time of the first active sample on the signal's clock
+        X = np.zeros(M // 2 + 1, complex)
+        X[r * self.bins] = (M / 2.0) * a * np.exp(1j * (phases + 2 * np.pi * self.lines * tau0))
+        u[idx] = np.resize(np.fft.irfft(X, M), idx.size)
         return u
+
+
+def _periods_in_whole_samples(samples_per_period: float, n: int) -> int | None:
+    """Smallest ``r <= 1000`` such that ``r`` periods span a whole number of samples, else None.
+
+    Whole to within a drift of 1e-10 sample over ``n`` samples (tiling a stretch that is ``e`` samples
+    too short shifts the signal by ``n e / M`` samples at the end); more than one period only while the
+    stretch stays within ``n`` samples.
+    """
+    for r in range(1, 1001):
+        m = r * samples_per_period
+        if r > 1 and m > n:
+            return None
+        if abs(m - round(m)) * n <= 1e-10 * m:
+            return r
+    return None

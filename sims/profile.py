@@ -1,11 +1,18 @@
-"""Time-variation profiles of a joint parameter: constant, sine, square wave, piecewise (steps or ramps).
+"""Time-variation profiles of a joint parameter: constant, sine, square wave, piecewise (steps or ramps),
+and the registry's other shapes, one file each: ``ramp`` (sims/profile_ramp.py), ``smooth_random``
+(sims/profile_random.py), ``file`` (sims/profile_file.py).
 
-A profile is a small frozen dataclass with ``at(t)`` (the values at times t). In a config a parameter is either a plain
-number (constant) or a mapping with a ``shape`` key, e.g.::
+A profile is a small frozen dataclass registered in :data:`sims.PROFILES` with ``at(t)`` (the values at
+times t), ``minimum`` (the smallest value it ever takes, exactly: joints check positivity from it),
+``constant`` and a ``shape`` name; a deterministic function of its settings. In a config a parameter is
+either a plain number (constant) or a mapping with a ``shape`` key, e.g.::
 
     K: {shape: sine, mean: 40, amplitude: 15, frequency: 0.5 Hz}
     k: {shape: square, mean: 5.6, amplitude: 0.9, period: 20 s}
     B: {shape: piecewise, times: [0, 15, 30], values: [1.13, 10.1, 1.13]}
+    K: {shape: ramp, initial: 20, final: 60, start: 10 s, duration: 20 s}
+    K: {shape: smooth_random, mean: 40, amplitude: 15, bandwidth: 0.5 Hz, seed: 3}
+    k: {shape: file, path: stiffness.csv}
 
 Profiles are shared by every time-varying joint model (Xu & Hollerbach 1998 elbow and calibration arm,
 van de Ruit et al. 2018 wrist).
@@ -123,6 +130,16 @@ class Square(_Periodic):
         return self.mean + self.amplitude * np.where(c < 0.5, 1.0, -1.0)
 
 
+def interpolate(knots: np.ndarray, values: np.ndarray, t: np.ndarray, how: str) -> np.ndarray:
+    """Values at ``knots`` (increasing) read at times ``t``: joined by straight lines (``how='linear'``) or
+    each held until the next knot (``'step'``); the first (last) value before (after) the knots."""
+    tt = np.asarray(t, float)
+    if how == "linear":
+        return np.interp(tt, knots, values)
+    i = np.clip(np.searchsorted(knots, tt, side="right") - 1, 0, len(knots) - 1)
+    return values[i]
+
+
 @PROFILES.register("piecewise")
 @dataclasses.dataclass(frozen=True)
 class Piecewise:
@@ -152,12 +169,7 @@ class Piecewise:
             raise ConfigError("piecewise: 'times' and 'values' must be finite")
 
     def at(self, t: np.ndarray) -> np.ndarray:
-        tt = np.asarray(t, float)
-        knots, vals = np.asarray(self.times, float), np.asarray(self.values, float)
-        if self.interpolate == "linear":
-            return np.interp(tt, knots, vals)
-        i = np.clip(np.searchsorted(knots, tt, side="right") - 1, 0, len(knots) - 1)
-        return vals[i]
+        return interpolate(np.asarray(self.times, float), np.asarray(self.values, float), t, self.interpolate)
 
     @property
     def constant(self) -> bool:
@@ -169,7 +181,8 @@ class Piecewise:
         return float(np.min(self.values))
 
 
-Profile = Constant | Sine | Square | Piecewise
+def _is_profile(obj: Any) -> bool:
+    return any(obj.__class__ is PROFILES.get(name) for name in PROFILES.names())
 
 
 def parse_profile(data: Any, where: str) -> Any:
@@ -182,7 +195,7 @@ def parse_profile(data: Any, where: str) -> Any:
     """
     if isinstance(data, (int, float, str)) and not isinstance(data, bool):
         return parse(Constant, {"value": data}, where)
-    if isinstance(data, (Constant, Sine, Square, Piecewise)):
+    if _is_profile(data):
         return data
     if not isinstance(data, Mapping) or "shape" not in data:
         raise ConfigError(f"{where}: expected a number or a mapping with key 'shape' "

@@ -7,6 +7,7 @@ simulation rate, before the acquisition steps (detrend, decimate, trim).
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from typing import Literal
 
@@ -15,6 +16,25 @@ from scipy import signal as sps
 
 from jointbench.errors import ConfigError
 from jointbench.schema import param
+
+
+@functools.lru_cache(maxsize=64)
+def _design(kind: str, order: int, cutoff: float, fs: float) -> np.ndarray:
+    """Second-order sections of a Bessel ('bessel') or Butterworth low-pass; cached, returned read-only."""
+    if kind == "bessel":
+        sos = sps.bessel(order, cutoff, btype="low", norm="mag", fs=fs, output="sos")
+    else:
+        sos = sps.butter(order, cutoff, btype="low", fs=fs, output="sos")
+    sos.flags.writeable = False
+    return sos
+
+
+@functools.lru_cache(maxsize=64)
+def _delay(kind: str, order: int, cutoff: float, fs: float) -> float:
+    """Group delay (s) of :func:`_design`'s filter at 1 % of its cutoff; cached."""
+    b, a = sps.sos2tf(_design(kind, order, cutoff, fs))
+    _, gd = sps.group_delay((b, a), w=[0.01 * cutoff], fs=fs)
+    return float(gd[0]) / fs
 
 
 @dataclasses.dataclass(frozen=True)
@@ -47,15 +67,12 @@ class SensorFilter:
 
     def delay(self, fs: float) -> float:
         """The filter's group delay at low frequency (1 % of the cutoff), in seconds."""
-        b, a = sps.sos2tf(self.sos(fs))
-        _, gd = sps.group_delay((b, a), w=[0.01 * self.cutoff], fs=fs)
-        return float(gd[0]) / fs
+        return _delay(self.kind, self.order, float(self.cutoff), float(fs))
 
     def sos(self, fs: float) -> np.ndarray:
-        """Second-order sections of the filter at sampling rate ``fs``."""
-        if self.kind == "bessel":
-            return sps.bessel(self.order, self.cutoff, btype="low", norm="mag", fs=fs, output="sos")
-        return sps.butter(self.order, self.cutoff, btype="low", fs=fs, output="sos")
+        """Second-order sections of the filter at sampling rate ``fs`` (a copy of the design, which is
+        computed once per kind, order, cutoff and rate)."""
+        return _design(self.kind, self.order, float(self.cutoff), float(fs)).copy()
 
     def apply(self, x: np.ndarray, fs: float) -> np.ndarray:
         """Filter ``x`` causally from rest (along axis 0: columns of a 2-D array are separate signals).

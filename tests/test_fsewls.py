@@ -14,8 +14,8 @@ import pytest
 
 import estimators
 from benchmarks.metrics import vafv
-from estimators.fsewls import (FSEWLS, FSEWLSEstimate, _ewls_riccati_rk4, _forcing, _unpack, ewls, highpass,
-                               highpass_time_constant, rk4_coefficients, svf, svf_pole)
+from estimators.fsewls import (FSEWLS, FSEWLSEstimate, _IU, _ewls_riccati_rk4, _forcing, _solve_spd3, _unpack,
+                               ewls, highpass, highpass_time_constant, rk4_coefficients, svf, svf_pole)
 from jointbench.errors import ConfigError, InputError
 from jointbench.types import Trial
 
@@ -217,6 +217,21 @@ def test_information_form_equals_riccati_rk4(slow_elbow):
     ref = _ewls_riccati_rk4(Phi[0], y[0], 1 / FS, 20.0, np.linalg.inv(R0), np.linalg.solve(R0, r0))
     assert np.allclose(fast[0], np.linalg.lstsq(Phi[0, :500], y[0, :500], rcond=None)[0], rtol=1e-9)
     assert (np.abs(fast - ref) / np.abs(ref)).max() < 1e-6
+
+
+def test_spd_solve_equals_lapack_and_refuses_indefinite():
+    """The written-out 3 x 3 LDL^T solve of ewls against numpy.linalg.solve (LU with pivoting)."""
+    rng = np.random.default_rng(5)
+    A = rng.standard_normal((2000, 3, 3))
+    R = A @ np.swapaxes(A, 1, 2) + 0.1 * np.eye(3)        # positive definite, condition up to ~1e3
+    r = rng.standard_normal((2000, 3))
+    x = np.concatenate([R[:, _IU[0], _IU[1]], r], axis=1).T
+    want = np.linalg.solve(R, r[..., None])[..., 0]
+    assert np.abs(_solve_spd3(x) - want).max() <= 1e-11 * np.abs(want).max()
+    R[7] = np.diag([1.0, -1.0, 1.0])                       # indefinite at one sample
+    x = np.concatenate([R[:, _IU[0], _IU[1]], r], axis=1).T
+    with pytest.raises(np.linalg.LinAlgError, match="not positive definite"):
+        _solve_spd3(x)
 
 
 def test_information_form_and_riccati_converge_at_fourth_order():

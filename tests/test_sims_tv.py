@@ -10,7 +10,7 @@ from jointbench.signal import decimate_fft
 from sims import JOINTS, PERTURBATIONS, PROFILES, Experiment, simulate
 from sims.apparatus import Handle, PositionServo, TorqueDrive
 from sims.backend_lti import LTIBackend
-from sims.backend_ltv import LTVBackend, affine_scan, derivative, step_matrices
+from sims.backend_ltv import LTVBackend, affine_recursion, derivative, step_matrices
 from sims.joint_second_order import SecondOrderJoint
 from sims.joint_time_varying import TimeVaryingJoint
 from sims.joint_wrist_contact import WristContactJoint
@@ -93,10 +93,15 @@ def test_damping_ratio_gives_b_from_k():
 
 # ------------------------------------------------------------------------------------------ ltv backend
 def test_step_matrices_equal_expm():
+    """The two-coefficient form against scipy's expm of the augmented matrix: under-damped (elbow), the
+    wrist's stiff contact, critically damped (double eigenvalue), a singular A (p = 0), A = 0 and a
+    positive-feedback case (real eigenvalues of both signs)."""
     import scipy.linalg
-    p, q, h = np.array([-900.0, -35000.0]), np.array([-3.0, -3345.0]), 1 / 2500
+    p = np.array([-900.0, -35000.0, -100.0, 0.0, 0.0, 400.0])
+    q = np.array([-3.0, -3345.0, -20.0, -5.0, 0.0, 10.0])
+    h = 1 / 2500
     E, J1, J2 = step_matrices(p, q, h)
-    for i in range(2):
+    for i in range(len(p)):
         M = np.zeros((6, 6))
         M[:2, :2] = np.array([[0, 1], [p[i], q[i]]]) * h
         M[:2, 2:4] = np.eye(2) * h
@@ -106,17 +111,32 @@ def test_step_matrices_equal_expm():
             assert np.allclose(np.reshape([c[i] for c in got], (2, 2)), ref, rtol=1e-12, atol=1e-14 * abs(ref).max())
 
 
-def test_affine_scan_equals_loop():
-    rng = np.random.default_rng(0)
-    n = 777
+def test_step_coefficients_shortcuts_are_bit_identical():
+    """Chunks (long stacks) and shared runs (square waves) give exactly the numbers of one plain pass."""
+    from sims.backend_ltv import CHUNK, _series, step_coefficients
+    n = 3 * CHUNK + 123
+    t = np.arange(n) / 2500
+    for k in (5.6 + 0.9 * np.sin(2 * np.pi * t / 20), np.where(np.mod(t / 10, 1) < 0.5, 6.5, 4.7)):
+        p, q, h = -(k + 100) / 0.003, np.full(n, -10.035 / 0.003), 1 / 2500
+        m = int(np.ceil(np.log2(np.max(np.abs(p) + np.abs(q) + 1.0) * h / 0.25)))
+        for got, want in zip(step_coefficients(p, q, h), _series(p, q, h, m)):
+            assert all(np.array_equal(g, w) for g, w in zip(got, want))
+
+
+@pytest.mark.parametrize("n", [2, 20, 33, 35, 777, 32 * 32 + 3, 32 * 32 * 32 + 100])
+def test_affine_recursion_equals_loop(n):
+    """Blocks of 32 steps: within one block, exactly one, one and a bit, two and three levels of blocks."""
+    rng = np.random.default_rng(n)
     E = tuple(rng.uniform(-0.5, 0.5, n - 1) for _ in range(4))
     v0, v1 = rng.standard_normal(n - 1), rng.standard_normal(n - 1)
-    x, y = affine_scan(E, v0, v1, (0.3, -0.2))
+    x, y = affine_recursion(E, v0, v1, (0.3, -0.2))
+    assert x.shape == y.shape == (n,)
     xs, ys = [0.3], [-0.2]
+    e00, e01, e10, e11, w0, w1 = (c.tolist() for c in (*E, v0, v1))
     for k in range(n - 1):
         a, b = xs[-1], ys[-1]
-        xs.append(E[0][k] * a + E[1][k] * b + v0[k])
-        ys.append(E[2][k] * a + E[3][k] * b + v1[k])
+        xs.append(e00[k] * a + e01[k] * b + w0[k])
+        ys.append(e10[k] * a + e11[k] * b + w1[k])
     assert np.allclose(x, xs, atol=1e-12) and np.allclose(y, ys, atol=1e-12)
 
 
@@ -293,6 +313,29 @@ def test_multisine_has_exactly_the_requested_lines_and_rms():
     assert np.allclose(f[excited], np.arange(0.1, 19.31, 0.8)) and len(excited) == 25
     a = 2 * U[excited]
     assert np.allclose(a[f[excited] <= 6], a[0]) and a[-1] == pytest.approx(a[0] * 6 / 19.3, rel=1e-9)
+
+
+@pytest.mark.parametrize("settings, fs, duration, periods", [
+    ({}, 2500.0, 50.0, 1),                                                  # the study: one period = 25 000 samples
+    ({"quiet": 5.0003}, 2500.0, 60.0, 1),                                   # quiet margin between samples
+    ({"quiet": 0.0}, 44.0, 40.0, 1),
+    ({"period": 10 / 3, "f_min": 0.3, "spacing": 0.6, "f_max": 10}, 1000.0, 30.0, 3),    # 3 periods = 10 000 samples
+    ({"period": 10 / 3, "f_min": 0.3, "spacing": 0.6, "f_max": 10}, 1000.37, 30.0, None),  # direct sum
+])
+def test_multisine_equals_the_sum_of_cosines(settings, fs, duration, periods):
+    """The inverse-FFT synthesis against the defining formula summed sample by sample, quiet margins included."""
+    from sims.perturbation_multisine import _periods_in_whole_samples
+    m = Multisine(**settings)
+    n = int(duration * fs)
+    assert _periods_in_whole_samples(m.period * fs, n) == periods     # which path is tested
+    u = m.generate(n, fs, np.random.default_rng(4))
+    phases = np.random.default_rng(4).uniform(0.0, 2 * np.pi, len(m.bins))
+    t = np.arange(n) / fs
+    active = (t >= m.quiet - 1e-9) & (t < n / fs - m.quiet - 1e-9)
+    a = m.amplitudes() * m.rms / np.sqrt(np.sum(m.amplitudes() ** 2) / 2)
+    ref = np.where(active, np.cos(2 * np.pi * np.outer(t - m.quiet, m.lines) + phases) @ a, 0.0)
+    assert np.array_equal(u == 0, ref == 0)
+    assert np.max(np.abs(u - ref)) <= 5e-12 * m.rms      # the direct sum's own rounding (large arguments)
 
 
 def test_decimate_fft_keeps_lines_exactly():

@@ -1,0 +1,135 @@
+"""``make bench``: speed benchmarks compared against the last stored run, and the wall times of the studies.
+
+    python -m tests.benchmarks.bench [--save-only | --studies-only | --no-studies]
+
+1. pytest-benchmark over ``tests/benchmarks`` with timings on. When a run is stored under
+   ``.benchmarks/<machine>/`` (pytest-benchmark's storage, not committed: timings belong to a machine),
+   the run is compared with the latest one and fails when a benchmark's median is more than 20 % slower
+   (``--benchmark-compare --benchmark-compare-fail=median:20%``). A run that passes is stored as the new
+   reference; a failing one is not (the reference it failed against stays). ``--save-only`` stores the run
+   without comparing (``make bench-save``: a first reference, or one after an accepted slowdown). The
+   full report is also written to ``results/benchmarks.json``.
+2. The studies of ``make reproduce``, each run from scratch (no cache) into a temporary folder (the
+   committed results are not touched), their wall times appended to ``.benchmarks/study_times.csv``
+   with the commit, the number of cases and the load average, and printed beside the previous time.
+   Recorded, not judged: the machine may be shared; compare times taken on an idle machine.
+"""
+from __future__ import annotations
+
+import argparse
+import csv
+import datetime
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[2]
+STORAGE = REPO / ".benchmarks"
+STUDIES = ("westwick2012", "xu1998", "vanderuit2018_table1")     # make reproduce
+SLOWDOWN = 20   # percent: a benchmark whose median is this much slower than the stored run fails
+
+
+def _stored() -> set[Path]:
+    return set(STORAGE.glob("*/[0-9][0-9][0-9][0-9]_*.json"))
+
+
+def micro(compare: bool) -> int:
+    """Run the pytest benchmarks; compare with the latest stored run (if any and ``compare``); store on success."""
+    before = _stored()
+    (REPO / "results").mkdir(exist_ok=True)
+    args = [sys.executable, "-m", "pytest", "-q", "tests/benchmarks", "--benchmark-enable",
+            f"--benchmark-storage=file://{STORAGE}", "--benchmark-autosave",
+            "--benchmark-json=results/benchmarks.json", "--benchmark-sort=name",
+            "--benchmark-columns=median,iqr,min,rounds"]
+    if compare and before:
+        latest = max(before, key=lambda p: p.name)
+        print(f"comparing with the stored run {latest.relative_to(REPO)} (a median more than {SLOWDOWN} % "
+              f"slower fails)")
+        args += ["--benchmark-compare", f"--benchmark-compare-fail=median:{SLOWDOWN}%"]
+    elif compare:
+        print("no stored run to compare with: this run becomes the reference")
+    rc = subprocess.call(args, cwd=REPO)
+    new = _stored() - before
+    if rc != 0:
+        for p in new:
+            p.unlink()
+        print(f"benchmarks failed (exit {rc}): this run is not stored; the reference stays as it was")
+    else:
+        for p in new:
+            print(f"stored as the new reference: {p.relative_to(REPO)}")
+    return rc
+
+
+def _commit() -> str:
+    try:
+        out = subprocess.run(["git", "describe", "--always", "--dirty"], cwd=REPO, capture_output=True,
+                             text=True, timeout=10)
+        return out.stdout.strip() or "unknown"
+    except (OSError, subprocess.SubprocessError):
+        return "unknown"
+
+
+def studies() -> int:
+    """Run every study of ``make reproduce`` without cache into a temporary folder; record the wall times."""
+    from benchmarks.study import run_study
+
+    log = STORAGE / "study_times.csv"
+    previous: dict[str, dict] = {}
+    if log.is_file():
+        with open(log, newline="") as fh:
+            for row in csv.DictReader(fh):
+                previous[row["study"]] = row
+    fields = ["date", "commit", "study", "cases", "wall_s", "cpus", "load_before", "load_after"]
+    rows, rc = [], 0
+    with tempfile.TemporaryDirectory(prefix="jointbench-bench-") as tmp:
+        for study in STUDIES:
+            load0 = os.getloadavg()[0]
+            t0 = time.perf_counter()
+            run = run_study(study, out_root=Path(tmp), use_cache=False, progress=False,
+                            command=f"make bench ({study})")
+            wall = time.perf_counter() - t0
+            if run.failed:
+                print(f"{study}: {len(run.failed)} case(s) failed", file=sys.stderr)
+                rc = 1
+            rows.append({"date": datetime.datetime.now().isoformat(timespec="seconds"), "commit": _commit(),
+                         "study": study, "cases": len(run.results), "wall_s": f"{wall:.1f}",
+                         "cpus": os.cpu_count(), "load_before": f"{load0:.2f}",
+                         "load_after": f"{os.getloadavg()[0]:.2f}"})
+    STORAGE.mkdir(exist_ok=True)
+    new_file = not log.is_file()
+    with open(log, "a", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=fields)
+        if new_file:
+            w.writeheader()
+        w.writerows(rows)
+    print(f"\nstudy wall times (no cache; appended to {log.relative_to(REPO)}):")
+    print(f"{'study':24s} {'cases':>6s} {'wall s':>8s} {'previous':>9s} {'ratio':>6s}  load 1 min (before/after)")
+    for r in rows:
+        prev = previous.get(r["study"])
+        ratio = f"{float(r['wall_s']) / float(prev['wall_s']):.2f}" if prev else "-"
+        print(f"{r['study']:24s} {r['cases']:>6} {r['wall_s']:>8s} {prev['wall_s'] if prev else '-':>9s} "
+              f"{ratio:>6s}  {r['load_before']}/{r['load_after']}")
+    print(f"total {sum(float(r['wall_s']) for r in rows):.1f} s on {os.cpu_count()} cores")
+    return rc
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m tests.benchmarks.bench", description=__doc__.split("\n\n")[0])
+    mode = ap.add_mutually_exclusive_group()
+    mode.add_argument("--save-only", action="store_true", help="store the benchmark run without comparing")
+    mode.add_argument("--studies-only", action="store_true", help="only the study wall times")
+    mode.add_argument("--no-studies", action="store_true", help="only the pytest benchmarks")
+    a = ap.parse_args(argv)
+    rc = 0
+    if not a.studies_only:
+        rc = micro(compare=not a.save_only)
+    if not (a.no_studies or a.save_only):
+        rc = studies() or rc
+    return rc
+
+
+if __name__ == "__main__":
+    sys.exit(main())
