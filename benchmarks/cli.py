@@ -19,11 +19,13 @@ from jointbench.errors import JointBenchError  # noqa: E402
 
 
 def _run(args) -> int:
+    from benchmarks.config import check_backend
     from benchmarks.study import run_study
 
     cmd = "jointbench " + " ".join(shlex.quote(a) for a in sys.argv[1:]) if sys.argv[1:] else ""
+    backend = check_backend(args.backend, "option --backend") if args.backend else None
     run = run_study(args.study, parts=args.parts or None, serial=args.serial, workers=args.workers,
-                    use_cache=not args.no_cache, progress=not args.quiet, command=cmd)
+                    use_cache=not args.no_cache, progress=not args.quiet, command=cmd, backend=backend)
     comp = run.comparison
     n_pass = int((comp["status"] == "pass").sum()) if len(comp) else 0
     print(f"{run.study.id}: {len(run.results)} cases, {len(run.failed)} failed; "
@@ -58,6 +60,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-cache", action="store_true", help="recompute cases even when cached")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.add_argument("--strict", action="store_true", help="exit 1 if a case fails or a check misses")
+    p.add_argument("--backend", metavar="NAME", default=None,
+                   help="simulate every part on this backend (analytic, mujoco, ...); outputs in "
+                        "results/<study>/backend-NAME/")
     p.set_defaults(func=_run)
     p = sub.add_parser("list", help="list studies, estimators and protocols")
     p.set_defaults(func=_list)

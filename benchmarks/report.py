@@ -5,6 +5,7 @@ import datetime as _dt
 
 import pandas as pd
 
+from benchmarks import backends
 from benchmarks.config import Study
 from benchmarks.tables import markdown
 
@@ -48,6 +49,7 @@ def render(study: Study, comparison: pd.DataFrame, part_reports: dict, failed: l
                 lines.append(f"- **{r.check}** ({r.description}): reproduced {r.reproduced:.4g}, expected "
                              f"[{r.low:.4g}, {r.high:.4g}]. {r.note or 'No explanation recorded yet.'}")
             lines.append("")
+    lines += backends.section(study, comparison, meta)
     sections = {"results": [], "interpretation": []}
     for name, rep in part_reports.items():
         sections[study.parts[name].report_section].append((name, rep))

@@ -24,6 +24,7 @@ from benchmarks import protocols
 from benchmarks.config import REPO, Part, Study
 from jointbench.errors import ConfigError
 from jointbench.schema import parse
+from sims.backend import record_simulations
 
 
 @dataclasses.dataclass(frozen=True)
@@ -39,6 +40,7 @@ class Case:
     estimators: Mapping[str, Mapping[str, Any]]
     seed: int
     where: str
+    backend: str = "analytic"      # the simulation backend of the part (or of --backend)
 
     def spec(self) -> dict:
         return dataclasses.asdict(self)
@@ -62,6 +64,7 @@ class CaseResult:
     wall_time_s: float
     error: str = ""
     detail: str = ""               # traceback of a failure (for the log, not the table)
+    sim_times: list = dataclasses.field(default_factory=list)   # [backend, seconds] per simulated trial
 
     def to_json(self) -> dict:
         d = dataclasses.asdict(self)
@@ -80,14 +83,15 @@ def _parse_inputs(case: Case):
     params = parse(proto.Params, {**case.params, **case.sweep}, f"{case.where}: params")
     exp = None
     if case.experiment is not None:
-        exp = sims.Experiment.from_mapping(case.experiment, f"{case.where}: experiment")
+        exp = sims.Experiment.from_mapping(case.experiment, f"{case.where}: experiment", backend=case.backend)
     ests = {name: estimators.make(name, settings, f"{case.where}: estimators.{name}")
             for name, settings in case.estimators.items()}
     return proto, params, exp, ests
 
 
-def expand(study: Study, parts: Iterable[str] | None = None) -> list[Case]:
-    """All cases of the selected parts, validated up front (config errors surface before any run)."""
+def expand(study: Study, parts: Iterable[str] | None = None, backend: str | None = None) -> list[Case]:
+    """All cases of the selected parts, validated up front (config errors surface before any run).
+    ``backend`` (e.g. ``jointbench run --backend mujoco``) replaces every part's own backend."""
     names = list(study.parts) if parts is None else list(parts)
     unknown = [p for p in names if p not in study.parts]
     if unknown:
@@ -99,7 +103,7 @@ def expand(study: Study, parts: Iterable[str] | None = None) -> list[Case]:
             for seed in part.seeds:
                 case = Case(study=study.id, part=name, protocol=part.protocol, params=dict(part.params),
                             sweep=combo, experiment=part.experiment, estimators=dict(part.estimators),
-                            seed=seed, where=part.where)
+                            seed=seed, where=part.where, backend=backend or part.backend)
                 cases.append(case)
         _parse_inputs(cases[-1])   # validate once per part
     return cases
@@ -112,8 +116,10 @@ def run_case(case: Case) -> CaseResult:
         proto, params, exp, ests = _parse_inputs(case)
         ctx = protocols.Context(part=case.part, seed=case.seed, params=params, experiment=exp,
                                 estimators=ests)
-        proto.fn(ctx)
-        return CaseResult(case, "ok", ctx.rows, ctx.curves, time.perf_counter() - t0)
+        with record_simulations() as log:
+            proto.fn(ctx)
+        return CaseResult(case, "ok", ctx.rows, ctx.curves, time.perf_counter() - t0,
+                          sim_times=[[b, round(t, 6)] for b, t in log])
     except Exception as exc:  # noqa: BLE001 - a failing case must not stop the others
         return CaseResult(case, "failed", [], [], time.perf_counter() - t0,
                           error=f"{type(exc).__name__}: {exc}", detail=traceback.format_exc())

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from benchmarks import figures, report
+from benchmarks import backends, figures, report
 from benchmarks.config import REPO, Study, load_study
 from benchmarks.runner import Cache, CaseResult, code_fingerprint, expand, git_commit, run_cases
 from benchmarks.tables import cases_frame, compare, curves_frame
@@ -43,16 +43,19 @@ def _write(path: Path, write) -> None:
 
 def run_study(ref: str | Path, parts: list[str] | None = None, out_root: Path | None = None,
               serial: bool = False, workers: int | None = None, use_cache: bool = True,
-              progress: bool = True, command: str = "") -> StudyRun:
+              progress: bool = True, command: str = "", backend: str | None = None) -> StudyRun:
     """Run study ``ref`` (an id under ``configs/studies`` or a path) and write its outputs.
 
     With ``parts``, only those parts are run; the outputs still cover every other part whose cases
     are all in the cache for the current code (so ``make westwick2012-fig4`` after ``make
     westwick2012`` rewrites fig4 without dropping the rest of the report).
+
+    With ``backend`` (``jointbench run STUDY --backend mujoco``) every part runs on that simulation
+    backend and the outputs go to ``results/<study>/backend-<name>/`` (:mod:`benchmarks.backends`).
     """
     study = load_study(ref)
-    cases = expand(study, parts)
-    folder = (out_root or REPO / "results") / study.id
+    cases = expand(study, parts, backend)
+    folder = backends.run_folder((out_root or REPO / "results") / study.id, backend)
     cache = Cache(folder / "cache", code_fingerprint(), use_cache)
     t0 = time.perf_counter()
     results = run_cases(cases, cache, workers=workers, serial=serial, progress=progress)
@@ -64,7 +67,7 @@ def run_study(ref: str | Path, parts: list[str] | None = None, out_root: Path | 
         for name in study.parts:
             if name in run_parts:
                 continue
-            hits = [cache.get(c) for c in expand(study, [name])]
+            hits = [cache.get(c) for c in expand(study, [name], backend)]
             if all(h is not None for h in hits):
                 results += hits
                 from_cache.append(name)
@@ -101,7 +104,7 @@ def run_study(ref: str | Path, parts: list[str] | None = None, out_root: Path | 
             traceback.print_exc()
     meta = {"commit": commit, "command": command or f"jointbench run {study.id}", "n_cases": len(cases),
             "n_cached": n_cached, "wall_s": wall, "workers": 1 if serial else (workers or os.cpu_count()),
-            "parts": run_parts, "from_cache": from_cache}
+            "parts": run_parts, "from_cache": from_cache, "folder": folder, "backend": backend}
     text = report.render(study, comparison, part_reports, failed, meta)
     _write(folder / "report.md", lambda p: p.write_text(text))
     return StudyRun(study, folder, results, rows, comparison)

@@ -20,7 +20,8 @@ import math
 import numpy as np
 
 from sims import BACKENDS
-from sims.experiment import Response
+from sims.apparatus import derivative  # noqa: F401 - re-exported: the drive's derivative, shared with lti
+from sims.backend import Backend, Response
 
 _TAYLOR_TERMS = 12  # at |A tau| <= 0.25 the next term is below 1e-16
 
@@ -94,22 +95,8 @@ def affine_scan(E, v0: np.ndarray, v1: np.ndarray, x0: tuple[float, float]) -> t
     return x, y
 
 
-def derivative(d: np.ndarray, h: float) -> np.ndarray:
-    """d' at the samples: fourth-order central differences (second order at the two samples at each end).
-
-    The drive's derivative enters through a damped contact (``g_d``, e.g. the hand's b_c): the measured
-    torque is then a small difference of large contact terms, and a derivative that is only second-order
-    accurate (or the piecewise-constant slope of a linearly held drive, which lags by half a step) shows
-    up amplified by |b_c ω / Z(ω)|, about 200 near the wrist's resonance (tens of percent at 2.5 kHz).
-    """
-    out = np.gradient(d, h, edge_order=2)
-    if len(d) >= 5:
-        out[2:-2] = (d[:-4] - 8 * d[1:-3] + 8 * d[3:-1] - d[4:]) / (12 * h)
-    return out
-
-
 @BACKENDS.register("ltv")
-class LTVBackend:
+class LTVBackend(Backend):
     """Time-varying joint + apparatus, exponential midpoint rule with a first-order hold of the inputs.
 
     References
@@ -117,6 +104,8 @@ class LTVBackend:
     Xu & Hollerbach 1998, eq. 7 (time-varying elbow); van de Ruit et al. 2018, eqs. 11-13 (wrist with
     contact); Hochbruck & Ostermann 2010, Acta Numerica 19, Sec. 3 (exponential integrators).
     """
+
+    name = "ltv"
 
     def run(self, joint, apparatus, drive: np.ndarray, voluntary: np.ndarray, fs: float,
             x0: tuple[float, float] = (0.0, 0.0)) -> Response:
@@ -151,8 +140,8 @@ class LTVBackend:
         p = -(Km + c.k_a) / Im
         q = -(Bm + c.b_a) / Im
         E, J1, J2 = step_matrices(p, q, h)
-        d_dot = derivative(d, h) if c.g_d else np.zeros_like(d)
-        w = c.g * d + c.g_d * d_dot + tv     # the whole input, held linearly over each step
+        w, d_dot = c.drive_input(d, fs)
+        w = w + tv                           # the whole input, held linearly over each step
         inv_i = 1.0 / Im
         # v_k = (J1 - J2/h) b w_k + (J2/h) b w_k+1, with b = [0, 1/I]: only column 1 of J1, J2 matters
         c0 = (J1[1] - J2[1] / h) * w[:-1] + J2[1] / h * w[1:]
