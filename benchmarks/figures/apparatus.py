@@ -94,7 +94,8 @@ def servo(part, rows, curves, folder, checks) -> PartReport:
                 row[f"predicted {inp}, {seg:g} s"] = round(float(p["median"]), 3)
         table.append(row)
     tv = []
-    for k in sorted(to_ratio, reverse=True):
+    both = set(rows["voluntary"].dropna()) >= {"present", "absent"}
+    for k in sorted(to_ratio, reverse=True) if both else []:
         on = _stat(rows, "K", ["servo_stiffness"], input="measured", segment_s=segs[-1], voluntary="present") \
             .set_index("servo_stiffness").loc[k, "median"]
         off = _stat(rows, "K", ["servo_stiffness"], input="measured", segment_s=segs[-1], voluntary="absent") \
@@ -107,15 +108,17 @@ def servo(part, rows, curves, folder, checks) -> PartReport:
     worst = err.loc[err.groupby("segment_s")["median"].apply(lambda v: v.abs().idxmax())]
     text = ("Largest median |K-hat - K| over the sweep with the measured angle as the input: "
             + "; ".join(f"{r.segment_s:g} s segments {r.median:+.2f} % at K_a = {r.servo_stiffness:g} N·m/rad"
-                        for r in worst.itertuples()) + ". The voluntary torque alone (eqs. 3-6, no window) "
-            f"would bias K by {min(r['eqs. 3-8 bias from T_v'] for r in tv):+.3f} N·m/rad at most.")
+                        for r in worst.itertuples()) + ".")
+    if tv:
+        text += (" The voluntary torque alone (eqs. 3-6, no window) would bias K by "
+                 f"{min(r['eqs. 3-8 bias from T_v'] for r in tv):+.3f} N·m/rad at most.")
     return PartReport(figures=[(name, "Servo stiffness: K-hat against K_a / K with its eqs. 3-8 prediction, "
                                       "measured angle (top) and command (middle) as the input; the spectral "
                                       "estimate at three K_a (bottom).")],
                       tables=[("K-hat (N·m/rad; median and range over seeds, voluntary torque present) and its "
-                               "prediction", pd.DataFrame(table)),
-                              (f"What the voluntary torque does (measured angle, {segs[-1]:g} s segments, "
-                               "medians over the same seeds, i.e. the same commands)", pd.DataFrame(tv))],
+                               "prediction", pd.DataFrame(table))]
+                      + ([(f"What the voluntary torque does (measured angle, {segs[-1]:g} s segments, "
+                           "medians over the same seeds, i.e. the same commands)", pd.DataFrame(tv))] if tv else []),
                       text=text)
 
 
