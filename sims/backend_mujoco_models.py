@@ -84,7 +84,8 @@ class HandleServo:
 
 def _limb_body(parent, name: str, inertia: float, gravity):
     """A segment on a hinge about z, extending along +x: its inertial matches ``inertia`` about the hinge
-    (a point mass at the centre of mass plus the rest as rotational inertia); light visual geoms."""
+    (a point mass at the centre of mass plus the rest as rotational inertia); massless visual geoms (the
+    forearm and the hand; contacts are off)."""
     body = parent.add("body", name=name)
     joint = body.add("joint", name=f"{name}_joint", type="hinge", axis=[0, 0, 1])
     if gravity is not None:
@@ -97,6 +98,9 @@ def _limb_body(parent, name: str, inertia: float, gravity):
         length = 0.3
     body.add("geom", name=f"{name}_geom", type="capsule", fromto=[0, 0, 0, length, 0, 0], size=[0.03],
              contype=0, conaffinity=0, mass=0)
+    if name == "forearm":   # the hand at the end of the forearm, one rigid segment with it
+        body.add("geom", name="hand_geom", type="box", pos=[length + 0.06, 0, 0], size=[0.06, 0.04, 0.015],
+                 contype=0, conaffinity=0, mass=0)
     return body, joint
 
 
