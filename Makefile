@@ -1,17 +1,21 @@
 # JointBench. Two commands do all the set-up on a fresh machine (each creates .venv when missing):
 #   make reproduce   # every implemented paper study -> results/<study>/
 #   make test        # the test suite (what .ci/run calls)
-PYTHON ?= python3
-VENV   := .venv
-BIN    := $(VENV)/bin
-STAMP  := $(VENV)/.installed-stamp
-RUN    := $(BIN)/jointbench run
-SHARED ?= ../shared
+# Any study target takes BACKEND=mujoco (or another simulation backend): every part then runs on it and
+# writes results/<study>/backend-<name>/, e.g. `make xu1998 BACKEND=mujoco`.
+PYTHON  ?= python3
+VENV    := .venv
+BIN     := $(VENV)/bin
+STAMP   := $(VENV)/.installed-stamp
+BACKEND ?=
+RUN     := $(BIN)/jointbench run $(if $(BACKEND),--backend $(BACKEND))
+SHARED  ?= ../shared
+PAPER_STUDIES := westwick2012 xu1998 vanderuit2018_table1
 
 .PHONY: help venv test test-slow bench bench-save bench-studies reproduce westwick2012 westwick2012-fig2 westwick2012-fig3 \
         westwick2012-fig4 westwick2012-fig5 westwick2012-fig6 westwick2012-table1 westwick2012-fig7 \
         westwick2012-fig8 xu1998 xu1998-fig2 xu1998-fig3 xu1998-calibration vanderuit2018-table1 \
-        example-ankle clean-results nightly chromium
+        apparatus reproduce-mujoco example-ankle clean-results nightly chromium
 
 help:
 	@echo "make reproduce   run every implemented paper study (results/<study>/report.md)"
@@ -24,6 +28,10 @@ help:
 	@echo "make westwick2012[-fig2|-fig3|-fig4|-fig5|-fig6|-table1|-fig7|-fig8]"
 	@echo "make xu1998[-fig2|-fig3|-calibration]"
 	@echo "make vanderuit2018-table1"
+	@echo "make apparatus   servo stiffness and gravity on the MuJoCo backend (results/apparatus/)"
+	@echo "make reproduce-mujoco   every paper study on MuJoCo too (results/<study>/backend-mujoco/), then"
+	@echo "                 the analytic reports again, with the MuJoCo value beside every check"
+	@echo "BACKEND=mujoco   (on any study target) simulate every part on MuJoCo"
 	@echo "make nightly     every paper study against the published values and the previous nightly:"
 	@echo "                 results/nightly/index.html; exit 1 on a regression (NIGHTLY_ARGS=... for options)"
 	@echo "make example-ankle   README worked example on ../shared/data (developers only)"
@@ -83,6 +91,18 @@ xu1998-calibration: $(STAMP)
 
 vanderuit2018-table1: $(STAMP)
 	$(RUN) vanderuit2018_table1
+
+# Apparatus effects only a physics backend simulates (its parts say backend: mujoco).
+apparatus: $(STAMP)
+	$(RUN) apparatus
+
+# Every paper study on MuJoCo, then the analytic run (served from its cache when it is current) and the
+# MuJoCo reports once more (all cached): each report then shows the other backend's value beside every
+# check ("Checks by backend").
+reproduce-mujoco: $(STAMP)
+	@for s in $(PAPER_STUDIES); do $(BIN)/jointbench run $$s --backend mujoco || exit 1; done
+	@for s in $(PAPER_STUDIES); do $(BIN)/jointbench run $$s || exit 1; done
+	@for s in $(PAPER_STUDIES); do $(BIN)/jointbench run $$s --backend mujoco --quiet > /dev/null || exit 1; done
 
 # Nightly regression report (jointbench nightly --help); configs/nightly.yaml says what counts as a change.
 NIGHTLY_ARGS ?=

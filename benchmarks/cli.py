@@ -61,11 +61,13 @@ def _root(args) -> Path:
 
 
 def _run(args) -> int:
+    from benchmarks.config import check_backend
     from benchmarks.study import run_study
 
+    backend = check_backend(args.backend, "option --backend") if args.backend else None
     run = run_study(args.study, parts=args.parts or None, out_root=_root(args), serial=args.serial,
                     workers=args.workers, use_cache=not args.no_cache, progress=not args.quiet,
-                    command=_command())
+                    command=_command(), backend=backend)
     from benchmarks.tables import headline
 
     comp = run.comparison
@@ -140,6 +142,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.add_argument("--strict", action="store_true", help="exit 1 if a case fails or a check misses")
     p.add_argument("--out", metavar="DIR", help="results folder (default: results/ of the checkout)")
+    p.add_argument("--backend", metavar="NAME", default=None,
+                   help="simulate every part on this backend (analytic, mujoco, ...); outputs in "
+                        "results/<study>/backend-NAME/")
     p.set_defaults(func=_run)
     p = sub.add_parser("status", help="status of every study from results/*/comparison.csv (README tables)")
     p.add_argument("--write-readme", action="store_true",

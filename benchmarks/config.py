@@ -158,6 +158,7 @@ class Part:
     sweep: Mapping[str, tuple[Any, ...]]
     where: str
     report_section: str = "results"
+    backend: str = "analytic"
 
     def grid(self) -> list[dict[str, Any]]:
         """Every combination of the sweep (one empty dict without a sweep)."""
@@ -179,7 +180,7 @@ class Study:
 
 
 _PART_KEYS = {"protocol": True, "description": True, "params": False, "experiment": False,
-              "estimators": False, "seeds": False, "sweep": False, "report_section": False}
+              "estimators": False, "seeds": False, "sweep": False, "report_section": False, "backend": False}
 REPORT_SECTIONS = ("results", "interpretation")
 _STUDY_KEYS = {"study": True, "title": True, "paper": True, "published": True, "readings": False,
                "not_reproduced": True, "method_swap": False, "parts": True}
@@ -238,6 +239,17 @@ def _seeds(value: Any, where: str) -> tuple[int, ...]:
                       f"got {value!r}")
 
 
+def check_backend(name: Any, where: str) -> str:
+    """A simulation backend name of :data:`sims.BACKENDS` (``analytic``, ``mujoco``, ...), or a one-line
+    error naming ``where`` (the part, or the command line)."""
+    from sims import BACKENDS
+
+    if not isinstance(name, str) or name not in BACKENDS:
+        raise ConfigError(f"{where}: unknown simulation backend {name!r}; known: "
+                          f"{', '.join(BACKENDS.names())}")
+    return name
+
+
 def load_part(name: str, data: Mapping, where: str, models_dir: Path) -> Part:
     _check_keys(data, _PART_KEYS, where)
     experiment = data.get("experiment")
@@ -262,6 +274,7 @@ def load_part(name: str, data: Mapping, where: str, models_dir: Path) -> Part:
                           f"{', '.join(REPORT_SECTIONS)}")
     return Part(name=name, protocol=str(data["protocol"]), description=str(data["description"]),
                 report_section=section,
+                backend=check_backend(data.get("backend", "analytic"), f"{where}: key 'backend'"),
                 params=dict(params), experiment=experiment,
                 estimators={k: dict(v or {}) for k, v in est.items()},
                 seeds=_seeds(data.get("seeds"), where),

@@ -11,6 +11,7 @@ import datetime as _dt
 
 import pandas as pd
 
+from benchmarks import backends
 from benchmarks.config import EVIDENCE, Study
 from benchmarks.tables import DIRTY_BANNER, evidence_counts, headline, markdown
 
@@ -184,6 +185,7 @@ def render(study: Study, comparison: pd.DataFrame, part_reports: dict, failed: l
                                  f"{r['reproduced']:.4g}, expected [{r['low']:.4g}, {r['high']:.4g}]. "
                                  f"{r['note'] or 'No explanation recorded yet.'}")
             lines.append("")
+    lines += backends.section(study, comparison, meta)
     for name, rep in m["results"]:
         lines += _part(study, name, rep, "##")
     if failed:

@@ -46,8 +46,9 @@ def _check_estimators(part: Part, experiment, ests: dict) -> None:
                               f"{reason}; remove it from the part or change the perturbation")
 
 
-def expand(study: Study, parts: Iterable[str] | None = None) -> list[Case]:
-    """All cases of the selected parts, validated up front (config errors surface before any run)."""
+def expand(study: Study, parts: Iterable[str] | None = None, backend: str | None = None) -> list[Case]:
+    """All cases of the selected parts, validated up front (config errors surface before any run).
+    ``backend`` (e.g. ``jointbench run --backend mujoco``) replaces every part's own backend."""
     names = list(study.parts) if parts is None else list(dict.fromkeys(parts))
     unknown = [p for p in names if p not in study.parts]
     if unknown:
@@ -64,7 +65,7 @@ def expand(study: Study, parts: Iterable[str] | None = None) -> list[Case]:
             for seed in part.seeds:
                 cases.append(Case(study=study.id, part=name, protocol=part.protocol, params=dict(part.params),
                                   sweep=combo, experiment=part.experiment, estimators=dict(part.estimators),
-                                  seed=seed, where=part.where))
+                                  seed=seed, where=part.where, backend=backend or part.backend))
         _, _, exp, ests = parse_inputs(cases[-1])   # validate once per part
         _check_estimators(part, exp, ests)
     return cases

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from benchmarks import figures, report
+from benchmarks import backends, figures, report
 from benchmarks.config import REPO, Study, load_study
 from benchmarks.harness import fingerprint, outputs
 from benchmarks.harness.cache import Cache, case_key
@@ -83,13 +83,17 @@ def _part_reports(study, shown, results, rows, curves, folder) -> dict:
 def run_study(ref: str | Path, parts: list[str] | None = None, out_root: Path | None = None,
               serial: bool = False, workers: int | None = None, use_cache: bool = True,
               progress: bool = True, command: str = "", kind: str = "run", nightly_id: int | None = None,
-              read_cache: bool = True, executor=None) -> StudyRun:
+              read_cache: bool = True, executor=None, backend: str | None = None) -> StudyRun:
     """Run study ``ref`` (an id under ``configs/studies`` or a path), write its outputs, record the run.
 
     With ``parts``, only those parts are run; the outputs still cover every other part whose cases
     are all in the cache for the current code (so ``make westwick2012-fig4`` after ``make
     westwick2012`` rewrites fig4 without dropping the rest of the report). ``read_cache=False``
     recomputes every case but still stores the results (the nightly run does this).
+
+    With ``backend`` (``jointbench run STUDY --backend mujoco``) every part runs on that simulation
+    backend and the outputs go to ``results/<study>/backend-<name>/`` (:mod:`benchmarks.backends`); the
+    history records the run as ``<study>@<backend>``.
 
     Raises
     ------
@@ -100,9 +104,9 @@ def run_study(ref: str | Path, parts: list[str] | None = None, out_root: Path | 
         ``interrupted``); ``run_id`` is set on the exception.
     """
     study = load_study(ref)
-    cases = expand(study, parts)
+    cases = expand(study, parts, backend)
     root = results_root(out_root)
-    folder = outputs.study_folder(root, study.id, study.path)
+    folder = backends.run_folder(outputs.study_folder(root, study.id, study.path), backend)
     cache_dir = root / CACHE_FOLDER
     outputs.ensure_writable(root, folder, cache_dir)
     for f in (folder, root):
@@ -112,7 +116,7 @@ def run_study(ref: str | Path, parts: list[str] | None = None, out_root: Path | 
     history = History(root / HISTORY_FILE)
     run_parts = list(dict.fromkeys(c.part for c in cases))
     n_workers = 1 if serial else (workers or os.cpu_count() or 1)
-    run_id = history.begin_run(study.id, run_parts, config_hash(study), len(cases), kind=kind,
+    run_id = history.begin_run(study.id if backend is None else f"{study.id}@{backend}", run_parts, config_hash(study), len(cases), kind=kind,
                                nightly_id=nightly_id, command=command or f"jointbench run {study.id}",
                                workers=n_workers)
     done = [0, time.monotonic()]
@@ -145,7 +149,7 @@ def run_study(ref: str | Path, parts: list[str] | None = None, out_root: Path | 
         for name in study.parts:
             if name in run_parts:
                 continue
-            extra = expand(study, [name])
+            extra = expand(study, [name], backend)
             hits = [cache.get(c) for c in extra]
             if all(h is not None for h in hits):
                 results += hits
@@ -170,7 +174,7 @@ def run_study(ref: str | Path, parts: list[str] | None = None, out_root: Path | 
             part_reports = _part_reports(study, shown, results, rows, curves, folder)
             meta = {"commit": commit, "command": command or f"jointbench run {study.id}", "n_cases": len(cases),
                     "n_cached": n_cached, "wall_s": wall, "workers": n_workers, "parts": run_parts,
-                    "from_cache": from_cache}
+                    "from_cache": from_cache, "folder": folder, "backend": backend}
             swap = study.method_swap
             if swap is not None and swap.part in shown:
                 meta["method_swap"] = {**swap_survival(study.checks, rows, swap.part, swap.estimators),

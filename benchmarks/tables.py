@@ -18,7 +18,9 @@ def cases_frame(results, commit: str) -> pd.DataFrame:
     for r in results:
         base = {"study": r.case.study, "part": r.case.part, "case_id": r.case.case_id, "seed": r.case.seed,
                 **{k: v for k, v in r.case.sweep.items()}, "status": r.status, "error": r.error,
-                "wall_time_s": round(r.wall_time_s, 4), "git_commit": commit}
+                "wall_time_s": round(r.wall_time_s, 4), "git_commit": commit,
+                "backend": getattr(r.case, "backend", "analytic"),
+                "sim_time_s": round(sum(t for _, t in r.sim_times), 6), "n_trials": len(r.sim_times)}
         if r.status != "ok" or not r.rows:
             recs.append({**base, "estimator": "", "metric": "", "value": np.nan})
         for row in r.rows:

@@ -14,6 +14,30 @@ from jointbench.schema import param
 from jointbench.types import Trial
 
 
+def weighted_ibk_fit(f: np.ndarray, H: np.ndarray, coh: np.ndarray, name: str = "ibk_spectral",
+                     band: str = "the band") -> tuple[float, float, float]:
+    """``(I, B, K)`` minimising ``sum gamma^2 |H - (K + j w B - I w^2)|^2`` over the given frequencies (Hz).
+
+    Each frequency contributes a real row ``K - I w^2 = Re H`` and an imaginary row ``B w = Im H``,
+    both scaled by ``gamma = sqrt(coh)``. Shared by :class:`IBKSpectral` and by predictions of what it
+    returns (e.g. the apparatus study's expected spectra).
+    """
+    w = 2 * np.pi * np.asarray(f, float)
+    g = np.sqrt(np.asarray(coh, float))  # row scale gamma -> squared residual weighted by gamma^2
+    zero = np.zeros_like(w)
+    A = np.block([[(-w ** 2 * g)[:, None], zero[:, None], g[:, None]],
+                  [zero[:, None], (w * g)[:, None], zero[:, None]]])
+    b = np.concatenate([np.real(H) * g, np.imag(H) * g])
+    scale = np.linalg.norm(A, axis=0)
+    if np.any(scale == 0):
+        raise InputError(f"{name}: {band} cannot separate I, B and K")
+    x, _, rank, _ = scipy.linalg.lstsq(A / scale, b)
+    if rank < 3:
+        raise InputError(f"{name}: {band} cannot separate I, B and K")
+    I, B, K = (float(v) for v in x / scale)
+    return I, B, K
+
+
 @register("ibk_spectral", tags=("lti", "parametric", "frf"))
 class IBKSpectral(Estimator):
     """Second-order impedance ``K + j w B - I w^2`` fitted to ``S_uy / S_uu`` by coherence-weighted least squares.
@@ -63,17 +87,5 @@ class IBKSpectral(Estimator):
             raise InputError(f"{self.name}: only {int(sel.sum())} frequency point(s) with nonzero coherence in "
                              f"fmin ... fmax = {s.fmin:g} ... {s.fmax:g} Hz (resolution {f[1]:g} Hz from "
                              f"segment = {s.segment:g} s); need at least 3: widen the band or lengthen 'segment'")
-        w = 2 * np.pi * f[sel]
-        g = np.sqrt(coh[sel])  # row scale gamma -> squared residual weighted by gamma^2
-        zero = np.zeros_like(w)
-        A = np.block([[(-w ** 2 * g)[:, None], zero[:, None], g[:, None]],
-                      [zero[:, None], (w * g)[:, None], zero[:, None]]])
-        b = np.concatenate([H.real[sel] * g, H.imag[sel] * g])
-        scale = np.linalg.norm(A, axis=0)
-        if np.any(scale == 0):
-            raise InputError(f"{self.name}: the band {s.fmin:g} ... {s.fmax:g} Hz cannot separate I, B and K")
-        x, _, rank, _ = scipy.linalg.lstsq(A / scale, b)
-        if rank < 3:
-            raise InputError(f"{self.name}: the band {s.fmin:g} ... {s.fmax:g} Hz cannot separate I, B and K")
-        I, B, K = (float(v) for v in x / scale)
+        I, B, K = weighted_ibk_fit(f[sel], H[sel], coh[sel], self.name, f"the band {s.fmin:g} ... {s.fmax:g} Hz")
         return ParametricEstimate(I=I, B=B, K=K, fs=fs, time=trials[0].time, estimator=self.name, basis=frf)

@@ -29,6 +29,9 @@ _UNITS: dict[str, tuple[str, float]] = {
     "kg.m2": ("inertia", 1.0), "n.m.s2/rad": ("inertia", 1.0), "g.m2": ("inertia", 1e-3),
     "db": ("decibel", 1.0),
     "1/s": ("rate", 1.0),
+    "kg": ("mass", 1.0),
+    "m": ("length", 1.0), "cm": ("length", 1e-2), "mm": ("length", 1e-3),
+    "m/s2": ("acceleration", 1.0),
 }
 
 

@@ -2,6 +2,10 @@
 apart from the backends that integrate them. One file per joint model, perturbation or backend,
 registered by decorator. This package imports ``jointbench`` only, never ``estimators`` or
 ``benchmarks``.
+
+Importing it loads every submodule (so that the registries are complete) but no physics engine: the
+``mujoco`` backend registers itself and imports ``mujoco`` and ``dm_control`` only when it first builds
+a model, so ``import sims`` neither needs nor loads them (tests/test_backend_mujoco.py checks it).
 """
 from __future__ import annotations
 

@@ -1,11 +1,13 @@
 """Backend ``lti``: exact first-order-hold discretization of the linear time-invariant closed loop.
 
-The limb ``I theta'' + B theta' + K theta = T_a + T_v`` and the apparatus ``T_a = g d - k_a theta``
-(position servo: g = k_a = K_a, d = theta_r; torque drive: g = 1, k_a = 0, d = T_p) form a 2-state,
-2-input continuous system. It is discretized exactly for inputs that vary linearly between samples
-(first-order hold, matrix exponential of the augmented matrix), and run as second-order recursive
-filters (state theta or theta' from input d or T_v) with :func:`scipy.signal.lfilter`: no Python loop
-over samples.
+The limb ``I theta'' + B theta' + K theta = T_a + T_v`` and the apparatus' linear coupling
+``T_a = g d + g_d d' - k_a theta - b_a theta'`` (:class:`sims.apparatus.Coupling`; position servo:
+g = k_a = K_a, g_d = b_a = B_a, d = theta_r; torque drive: g = 1, d = T_p) form a 2-state continuous
+system driven by ``w = g d + g_d d' + T_v``. It is discretized exactly for an input that varies
+linearly between samples (first-order hold, matrix exponential of the augmented matrix), and run as
+second-order recursive filters (theta and theta' from w) with :func:`scipy.signal.lfilter`: no Python
+loop over samples. The drive's derivative (a servo damping) comes from the same fourth-order
+differences as in backend ``ltv``, so the two backends agree on every apparatus.
 
 Why first-order hold: the command and the voluntary torque are continuous signals. Holding them
 constant over each sample (zero-order hold) makes theta'' jump at every sample, and the torque read at
@@ -22,7 +24,7 @@ from scipy import signal as sps
 
 from jointbench.errors import ConfigError
 from sims import BACKENDS
-from sims.experiment import Response
+from sims.backend import Backend, Response, lti_applies
 
 
 def closed_loop(joint, apparatus) -> tuple[np.ndarray, np.ndarray]:
@@ -32,15 +34,15 @@ def closed_loop(joint, apparatus) -> tuple[np.ndarray, np.ndarray]:
     ----------
     joint : object with ``state_space()``
         Time-invariant joint model (admittance, net torque -> [theta, theta']).
-    apparatus : PositionServo or TorqueDrive
-        Gives ``input_gain`` g and ``stiffness_on_angle`` k_a.
+    apparatus : object with ``coupling(joint)``
+        Its coupling gives the restoring stiffness k_a and damping b_a on the limb.
 
     Returns
     -------
     A : ndarray, shape (2, 2)
         State matrix for x = [theta, theta'].
-    B : ndarray, shape (2, 2)
-        Input matrix for u = [drive, T_v].
+    B : ndarray, shape (2, 1)
+        Input matrix for the input ``w = g d + g_d d' + T_v``.
 
     References
     ----------
@@ -52,10 +54,9 @@ def closed_loop(joint, apparatus) -> tuple[np.ndarray, np.ndarray]:
     a, b, _, _ = joint.state_space()
     a = np.asarray(a, float)
     b = np.asarray(b, float).reshape(2, 1)
-    k_a, g = apparatus.stiffness_on_angle, apparatus.input_gain
-    A = a - k_a * b @ np.array([[1.0, 0.0]])
-    B = np.hstack([g * b, b])
-    return A, B
+    c = apparatus.coupling(joint)
+    A = a - b @ np.array([[c.k_a, c.b_a]])
+    return A, b
 
 
 def foh(A: np.ndarray, B: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -92,7 +93,7 @@ def _transfer_coefficients(Ad: np.ndarray, G0: np.ndarray, G1: np.ndarray) -> tu
 
 
 @BACKENDS.register("lti")
-class LTIBackend:
+class LTIBackend(Backend):
     """Exact FOH simulation of a time-invariant joint held by an apparatus (Fig. 1 of the paper).
 
     The inputs (drive and voluntary torque) vary linearly between samples, so the states at the
@@ -104,6 +105,14 @@ class LTIBackend:
     Westwick & Perreault 2012, Fig. 1 and eqs. 3-8 (Sec. II-A); Sec. IV (apparatus).
     """
 
+    name = "lti"
+
+    def check(self, experiment) -> None:
+        super().check(experiment)
+        reason = lti_applies(experiment)
+        if reason:
+            raise ConfigError(f"backend 'lti' cannot simulate this experiment: {reason}; use 'ltv' or 'analytic'")
+
     def run(self, joint, apparatus, drive: np.ndarray, voluntary: np.ndarray, fs: float) -> Response:
         """Simulate at ``fs`` Hz.
 
@@ -111,7 +120,7 @@ class LTIBackend:
         ----------
         joint : SecondOrderJoint or another time-invariant joint
             Limb model.
-        apparatus : PositionServo or TorqueDrive
+        apparatus : object with ``coupling(joint)``
             How ``drive`` acts on the limb.
         drive : ndarray
             Position command theta_r (rad) or applied torque T_p (N·m), one sample per step.
@@ -131,19 +140,19 @@ class LTIBackend:
         if d.shape != tv.shape or d.ndim != 1:
             raise ValueError(f"drive and voluntary torque must be 1-D of equal length, got {d.shape}, {tv.shape}")
         A, B = closed_loop(joint, apparatus)
+        c = apparatus.coupling(joint)
+        w, d_dot = c.drive_input(d, fs)
+        w = w + tv
         Ad, G0, G1 = foh(A, B, 1.0 / fs)
         num, den = _transfer_coefficients(Ad, G0, G1)
-        # x_i = sum_j num[i, j](z) / den(z) u_j: apply the 3-tap numerators first, then the common
-        # recursive part once for both states.
-        used = [0, 1] if np.any(tv) else [0]
-        U = np.column_stack([d, tv])[:, used]
-        V = U @ num[:, used, 0].T
-        V[1:] += U[:-1] @ num[:, used, 1].T
-        V[2:] += U[:-2] @ num[:, used, 2].T
+        # x_i = num[i, 0](z) / den(z) w: the 3-tap numerators first, then the recursive part once for both
+        V = np.multiply.outer(w, num[:, 0, 0])
+        V[1:] += np.multiply.outer(w[:-1], num[:, 0, 1])
+        V[2:] += np.multiply.outer(w[:-2], num[:, 0, 2])
         X = sps.lfilter([1.0], den, V, axis=0)
         theta, vel = X[:, 0].copy(), X[:, 1].copy()
-        acc = A[1, 0] * theta + A[1, 1] * vel + B[1, 0] * d + B[1, 1] * tv
+        acc = A[1, 0] * theta + A[1, 1] * vel + B[1, 0] * w
         I, Bv, K = joint.coefficients()
         return Response(angle=theta, velocity=vel, acceleration=acc,
-                        torque_measured=apparatus.measured_torque(d, theta),
+                        torque_measured=c.torque(d, d_dot, theta, vel),
                         torque_impedance=I * acc + Bv * vel + K * theta)

@@ -25,7 +25,8 @@ import math
 import numpy as np
 
 from sims import BACKENDS
-from sims.experiment import Response
+from sims.apparatus import derivative  # noqa: F401 - re-exported: the drive's derivative, shared with lti
+from sims.backend import Backend, Response
 
 _TAYLOR_TERMS = 12  # at |A tau| <= 0.25 the next term is below 1e-16
 BLOCK = 32          # steps per block of affine_recursion (16 ... 64 were about equally fast at 1e5 steps)
@@ -154,22 +155,8 @@ def affine_recursion(E, v0: np.ndarray, v1: np.ndarray, x0: tuple[float, float])
     return out_x, out_y
 
 
-def derivative(d: np.ndarray, h: float) -> np.ndarray:
-    """d' at the samples: fourth-order central differences (second order at the two samples at each end).
-
-    The drive's derivative enters through a damped contact (``g_d``, e.g. the hand's b_c): the measured
-    torque is then a small difference of large contact terms, and a derivative that is only second-order
-    accurate (or the piecewise-constant slope of a linearly held drive, which lags by half a step) shows
-    up amplified by |b_c ω / Z(ω)|, about 200 near the wrist's resonance (tens of percent at 2.5 kHz).
-    """
-    out = np.gradient(d, h, edge_order=2)
-    if len(d) >= 5:
-        out[2:-2] = (d[:-4] - 8 * d[1:-3] + 8 * d[3:-1] - d[4:]) / (12 * h)
-    return out
-
-
 @BACKENDS.register("ltv")
-class LTVBackend:
+class LTVBackend(Backend):
     """Time-varying joint + apparatus, exponential midpoint rule with a first-order hold of the inputs.
 
     References
@@ -177,6 +164,8 @@ class LTVBackend:
     Xu & Hollerbach 1998, eq. 7 (time-varying elbow); van de Ruit et al. 2018, eqs. 11-13 (wrist with
     contact); Hochbruck & Ostermann 2010, Acta Numerica 19, Sec. 3 (exponential integrators).
     """
+
+    name = "ltv"
 
     def run(self, joint, apparatus, drive: np.ndarray, voluntary: np.ndarray, fs: float,
             x0: tuple[float, float] = (0.0, 0.0)) -> Response:
@@ -211,8 +200,8 @@ class LTVBackend:
         p = -(Km + c.k_a) / Im
         q = -(Bm + c.b_a) / Im
         (ea, eb), (j1a, j1b), (j2a, j2b) = step_coefficients(p, q, h)
-        d_dot = derivative(d, h) if c.g_d else np.zeros_like(d)
-        w = c.g * d + c.g_d * d_dot + tv     # the whole input, held linearly over each step
+        w, d_dot = c.drive_input(d, fs)
+        w = w + tv                           # the whole input, held linearly over each step
         inv_i = 1.0 / Im
         # v_k = (J1 - J2/h) b w_k + (J2/h) b w_k+1, with b = [0, 1/I]: only column 1 of J1, J2 matters,
         # (c0 I + c1 A)[:, 1] = (c1, c0 + q c1)

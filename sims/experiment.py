@@ -4,8 +4,9 @@ An :class:`Experiment` holds already-parsed, validated parts: a joint model and 
 from the registries :data:`sims.JOINTS` and :data:`sims.PERTURBATIONS`), the apparatus, the voluntary
 torque, the sensor models, the simulation rate and length, and the acquisition steps. It knows nothing
 of how the dynamics are integrated: :func:`simulate` hands the limb, the apparatus and the input signals
-to a backend from :data:`sims.BACKENDS` (``"lti"``: exact first-order hold for time-invariant joints;
-``"ltv"``: exponential midpoint rule for time-varying ones), then applies sensors and acquisition.
+to the experiment's backend (:mod:`sims.backend`; ``"analytic"``: exact first-order hold for
+time-invariant joints, exponential midpoint rule for time-varying ones; ``"mujoco"``: a physics engine),
+then applies the same sensors and acquisition whatever the backend.
 
 References
 ----------
@@ -15,6 +16,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import time
 from typing import Any, Callable, Literal, Mapping
 
 import numpy as np
@@ -24,13 +26,16 @@ from jointbench.schema import param, parse
 from jointbench.signal import decimate, decimate_fft
 from jointbench.types import Trial, Truth
 from sims import BACKENDS, JOINTS, PERTURBATIONS
+from sims import backend as _backend
 from sims.apparatus import APPARATUS_KINDS, Apparatus, PositionServo
+from sims.backend import Response  # noqa: F401 - re-exported (backends import it from here too)
+from sims.gravity import Gravity
 from sims.sensors import Sensor, Sensors
 from sims.voluntary import Voluntary
 
 #: the keys of an experiment block, in the order they are listed in messages
 EXPERIMENT_KEYS = ("joint", "apparatus", "perturbation", "voluntary", "sensors", "fs_sim", "duration",
-                   "acquisition")
+                   "acquisition", "gravity")
 
 #: the independent random streams, in the order they are spawned from the seed (append new ones at the end)
 STREAMS = ("perturbation", "voluntary", "angle_noise", "torque_noise")
@@ -69,27 +74,6 @@ class Acquisition:
 class _Timing:
     fs_sim: float = param(unit="Hz", gt=0, doc="simulation rate")
     duration: float = param(unit="s", gt=0, doc="simulated record length")
-
-
-@dataclasses.dataclass(frozen=True)
-class Response:
-    """What a backend returns: signals at the simulation rate, before any sensor model.
-
-    Attributes
-    ----------
-    angle, velocity, acceleration : ndarray
-        theta (rad), theta' (rad/s), theta'' (rad/s²) of the limb, the acceleration from the dynamics.
-    torque_measured : ndarray
-        The torque the load cell sees (N·m), T_m of Fig. 1 (position servo) or the applied torque.
-    torque_impedance : ndarray
-        The limb's impedance torque I theta'' + B theta' + K theta (N·m), free of noise.
-    """
-
-    angle: np.ndarray
-    velocity: np.ndarray
-    acceleration: np.ndarray
-    torque_measured: np.ndarray
-    torque_impedance: np.ndarray
 
 
 def _parse_tagged(data: Any, tag: str, known: list[str], lookup: Callable[[str], type], what: str,
@@ -139,6 +123,10 @@ class Experiment:
         Sensor models of the angle and torque channels; default ideal.
     acquisition : Acquisition
         Detrend, decimation and trim; default: detrend, no decimation, no trim.
+    gravity : Gravity or None
+        Gravity on the limb segment (:mod:`sims.gravity`); default none. Physics backends only.
+    backend : str
+        The simulation backend (:data:`sims.BACKENDS`), default ``"analytic"``; set by the study part.
     where : str
         Where the description came from, prefixed to error messages (not compared).
 
@@ -155,13 +143,16 @@ class Experiment:
     voluntary: Voluntary = dataclasses.field(default_factory=Voluntary)
     sensors: Sensors = dataclasses.field(default_factory=Sensors)
     acquisition: Acquisition = dataclasses.field(default_factory=Acquisition)
+    gravity: Gravity | None = None
+    backend: str = "analytic"
     where: str = dataclasses.field(default="experiment", compare=False, repr=False)
 
     def __post_init__(self):
         self._validate()
 
     @classmethod
-    def from_mapping(cls, mapping: Mapping[str, Any] | None, where: str = "experiment") -> "Experiment":
+    def from_mapping(cls, mapping: Mapping[str, Any] | None, where: str = "experiment",
+                     backend: str = "analytic") -> "Experiment":
         """Parse the experiment block of a study config strictly.
 
         Parameters
@@ -169,9 +160,12 @@ class Experiment:
         mapping : mapping
             Keys ``joint`` (``{model: ..., ...}``), ``perturbation`` (``{kind: ..., ...}``), ``fs_sim``,
             ``duration`` (required); ``apparatus`` (``{kind: position_servo|torque_drive, ...}``),
-            ``voluntary``, ``sensors`` (``{angle: ..., torque: ...}``), ``acquisition`` (optional).
+            ``voluntary``, ``sensors`` (``{angle: ..., torque: ...}``), ``acquisition``, ``gravity``
+            (optional).
         where : str
             File and section, prefixed to every error message.
+        backend : str
+            Name of the simulation backend (a study part's ``backend`` key).
 
         Raises
         ------
@@ -199,7 +193,9 @@ class Experiment:
             voluntary=parse(Voluntary, mapping.get("voluntary"), f"{where}: voluntary"),
             sensors=parse(Sensors, mapping.get("sensors"), f"{where}: sensors"),
             acquisition=parse(Acquisition, mapping.get("acquisition"), f"{where}: acquisition"),
-            fs_sim=timing.fs_sim, duration=timing.duration, where=where)
+            gravity=(parse(Gravity, mapping["gravity"], f"{where}: gravity")
+                     if mapping.get("gravity") is not None else None),
+            fs_sim=timing.fs_sim, duration=timing.duration, backend=backend, where=where)
 
     # ----------------------------------------------------------------------------------- derived sizes
     @property
@@ -280,6 +276,15 @@ class Experiment:
         self.perturbation.check(self.fs_sim, self.duration, f"{w}: perturbation")
         self.voluntary.check(self.fs_sim, f"{w}: voluntary")
         self.sensors.check(self.fs_sim, f"{w}: sensors")
+        if self.gravity is not None:
+            self.gravity.check(float(np.min(self.joint.coefficients_at(np.zeros(1))[0])), w)
+        if not isinstance(self.backend, str) or self.backend not in BACKENDS:
+            raise ConfigError(f"{w}: key 'backend': unknown simulation backend {self.backend!r}; "
+                              f"known: {', '.join(BACKENDS.names())}")
+        try:
+            BACKENDS.get(self.backend)().check(self)
+        except ConfigError as exc:
+            raise ConfigError(f"{w}: {exc}") from None
 
     # ------------------------------------------------------------------------------------- acquisition
     def acquire(self, x: np.ndarray) -> np.ndarray:
@@ -341,14 +346,6 @@ def _streams(seed: int | np.random.SeedSequence, replicate: int) -> dict[str, np
     return dict(zip(STREAMS, (np.random.default_rng(c) for c in children)))
 
 
-def _pick_backend(exp: Experiment) -> str:
-    """``lti`` (exact, fastest) when it applies, else ``ltv``."""
-    c = exp.apparatus.coupling(exp.joint)
-    simple = (getattr(exp.joint, "time_invariant", False) and hasattr(exp.joint, "state_space")
-              and c.g_d == 0 and c.b_a == 0 and not exp.voluntary.moving)
-    return "lti" if simple else "ltv"
-
-
 def _truth(exp: Experiment, signals: dict[str, np.ndarray]) -> Truth:
     """Parameters at the acquired sample times and the frozen input -> output transfer function."""
     t = exp.acquired_times()
@@ -380,8 +377,8 @@ def simulate(experiment: Experiment, seed: int | np.random.SeedSequence, backend
         the order of :data:`STREAMS` (perturbation, voluntary torque, angle noise, torque noise): changing
         one source's level changes no other source. Same experiment and seed -> bit-identical arrays.
     backend : str or object, optional
-        Name in :data:`sims.BACKENDS` or an object with the backend's ``run`` method. Default: ``"lti"``
-        for a time-invariant joint on a spring-only apparatus without voluntary movement, else ``"ltv"``.
+        Name in :data:`sims.BACKENDS` or a :class:`sims.backend.Backend`; default: the experiment's own
+        (``experiment.backend``, ``"analytic"`` unless a study part says otherwise).
     name : str
         Name of the trial.
     replicate : int
@@ -405,7 +402,9 @@ def simulate(experiment: Experiment, seed: int | np.random.SeedSequence, backend
           voluntary torque and without sensor noise (eq. 8: T_m = T_imp - T_v);
         - ``"command"``: the perturbation signal (position command, or applied torque);
         - ``"voluntary"``: the voluntary torque T_v through the torque sensor's filter;
-        - ``"movement"`` (with a voluntary movement): the intended trajectory theta_n.
+        - ``"movement"`` (with a voluntary movement): the intended trajectory theta_n;
+        - whatever else the backend knows (:attr:`sims.backend.Response.extra`), e.g. ``"gravity_torque"``
+          and ``"gravity_stiffness"`` from a physics backend with gravity.
 
     References
     ----------
@@ -420,36 +419,52 @@ def simulate(experiment: Experiment, seed: int | np.random.SeedSequence, backend
     if isinstance(replicate, bool) or not isinstance(replicate, int) or replicate < 0:
         raise ValueError(f"simulate(): replicate must be a whole number >= 0, got {replicate!r}")
     rng = _streams(seed, replicate)
-    backend = _pick_backend(exp) if backend is None else backend
-    runner = BACKENDS.get(backend)() if isinstance(backend, str) else backend
+    if backend is not None and backend != exp.backend:
+        if isinstance(backend, str):
+            exp = dataclasses.replace(exp, backend=backend)   # validates: check() of that backend
+        else:
+            backend.check(exp)
+    runner = _backend.resolve(exp.backend if backend is None else backend)
+    t_start = time.perf_counter()
 
     fs, n = exp.fs_sim, exp.n_sim
     drive = exp.perturbation.generate(n, fs, rng["perturbation"])
     tv = exp.voluntary.generate(n, fs, rng["voluntary"])
-    extra = {}
+    x0 = (0.0, 0.0)
     if exp.voluntary.moving:
         t = np.arange(n) / fs
         pos, vel, acc = exp.voluntary.movement(t)
         I, B, K = exp.joint.coefficients_at(t)
         c = exp.apparatus.coupling(exp.joint)
         tv = tv + I * acc + (B + c.b_a) * vel + (K + c.k_a) * pos
-        extra = {"x0": (float(pos[0]), float(vel[0]))}
-    resp = runner.run(exp.joint, exp.apparatus, drive, tv, fs, **extra)
+        x0 = (float(pos[0]), float(vel[0]))
+    if exp.gravity is not None:   # the subject holds the intended trajectory against gravity
+        tv = tv - exp.gravity.torque(exp.voluntary.movement(np.arange(n) / fs)[0])
+    resp = runner.respond(exp, drive, tv, x0)
 
-    angle_true = drive if exp.apparatus.angle_is_drive else resp.angle
+    if resp.angle_measured is not None:
+        angle_true = resp.angle_measured
+    else:
+        angle_true = drive if exp.apparatus.angle_is_drive else resp.angle
     angle, angle_clean = _measure(exp.sensors.angle, exp.sensors.angle.filtered(angle_true, fs),
                                   rng["angle_noise"], exp.acquire, fs)
     # one pass of the torque sensor's filter over the measured, impedance and voluntary torques
     torques = exp.sensors.torque.filtered(np.column_stack([resp.torque_measured, resp.torque_impedance, tv]), fs)
     torque, _ = _measure(exp.sensors.torque, torques[:, 0], rng["torque_noise"], exp.acquire, fs)
-    truth_torques = exp.acquire(torques[:, 1:] if exp.voluntary.active else torques[:, 1])
+    active = exp.voluntary.active or exp.gravity is not None
+    truth_torques = exp.acquire(torques[:, 1:] if active else torques[:, 1])
     signals = {
         "angle": angle_clean,
-        "torque": np.ascontiguousarray(truth_torques[:, 0]) if exp.voluntary.active else truth_torques,
+        "torque": np.ascontiguousarray(truth_torques[:, 0]) if active else truth_torques,
         "command": exp.acquire(drive),
-        "voluntary": np.ascontiguousarray(truth_torques[:, 1]) if exp.voluntary.active else np.zeros(len(angle)),
+        "voluntary": np.ascontiguousarray(truth_torques[:, 1]) if active else np.zeros(len(angle)),
     }
     if exp.voluntary.moving:
         signals["movement"] = exp.acquire(exp.voluntary.movement(np.arange(n) / fs)[0])
+    if resp.extra:
+        names = list(resp.extra)
+        acquired = exp.acquire(np.column_stack([resp.extra[k] for k in names]))
+        signals.update({k: np.ascontiguousarray(acquired[:, i]) for i, k in enumerate(names)})
+    _backend._record(getattr(runner, "name", "") or type(runner).__name__, time.perf_counter() - t_start)
     return Trial.from_arrays(angle, torque, exp.fs, imposed=exp.apparatus.imposed, truth=_truth(exp, signals),
                              name=name)

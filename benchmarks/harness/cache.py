@@ -33,7 +33,7 @@ def case_key(case: Case) -> str:
 
 def _result_payload(res: CaseResult) -> dict:
     return {"status": res.status, "rows": res.rows, "curves": res.curves, "wall_time_s": res.wall_time_s,
-            "error": res.error}
+            "error": res.error, "sim_times": res.sim_times}
 
 
 class Cache:
@@ -87,7 +87,7 @@ class Cache:
             return None
         self.hits += 1
         return CaseResult(case, r["status"], r["rows"], r["curves"], r["wall_time_s"], r.get("error", ""),
-                          cached=True)
+                          cached=True, sim_times=r.get("sim_times", []))
 
     def put(self, res: CaseResult) -> None:
         """Store a successful result under its key (other entries are left alone)."""

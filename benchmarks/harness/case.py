@@ -18,6 +18,7 @@ import estimators
 import sims
 from benchmarks import protocols
 from jointbench.schema import parse
+from sims.backend import record_simulations
 
 
 @dataclasses.dataclass(frozen=True)
@@ -33,6 +34,7 @@ class Case:
     estimators: Mapping[str, Mapping[str, Any]]
     seed: int
     where: str            # "<config file>: parts.<name>", for messages only (not part of the key)
+    backend: str = "analytic"      # the simulation backend of the part (or of --backend)
 
     def spec(self) -> dict:
         return dataclasses.asdict(self)
@@ -45,7 +47,8 @@ class Case:
     def key_material(self) -> dict:
         """What the protocol sees: every field but ``study`` and ``where`` (no paths)."""
         return {"protocol": self.protocol, "part": self.part, "params": self.params, "sweep": self.sweep,
-                "experiment": self.experiment, "estimators": self.estimators, "seed": self.seed}
+                "experiment": self.experiment, "estimators": self.estimators, "seed": self.seed,
+                "backend": self.backend}
 
 
 @dataclasses.dataclass
@@ -58,6 +61,7 @@ class CaseResult:
     error: str = ""
     detail: str = ""               # traceback of a failure (for the log, not the table)
     cached: bool = False           # served from the cache rather than computed in this run
+    sim_times: list = dataclasses.field(default_factory=list)   # [backend, seconds] per simulated trial
 
     def to_json(self) -> dict:
         d = dataclasses.asdict(self)
@@ -77,7 +81,7 @@ def parse_inputs(case: Case):
     params = parse(proto.Params, {**case.params, **case.sweep}, f"{case.where}: params")
     exp = None
     if case.experiment is not None:
-        exp = sims.Experiment.from_mapping(case.experiment, f"{case.where}: experiment")
+        exp = sims.Experiment.from_mapping(case.experiment, f"{case.where}: experiment", backend=case.backend)
     ests = {name: estimators.make(name, settings, f"{case.where}: estimators.{name}")
             for name, settings in case.estimators.items()}
     return proto, params, exp, ests
@@ -90,8 +94,10 @@ def run_case(case: Case) -> CaseResult:
         proto, params, exp, ests = parse_inputs(case)
         ctx = protocols.Context(part=case.part, seed=case.seed, params=params, experiment=exp,
                                 estimators=ests)
-        proto.fn(ctx)
-        return CaseResult(case, "ok", ctx.rows, ctx.curves, time.perf_counter() - t0)
+        with record_simulations() as log:
+            proto.fn(ctx)
+        return CaseResult(case, "ok", ctx.rows, ctx.curves, time.perf_counter() - t0,
+                          sim_times=[[b, round(t, 6)] for b, t in log])
     except Exception as exc:  # noqa: BLE001 - a failing case must not stop the others
         return CaseResult(case, "failed", [], [], time.perf_counter() - t0,
                           error=f"{type(exc).__name__}: {exc}", detail=traceback.format_exc())

@@ -28,7 +28,6 @@ from benchmarks.metrics import rmse, vaf, vafm, vafv
 from benchmarks.protocols import Context, register
 from jointbench.schema import param, parse
 from sims.apparatus import TorqueDrive
-from sims.backend_ltv import LTVBackend
 from sims.profile import Sine, Square
 
 OUTPUTS = ("filtered_torque", "torque", "angle")
@@ -201,8 +200,9 @@ def output_vafs(est, fit, trial, keep: np.ndarray) -> dict[str, float]:
     t = np.arange(i1 - i0) * dt
     model = _Frozen(t, fit.I[i0:i1], fit.B[i0:i1], fit.K[i0:i1])
     with np.errstate(all="ignore"):   # an estimate with K_hat or B_hat < 0 makes the model unstable
-        resp = LTVBackend().run(model, TorqueDrive(), tau[i0:i1], np.zeros(i1 - i0), trial.fs,
-                                x0=(float(theta[i0]), float(d1[i0])))
+        # the estimated model's own response: an analytic computation whatever backend made the trial
+        resp = sims.BACKENDS.get("ltv")().run(model, TorqueDrive(), tau[i0:i1], np.zeros(i1 - i0), trial.fs,
+                                              x0=(float(theta[i0]), float(d1[i0])))
         ok = np.all(np.isfinite(resp.angle)) and np.max(np.abs(resp.angle)) <= 100 * np.max(np.abs(theta[i0:i1]))
         out["angle"] = vaf(theta[i0:i1], resp.angle) if ok else float("nan")   # NaN: the model diverged
     return out
@@ -242,7 +242,7 @@ def exact_fit(est, trial) -> _ExactFit:
     t = np.arange(n) / fs
     joint = _Frozen(t, *(np.broadcast_to(np.asarray(getattr(truth, k), float), (n,)).copy() for k in "IBK"))
     tau = np.asarray(truth.signals["command"], float)
-    resp = LTVBackend().run(joint, TorqueDrive(), tau, np.zeros(n), fs)
+    resp = sims.BACKENDS.get("ltv")().run(joint, TorqueDrive(), tau, np.zeros(n), fs)
     Phi = np.stack([resp.acceleration, resp.velocity, resp.angle], axis=-1)[None]
     theta = ewls_regression(Phi, tau[None], fs, s.forgetting, s.init_window)
     return _ExactFit(I=theta[:, 0], B=theta[:, 1], K=theta[:, 2], y=tau, yhat=np.einsum("ni,ni->n", Phi[0], theta))
