@@ -178,7 +178,7 @@ def _rfft_power(x: np.ndarray) -> np.ndarray:
     return np.abs(np.fft.rfft(x - x.mean())) ** 2
 
 
-@register("kbr", tags=("ltv", "parametric", "multisine"))
+@register("kbr", tags=("ltv", "parametric", "multisine", "ensemble"))
 class KBR(Estimator):
     """Kernel-based regression of a time-varying differential equation (one multisine trial).
 
@@ -232,7 +232,8 @@ class KBR(Estimator):
     -----
     :meth:`fit` returns a :class:`KBREstimate`. :meth:`KBREstimate.stiffness` is ``|H(j w_1, t)|`` at
     the lowest excited line (the paper's "magnitude of the FRF at the lowest frequency"). Fits one
-    record at a time.
+    record at a time; given an :class:`~jointbench.ensemble.Ensemble` it fits the ensemble average
+    (ensemble mode, van de Ruit et al. 2018, Table II).
 
     References
     ----------
@@ -243,6 +244,8 @@ class KBR(Estimator):
     Lataire, J., Pintelon, R., Piga, D. & Toth, R. (2017). Continuous-time linear time-varying system
     identification with a frequency-domain kernel-based estimator. IET Control Theory Appl. 11(4), 457-465.
     """
+
+    accepts = frozenset({"trial", "ensemble"})
 
     @dataclasses.dataclass(frozen=True)
     class Settings:
