@@ -1,0 +1,137 @@
+"""Short data segments (SDS): one two-sided IRF per time window from the segments of all trials."""
+from __future__ import annotations
+
+import dataclasses
+from typing import Literal
+
+import numpy as np
+
+from estimators import Estimator, register
+from estimators._tvirf import TVLagSettings, as_ensemble, fill_invalid, lag_samples, lagged, mdl_solve
+from jointbench.ensemble import Ensemble
+from jointbench.errors import InputError
+from jointbench.estimate import TVIRFEstimate
+from jointbench.schema import param
+from jointbench.types import Trial
+
+
+def window_sums(x: np.ndarray, starts: np.ndarray, width: int) -> np.ndarray:
+    """Sums of ``x[s:s + width]`` along axis 0 for every start ``s`` (a prefix sum, then differences)."""
+    c = np.concatenate([np.zeros((1,) + x.shape[1:]), np.cumsum(x, axis=0)])
+    return c[starts + width] - c[starts]
+
+
+@register("sds", tags=("ltv", "nonparametric", "irf", "ensemble"))
+class SDS(Estimator):
+    """Short data segments: a time-invariant two-sided IRF per window, from that window in every trial.
+
+    For each window of ``W = round(window fs)`` samples (starting every ``step``), the segment of
+    every trial of the ensemble at that window contributes the regression rows whose lags all lie in
+    the segment: samples ``s + M2 ... s + W - 1 - M1`` of a segment starting at ``s``, so that no lag
+    reaches across a segment boundary into the neighbouring data (Ludvig & Perreault's point: the
+    segments are short, and the rows are built per segment rather than from a record cut into
+    pieces). The segments are pooled (``R (W - L + 1)`` rows for ``L`` lags), each with its own mean
+    removed (``remove_mean = 'segment'``), and the IRF solves the normal equations with the
+    pseudo-inverse of :func:`estimators._tvirf.mdl_solve` (order by MDL) or plain least squares.
+
+    The normal equations of all windows come from prefix sums of the lagged products, so the cost
+    does not grow with the window. The IRF of a window is assigned to its sample ``s + W // 2`` (for
+    an even ``W`` the later of the two middle samples); with ``step`` above one sample the IRF is
+    interpolated linearly between windows.
+
+    Parameters
+    ----------
+    settings : Settings
+        ``window`` (s, default 1 s), ``step`` (s, default one sample), ``lag_before``, ``lag_after``
+        (s, default 0.04 each: van de Ruit et al. 2018, Sec. V-E at 100 Hz), ``remove_mean``
+        ('segment' or 'none'), ``solver`` ('mdl' or 'full'), ``rcond``.
+
+    Notes
+    -----
+    Takes one trial (segments of that trial alone) or an :class:`~jointbench.ensemble.Ensemble`
+    (realizations of equal length and rate, aligned in time); several records are taken as an
+    ensemble. Returns a :class:`~jointbench.estimate.TVIRFEstimate`, valid from sample ``W // 2`` of
+    the first window to that of the last, held outside; ``h`` is not scaled by ``1/fs``.
+
+    References
+    ----------
+    Ludvig, D. & Perreault, E. J. (2012). System identification of physiological systems using short
+    data segments. IEEE Trans. Biomed. Eng. 59(12), 3541-3549. Ludvig, D. & Perreault, E. J. (2011).
+    Estimation of joint impedance using short data segments. Proc. IEEE EMBC 2011, 4120-4123.
+    van de Ruit et al. (2018), Sec. V-E (window of 100 samples at 100 Hz, IRF lags up to 40 ms).
+    """
+
+    accepts = frozenset({"trial", "pooled", "ensemble"})
+
+    @dataclasses.dataclass(frozen=True)
+    class Settings(TVLagSettings):
+        window: float = param(1.0, unit="s", gt=0, doc="segment length: the IRF is taken constant over it")
+        step: float | None = param(None, unit="s", gt=0, doc="distance between successive windows; none = one "
+                                                              "sample")
+        remove_mean: Literal["segment", "none"] = param("segment", doc="'segment': each segment's own mean "
+                                                                       "is removed from input and output")
+
+    def _fit(self, trials: list[Trial]) -> TVIRFEstimate:
+        return self._fit_ensemble(as_ensemble(self.name, trials))
+
+    def _fit_ensemble(self, ens: Ensemble) -> TVIRFEstimate:
+        s = self.settings
+        fs, n, R = ens.fs, ens.n, ens.size
+        m1, m2 = lag_samples(s, fs)
+        L = m1 + m2 + 1
+        W = int(round(s.window * fs))
+        rows = W - L + 1
+        if rows < 1:
+            raise InputError(f"{self.name}: window = {s.window:g} s ({W} samples at {fs:g} Hz) is shorter than the "
+                             f"lag range M1+M2+1 = {L} samples (lag_before = {s.lag_before:g} s, lag_after = "
+                             f"{s.lag_after:g} s); lengthen the window or shorten the lags")
+        if R * rows < L:
+            raise InputError(f"{self.name}: window = {s.window:g} s gives {R} segment(s) x {rows} rows = {R * rows} "
+                             f"equations for {L} lags; lengthen the window or shorten the lags")
+        if W > n:
+            raise InputError(f"{self.name}: window = {s.window:g} s ({W} samples) is longer than the records "
+                             f"of '{ens.name}' ({n} samples, {n / fs:g} s)")
+        step = 1 if s.step is None else max(1, int(round(s.step * fs)))
+        starts = np.arange(0, n - W + 1, step)
+        U, Y = ens.inputs, ens.outputs
+        scale = float(np.abs(U).max()) or 1.0
+        if not np.abs(U - U.mean(axis=0)).max() > 1e-9 * scale:
+            raise InputError(f"{self.name}: the input (imposed {ens.imposed}) is constant; nothing to identify")
+        X = lagged(U, m1, m2)                              # row i <-> sample i + M2
+        Yv = Y[m2:n - m1]
+        # prefix sums over the rows of every product the centred normal equations need, summed over trials
+        XX = np.matmul(X.transpose(0, 2, 1), X)            # (rows, L, L)
+        XY = np.einsum("trl,tr->tl", X, Yv)
+        syy = np.einsum("tr,tr->t", Yv, Yv)
+        # the rows of window s are rows i = s ... s + W - L of X (samples s + M2 ... s + W - 1 - M1)
+        S_xx = window_sums(XX, starts, rows)
+        S_xy = window_sums(XY, starts, rows)
+        S_yy = window_sums(syy, starts, rows)
+        n_obs = R * rows
+        if s.remove_mean == "segment":
+            # segment means over the whole segment (samples s ... s + W - 1) of each trial
+            mu = window_sums(U, starts, W) / W                               # (windows, R)
+            nu = window_sums(Y, starts, W) / W
+            S_x = window_sums(X, starts, rows)                               # (windows, R, L)
+            S_y = window_sums(Yv, starts, rows)                              # (windows, R)
+            # sum over rows and trials of (x - mu)(x - mu)^T, (x - mu)(y - nu), (y - nu)^2
+            S_xx = (S_xx - np.einsum("wr,wrl->wl", mu, S_x)[:, None, :] - np.einsum("wr,wrl->wl", mu, S_x)[:, :, None]
+                    + rows * np.einsum("wr,wr->w", mu, mu)[:, None, None])
+            S_xy = (S_xy - np.einsum("wr,wrl->wl", nu, S_x) - np.einsum("wr,wr->w", mu, S_y)[:, None]
+                    + rows * np.einsum("wr,wr->w", mu, nu)[:, None])
+            S_yy = S_yy - 2 * np.einsum("wr,wr->w", nu, S_y) + rows * np.einsum("wr,wr->w", nu, nu)
+        hw, order = mdl_solve(S_xx / n_obs, S_xy / n_obs, S_yy / n_obs, n_obs, s.solver, s.rcond)
+        at = starts + W // 2
+        valid = np.zeros(n, bool)
+        valid[at[0]:at[-1] + 1] = True
+        h = np.zeros((L, n))
+        if len(at) == 1:
+            h[:, at[0]] = hw[0]
+        else:
+            idx = np.arange(at[0], at[-1] + 1)
+            h[:, idx] = np.array([np.interp(idx, at, hw[:, j]) for j in range(L)])
+        info = {"realizations": R, "window_samples": W, "rows_per_segment": rows, "windows": len(starts),
+                "step_samples": step,
+                "order": f"{int(order.min())} ... {int(order.max())} of {L} (median {int(np.median(order))})"}
+        return TVIRFEstimate(lags=np.arange(-m1, m2 + 1), h=fill_invalid(h, valid), fs=fs, time=ens.time,
+                             valid=valid, estimator=self.name, info=info)
