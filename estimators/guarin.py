@@ -185,7 +185,11 @@ class Guarin(Estimator):
         X = np.lib.stride_tricks.sliding_window_view(np.concatenate([pad[0], U, pad[1]]), L, axis=0)[..., ::-1]
         X = X[first:last]                                            # (rows, R, L): row i is sample first + i
         if s.reflex:
-            xr = reflex_signal(ens.inputs - ens.inputs.mean(axis=0), fs, d, s.nonlinearity)
+            xr = reflex_signal(ens.inputs, fs, d, s.nonlinearity)
+            if s.remove_mean == "record":            # centred like the output (the rectifier has a mean)
+                xr = xr - xr.mean(axis=0)
+            elif s.remove_mean == "ensemble":
+                xr = xr - xr.mean(axis=1, keepdims=True)
             Xr = np.lib.stride_tricks.sliding_window_view(np.concatenate([np.zeros((lr - 1, R)), xr]), lr,
                                                           axis=0)[..., ::-1][first:last]
             X = np.concatenate([X, Xr], axis=2)
