@@ -75,6 +75,7 @@ class Check:
     slack: float = 0.0
     versus: Mapping[str, Any] | None = None
     by: str = ""
+    evidence: str = ""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -116,7 +117,10 @@ _STUDY_KEYS = {"study": True, "title": True, "paper": True, "published": True, "
                "parts": True}
 _CHECK_KEYS = {"id": True, "part": True, "description": True, "source": True, "published": True,
                "low": False, "high": False, "select": True, "aggregate": False, "if_missed": False,
-               "kind": False, "over": False, "direction": False, "slack": False, "versus": False, "by": False}
+               "kind": False, "over": False, "direction": False, "slack": False, "versus": False, "by": False,
+               "evidence": False}
+#: what a check's pass is evidence of (the guide's kinds); optional, checked when given
+EVIDENCE = ("reproduction", "calibrated", "sanity", "conditional")
 AGGREGATES = ("median", "mean", "min", "max")
 #: check kind -> keys it needs (besides the common ones) and keys it allows
 CHECK_KINDS = {
@@ -207,6 +211,8 @@ def load_checks(path: Path, parts: Mapping[str, Part]) -> tuple[Check, ...]:
         if extra:
             raise ConfigError(f"{where}: key {extra[0]!r} does not apply to check kind '{kind}'; "
                               f"it takes: {', '.join(sorted(allows))}")
+        if c.get("evidence", "reproduction") not in EVIDENCE:
+            raise ConfigError(f"{where}: key 'evidence': {c['evidence']!r} not allowed; allowed: {', '.join(EVIDENCE)}")
         agg = c.get("aggregate", "median")
         if agg not in AGGREGATES:
             raise ConfigError(f"{where}: key 'aggregate': {agg!r} not allowed; allowed: {', '.join(AGGREGATES)}")
@@ -229,7 +235,8 @@ def load_checks(path: Path, parts: Mapping[str, Part]) -> tuple[Check, ...]:
                          source=str(c["source"]), published=c["published"], low=low, high=high,
                          select=dict(c["select"]), aggregate=agg, if_missed=str(c.get("if_missed", "")),
                          kind=kind, over=str(c.get("over", "")), direction=direction, slack=slack,
-                         versus=dict(c["versus"]) if "versus" in c else None, by=str(c.get("by", ""))))
+                         versus=dict(c["versus"]) if "versus" in c else None, by=str(c.get("by", "")),
+                         evidence=str(c.get("evidence", ""))))
     return tuple(out)
 
 
