@@ -11,7 +11,7 @@ SHARED ?= ../shared
 .PHONY: help venv test bench reproduce westwick2012 westwick2012-fig2 westwick2012-fig3 \
         westwick2012-fig4 westwick2012-fig5 westwick2012-fig6 westwick2012-table1 westwick2012-fig7 \
         westwick2012-fig8 xu1998 xu1998-fig2 xu1998-fig3 xu1998-calibration vanderuit2018-table1 \
-        example-ankle clean-results
+        vanderuit2018-table2 example-ankle clean-results
 
 help:
 	@echo "make reproduce   run every implemented paper study (results/<study>/report.md)"
@@ -20,6 +20,7 @@ help:
 	@echo "make westwick2012[-fig2|-fig3|-fig4|-fig5|-fig6|-table1|-fig7|-fig8]"
 	@echo "make xu1998[-fig2|-fig3|-calibration]"
 	@echo "make vanderuit2018-table1"
+	@echo "make vanderuit2018-table2   Table II (single trial vs ensembles) on simulated subjects"
 	@echo "make example-ankle   README worked example on ../shared/data (developers only)"
 
 $(STAMP): pyproject.toml
@@ -38,7 +39,7 @@ bench: $(STAMP)
 	$(BIN)/python -m pytest -q tests/benchmarks --benchmark-enable --benchmark-sort=mean --benchmark-columns=median,iqr,min,mean,rounds \
 	    --benchmark-json=results/benchmarks.json
 
-reproduce: westwick2012 xu1998 vanderuit2018-table1
+reproduce: westwick2012 xu1998 vanderuit2018-table1 vanderuit2018-table2
 
 westwick2012: $(STAMP)
 	$(RUN) westwick2012
@@ -68,6 +69,9 @@ xu1998-calibration: $(STAMP)
 
 vanderuit2018-table1: $(STAMP)
 	$(RUN) vanderuit2018_table1
+
+vanderuit2018-table2: $(STAMP)
+	$(RUN) vanderuit2018_table2
 
 # The README's worked example on real ankle recordings (needs ../shared beside the checkout).
 example-ankle: $(STAMP)
