@@ -23,7 +23,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from benchmarks import io
+from benchmarks import io, io_ensemble
 from benchmarks.metrics import vaf
 from jointbench.ensemble import Ensemble
 from jointbench.errors import ConfigError, InputError
@@ -104,7 +104,7 @@ def run(args: argparse.Namespace) -> int:
 
     ensemble = args.ensemble or (len(sources) > 1 and "ensemble" in estimator.accepts
                                  and not {"trial", "pooled"} & estimator.accepts)
-    records = io.read_records(sources, fs=args.fs, ensemble=ensemble)
+    records = io_ensemble.read_records(sources, fs=args.fs, ensemble=ensemble)
     raw = list(records)                     # the trials, or the realizations of an ensemble
     if args.torque_sign == -1:
         raw = [t.replace(torque=-t.torque) for t in raw]

@@ -21,6 +21,7 @@ from typing import Literal
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
+from estimators import Estimator
 from jointbench.ensemble import Ensemble
 from jointbench.errors import InputError
 from jointbench.schema import param
@@ -41,6 +42,14 @@ class TVLagSettings:
     solver: Solver = param("mdl", doc="'mdl': pseudo-inverse keeping the singular vectors that minimise the "
                                       "MDL; 'full': every singular vector above rcond (least squares)")
     rcond: float = param(1e-10, gt=0, lt=1, doc="singular values below rcond x the largest are never kept")
+
+
+class EnsembleEstimator(Estimator):
+    """Base of the estimators whose natural data is an ensemble: a trial or a list of records is fitted
+    as an ensemble (of one, or of those records); subclasses implement ``_fit_ensemble``."""
+
+    def _fit(self, trials: list[Trial]):
+        return self._fit_ensemble(as_ensemble(self.name, trials))
 
 
 def lag_samples(settings: TVLagSettings, fs: float) -> tuple[int, int]:

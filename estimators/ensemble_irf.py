@@ -6,13 +6,12 @@ from typing import Literal
 
 import numpy as np
 
-from estimators import Estimator, register
-from estimators._tvirf import TVLagSettings, as_ensemble, centred, fill_invalid, lag_samples, lagged, mdl_solve
+from estimators import register
+from estimators._tvirf import EnsembleEstimator, TVLagSettings, centred, fill_invalid, lag_samples, lagged, mdl_solve
 from jointbench.ensemble import Ensemble
 from jointbench.errors import InputError
 from jointbench.estimate import TVIRFEstimate
 from jointbench.schema import param
-from jointbench.types import Trial
 
 
 def _moving_sum(x: np.ndarray, width: int) -> np.ndarray:
@@ -26,7 +25,7 @@ def _moving_sum(x: np.ndarray, width: int) -> np.ndarray:
 
 
 @register("ensemble_irf", tags=("ltv", "nonparametric", "irf", "ensemble"))
-class EnsembleIRF(Estimator):
+class EnsembleIRF(EnsembleEstimator):
     """Time-varying two-sided IRF fitted at every sample across the realizations of an ensemble.
 
     At sample ``t`` the ``R`` realizations give ``R`` equations ``y_r(t) = sum_k h(k, t) u_r(t - k)``,
@@ -74,9 +73,6 @@ class EnsembleIRF(Estimator):
                             "each realization's own mean; 'none'")
         pool: float = param(0.0, unit="s", ge=0, doc="also use the samples within +-pool of each time "
                                                      "(0 = the published method)")
-
-    def _fit(self, trials: list[Trial]) -> TVIRFEstimate:
-        return self._fit_ensemble(as_ensemble(self.name, trials))
 
     def _fit_ensemble(self, ens: Ensemble) -> TVIRFEstimate:
         s = self.settings

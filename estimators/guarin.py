@@ -8,13 +8,12 @@ import numpy as np
 from numpy.polynomial import legendre
 from scipy.interpolate import BSpline
 
-from estimators import Estimator, register
-from estimators._tvirf import TVLagSettings, as_ensemble, centred, lag_samples
+from estimators import register
+from estimators._tvirf import EnsembleEstimator, TVLagSettings, centred, lag_samples
 from jointbench.ensemble import Ensemble
 from jointbench.errors import InputError
 from jointbench.estimate import TVIRFEstimate
 from jointbench.schema import param
-from jointbench.types import Trial
 
 BasisKind = Literal["gaussian", "bspline", "legendre"]
 
@@ -89,7 +88,7 @@ def reflex_signal(U: np.ndarray, fs: float, delay: int, nonlinearity: str) -> np
 
 
 @register("guarin", tags=("ltv", "nonparametric", "irf", "ensemble"))
-class Guarin(Estimator):
+class Guarin(EnsembleEstimator):
     """Time-varying two-sided IRF whose coefficients are expanded on basis functions of time.
 
     ``h(k, t) = sum_m c_{k,m} phi_m(t)`` (:func:`time_basis`), so that
@@ -151,9 +150,6 @@ class Guarin(Estimator):
         def __post_init__(self):
             if self.basis == "bspline" and self.n_basis < 4:
                 raise ValueError(f"n_basis = {self.n_basis}: cubic B-splines need at least 4")
-
-    def _fit(self, trials: list[Trial]) -> GuarinEstimate:
-        return self._fit_ensemble(as_ensemble(self.name, trials))
 
     def _fit_ensemble(self, ens: Ensemble) -> GuarinEstimate:
         s = self.settings

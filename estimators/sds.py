@@ -6,13 +6,12 @@ from typing import Literal
 
 import numpy as np
 
-from estimators import Estimator, register
-from estimators._tvirf import TVLagSettings, as_ensemble, fill_invalid, lag_samples, lagged, mdl_solve
+from estimators import register
+from estimators._tvirf import EnsembleEstimator, TVLagSettings, fill_invalid, lag_samples, lagged, mdl_solve
 from jointbench.ensemble import Ensemble
 from jointbench.errors import InputError
 from jointbench.estimate import TVIRFEstimate
 from jointbench.schema import param
-from jointbench.types import Trial
 
 
 def window_sums(x: np.ndarray, starts: np.ndarray, width: int) -> np.ndarray:
@@ -22,7 +21,7 @@ def window_sums(x: np.ndarray, starts: np.ndarray, width: int) -> np.ndarray:
 
 
 @register("sds", tags=("ltv", "nonparametric", "irf", "ensemble"))
-class SDS(Estimator):
+class SDS(EnsembleEstimator):
     """Short data segments: a time-invariant two-sided IRF per window, from that window in every trial.
 
     For each window of ``W = round(window fs)`` samples (starting every ``step``), the segment of
@@ -70,9 +69,6 @@ class SDS(Estimator):
                                                               "sample")
         remove_mean: Literal["segment", "none"] = param("segment", doc="'segment': each segment's own mean "
                                                                        "is removed from input and output")
-
-    def _fit(self, trials: list[Trial]) -> TVIRFEstimate:
-        return self._fit_ensemble(as_ensemble(self.name, trials))
 
     def _fit_ensemble(self, ens: Ensemble) -> TVIRFEstimate:
         s = self.settings

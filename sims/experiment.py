@@ -330,7 +330,8 @@ def _measure(sensor: Sensor, filtered: np.ndarray, rng: np.random.Generator,
     return clean + gain * w_acq, clean  # acquisition is linear: the same as acquiring filtered + gain * w
 
 
-def _streams(seed: int | np.random.SeedSequence, replicate: int, realization: int = 0) -> dict[str, np.random.Generator]:
+def _streams(seed: int | np.random.SeedSequence, replicate: int,
+             realization: int = 0) -> dict[str, np.random.Generator]:
     """One generator per entry of :data:`STREAMS`; ``replicate`` > 0 redraws only the noise streams,
     ``realization`` > 0 every stream (a child slot of its own, far from the replicates')."""
     ss = seed if isinstance(seed, np.random.SeedSequence) else np.random.SeedSequence(seed)
