@@ -20,6 +20,7 @@ from typing import Literal
 
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
+from threadpoolctl import threadpool_limits
 
 from estimators import Estimator
 from jointbench.ensemble import Ensemble
@@ -104,6 +105,13 @@ def lagged(U: np.ndarray, m1: int, m2: int) -> np.ndarray:
     return sliding_window_view(U, L, axis=0)[..., ::-1]
 
 
+def gram_stack(X: np.ndarray) -> np.ndarray:
+    """``X[i]^T X[i]`` for every row of a stack ``(rows, R, L)``: ``(rows, L, L)``, with one BLAS thread
+    (thousands of tiny products gain nothing from threads and lose much on a loaded machine)."""
+    with threadpool_limits(limits=1):
+        return np.matmul(X.transpose(0, 2, 1), X)
+
+
 def mdl_solve(Phi: np.ndarray, phi: np.ndarray, yvar: np.ndarray, n_obs: float, solver: Solver,
               rcond: float) -> tuple[np.ndarray, np.ndarray]:
     """Pseudo-inverse solutions of a stack of normal equations ``Phi[t] h[t] = phi[t]``.
@@ -130,7 +138,8 @@ def mdl_solve(Phi: np.ndarray, phi: np.ndarray, yvar: np.ndarray, n_obs: float, 
     order : ndarray of int (T,)
         Singular vectors kept.
     """
-    s, V = np.linalg.eigh(Phi)
+    with threadpool_limits(limits=1):   # thousands of tiny LAPACK calls: BLAS threads only add waiting
+        s, V = np.linalg.eigh(Phi)      # (20 times slower on a loaded 2-core machine)
     s, V = s[:, ::-1], V[:, :, ::-1]
     keep = s > rcond * s[:, :1]
     proj = np.einsum("tli,tl->ti", V, phi)

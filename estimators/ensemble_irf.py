@@ -7,7 +7,8 @@ from typing import Literal
 import numpy as np
 
 from estimators import register
-from estimators._tvirf import EnsembleEstimator, TVLagSettings, centred, fill_invalid, lag_samples, lagged, mdl_solve
+from estimators._tvirf import (EnsembleEstimator, TVLagSettings, centred, fill_invalid, gram_stack, lag_samples,
+                               lagged, mdl_solve)
 from jointbench.ensemble import Ensemble
 from jointbench.errors import InputError
 from jointbench.estimate import TVIRFEstimate
@@ -93,7 +94,7 @@ class EnsembleIRF(EnsembleEstimator):
         U, Y = centred(self.name, ens, s.remove_mean)
         X = lagged(U, m1, m2)                       # (n - L + 1, R, L): row i is sample i + M2
         Yv = Y[m2:n - m1]
-        Phi = _moving_sum(np.matmul(X.transpose(0, 2, 1), X), width)
+        Phi = _moving_sum(gram_stack(X), width)
         phi = _moving_sum(np.einsum("trl,tr->tl", X, Yv), width)
         yy = _moving_sum(np.einsum("tr,tr->t", Yv, Yv), width)
         n_obs = R * width

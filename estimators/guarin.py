@@ -7,9 +7,10 @@ from typing import Literal
 import numpy as np
 from numpy.polynomial import legendre
 from scipy.interpolate import BSpline
+from threadpoolctl import threadpool_limits
 
 from estimators import register
-from estimators._tvirf import EnsembleEstimator, TVLagSettings, centred, lag_samples
+from estimators._tvirf import EnsembleEstimator, TVLagSettings, centred, gram_stack, lag_samples
 from jointbench.ensemble import Ensemble
 from jointbench.errors import InputError
 from jointbench.estimate import TVIRFEstimate
@@ -192,10 +193,11 @@ class Guarin(EnsembleEstimator):
         Ly = X.shape[2]
         Yv = Y[first:last]
         Phi = time_basis(s.basis, M, n, s.width)[first:last]          # (rows, M)
-        S = np.matmul(X.transpose(0, 2, 1), X).reshape(n_rows, Ly * Ly)
+        S = gram_stack(X).reshape(n_rows, Ly * Ly)
         q = np.einsum("trl,tr->tl", X, Yv)
         PP = (Phi[:, :, None] * Phi[:, None, :]).reshape(n_rows, M * M)
-        G = (PP.T @ S).reshape(M, M, Ly, Ly).transpose(0, 2, 1, 3).reshape(M * Ly, M * Ly)
+        with threadpool_limits(limits=1):     # a long, thin product: threads only wait on a loaded machine
+            G = (PP.T @ S).reshape(M, M, Ly, Ly).transpose(0, 2, 1, 3).reshape(M * Ly, M * Ly)
         b = (Phi.T @ q).reshape(M * Ly)
         scale = np.sqrt(np.maximum(np.diag(G), 1e-300))
         Gs = G / scale[:, None] / scale[None, :]

@@ -14,10 +14,8 @@ from jointbench.estimate import TVIRFEstimate
 from jointbench.schema import param
 
 
-def window_sums(x: np.ndarray, starts: np.ndarray, width: int) -> np.ndarray:
-    """Sums of ``x[s:s + width]`` along axis 0 for every start ``s`` (a prefix sum, then differences)."""
-    c = np.concatenate([np.zeros((1,) + x.shape[1:]), np.cumsum(x, axis=0)])
-    return c[starts + width] - c[starts]
+#: windows whose normal equations are formed at once (bounds memory at about 2000 L^2 numbers)
+_CHUNK = 2000
 
 
 @register("sds", tags=("ltv", "nonparametric", "irf", "ensemble"))
@@ -33,10 +31,11 @@ class SDS(EnsembleEstimator):
     removed (``remove_mean = 'segment'``), and the IRF solves the normal equations with the
     pseudo-inverse of :func:`estimators._tvirf.mdl_solve` (order by MDL) or plain least squares.
 
-    The normal equations of all windows come from prefix sums of the lagged products, so the cost
-    does not grow with the window. The IRF of a window is assigned to its sample ``s + W // 2`` (for
-    an even ``W`` the later of the two middle samples); with ``step`` above one sample the IRF is
-    interpolated linearly between windows.
+    The normal equations of all windows come from prefix sums of the lagged products (which depend
+    only on the lag difference), so the cost does not grow with the window and the memory grows with
+    ``n L``; they are formed and solved a chunk of windows at a time. The IRF of a window is assigned
+    to its sample ``s + W // 2`` (for an even ``W`` the later of the two middle samples); with ``step``
+    above one sample the IRF is interpolated linearly between windows.
 
     Parameters
     ----------
@@ -93,30 +92,43 @@ class SDS(EnsembleEstimator):
         scale = float(np.abs(U).max()) or 1.0
         if not np.abs(U - U.mean(axis=0)).max() > 1e-9 * scale:
             raise InputError(f"{self.name}: the input (imposed {ens.imposed}) is constant; nothing to identify")
-        X = lagged(U, m1, m2)                              # row i <-> sample i + M2
+        # Prefix sums (summed over trials) of every product the centred normal equations need; memory
+        # grows with n L, not n L^2: the lagged products depend only on the lag difference.
+        # P[d, i] = sum_{tau < i} sum_r u_r(tau) u_r(tau + d)
+        P = np.zeros((L, n + 1))
+        for d in range(L):
+            P[d, 1:n - d + 1] = np.cumsum(np.einsum("tr,tr->t", U[:n - d], U[d:]))
+            P[d, n - d + 1:] = P[d, n - d]
+        X = lagged(U, m1, m2)                                        # row i <-> sample i + M2
         Yv = Y[m2:n - m1]
-        # prefix sums over the rows of every product the centred normal equations need, summed over trials
-        XX = np.matmul(X.transpose(0, 2, 1), X)            # (rows, L, L)
-        XY = np.einsum("trl,tr->tl", X, Yv)
-        syy = np.einsum("tr,tr->t", Yv, Yv)
-        # the rows of window s are rows i = s ... s + W - L of X (samples s + M2 ... s + W - 1 - M1)
-        S_xx = window_sums(XX, starts, rows)
-        S_xy = window_sums(XY, starts, rows)
-        S_yy = window_sums(syy, starts, rows)
+        Q = np.vstack([np.zeros((1, L)), np.cumsum(np.einsum("trl,tr->tl", X, Yv), axis=0)])
+        Qyy = np.concatenate([[0.0], np.cumsum(np.einsum("tr,tr->t", Yv, Yv))])
+        CU = np.vstack([np.zeros((1, R)), np.cumsum(U, axis=0)])
+        CY = np.vstack([np.zeros((1, R)), np.cumsum(Y, axis=0)])
+        j = np.arange(L)
+        D = np.abs(j[:, None] - j[None, :])                          # lag difference of column pair (j, l)
+        B = L - 1 - np.maximum(j[:, None], j[None, :])               # where its product series starts
         n_obs = R * rows
-        if s.remove_mean == "segment":
-            # segment means over the whole segment (samples s ... s + W - 1) of each trial
-            mu = window_sums(U, starts, W) / W                               # (windows, R)
-            nu = window_sums(Y, starts, W) / W
-            S_x = window_sums(X, starts, rows)                               # (windows, R, L)
-            S_y = window_sums(Yv, starts, rows)                              # (windows, R)
-            # sum over rows and trials of (x - mu)(x - mu)^T, (x - mu)(y - nu), (y - nu)^2
-            S_xx = (S_xx - np.einsum("wr,wrl->wl", mu, S_x)[:, None, :] - np.einsum("wr,wrl->wl", mu, S_x)[:, :, None]
-                    + rows * np.einsum("wr,wr->w", mu, mu)[:, None, None])
-            S_xy = (S_xy - np.einsum("wr,wrl->wl", nu, S_x) - np.einsum("wr,wr->w", mu, S_y)[:, None]
-                    + rows * np.einsum("wr,wr->w", mu, nu)[:, None])
-            S_yy = S_yy - 2 * np.einsum("wr,wr->w", nu, S_y) + rows * np.einsum("wr,wr->w", nu, nu)
-        hw, order = mdl_solve(S_xx / n_obs, S_xy / n_obs, S_yy / n_obs, n_obs, s.solver, s.rcond)
+        hw, order = np.empty((len(starts), L)), np.empty(len(starts), int)
+        for c0 in range(0, len(starts), _CHUNK):                     # bounded memory: a chunk of windows
+            w = starts[c0:c0 + _CHUNK]
+            first = w[:, None, None] + B[None]
+            S_xx = P[D[None], first + rows] - P[D[None], first]
+            S_xy = Q[w + rows] - Q[w]                                 # rows i = s ... s + rows - 1
+            S_yy = Qyy[w + rows] - Qyy[w]
+            if s.remove_mean == "segment":
+                # each trial's segment mean over its whole segment (samples s ... s + W - 1)
+                mu, nu = (CU[w + W] - CU[w]) / W, (CY[w + W] - CY[w]) / W                   # (windows, R)
+                off = w[:, None] + (L - 1 - j)[None, :]               # sample of column j at the first row
+                S_x = (CU[off + rows] - CU[off]).transpose(0, 2, 1)   # (windows, R, L): sum of u_r(t - k_j)
+                S_y = CY[w + m2 + rows] - CY[w + m2]                  # (windows, R)
+                mx = np.einsum("wr,wrl->wl", mu, S_x)
+                S_xx = S_xx - mx[:, None, :] - mx[:, :, None] + rows * np.einsum("wr,wr->w", mu, mu)[:, None, None]
+                S_xy = (S_xy - np.einsum("wr,wrl->wl", nu, S_x) - np.einsum("wr,wr->w", mu, S_y)[:, None]
+                        + rows * np.einsum("wr,wr->w", mu, nu)[:, None])
+                S_yy = S_yy - 2 * np.einsum("wr,wr->w", nu, S_y) + rows * np.einsum("wr,wr->w", nu, nu)
+            hw[c0:c0 + len(w)], order[c0:c0 + len(w)] = mdl_solve(S_xx / n_obs, S_xy / n_obs, S_yy / n_obs, n_obs,
+                                                                  s.solver, s.rcond)
         at = starts + W // 2
         valid = np.zeros(n, bool)
         valid[at[0]:at[-1] + 1] = True

@@ -93,6 +93,8 @@ RECOVERY = {
     "ibk_spectral": {"segment": 4.0},
     "ibk_irf": {"bandlimit": 20.0, "edges": "valid"},
     "ensemble_irf": {"pool": 0.02, "remove_mean": "record"},   # 30 realizations < 41 lags: pool +-10 samples
+    "sds": {"step": 0.01},                                     # 1 s windows every 5 samples, not every one
+    "guarin": {"n_basis": 6, "basis": "bspline"},              # a time-invariant record needs few functions
 }
 BAND = np.linspace(0.5, 15.0, 59)
 
