@@ -20,7 +20,7 @@ STUDY = CONFIGS / "studies" / "vanderuit2018_table2.yaml"
 
 def test_config_parses_with_readings_and_checks_that_say_what_they_are():
     s = load_study("vanderuit2018_table2")
-    assert set(s.parts) == {"table2", "table2_pralds", "table2_kbr_relaxation"}
+    assert set(s.parts) == {"table2", "table2_pralds", "table2_kbr_relaxation", "table2_one_sided_lags"}
     assert {r.id for r in s.readings} == {f"S{i}" for i in range(1, 14)}
     assert all(c.if_missed and c.evidence for c in s.checks)
     assert {c.evidence for c in s.checks} == {"calibrated", "reproduction", "conditional", "sanity"}
@@ -30,7 +30,7 @@ def test_config_parses_with_readings_and_checks_that_say_what_they_are():
         involves_kbr = "kbr" in (c.select.get("estimator"), (c.versus or {}).get("estimator"))
         assert (c.evidence in ("conditional", "calibrated")) == involves_kbr, c.id
     cases = expand(s)
-    assert len(cases) == 6 * 3 + 6 * 3 + 6
+    assert len(cases) == 6 * 3 + 6 * 3 + 6 + 6
     assert s.parts["table2"].estimators["kbr"]["refine"] is True
 
 
