@@ -20,7 +20,7 @@ from typing import Literal
 
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
-from threadpoolctl import threadpool_limits
+from threadpoolctl import ThreadpoolController
 
 from estimators import Estimator
 from jointbench.ensemble import Ensemble
@@ -105,10 +105,23 @@ def lagged(U: np.ndarray, m1: int, m2: int) -> np.ndarray:
     return sliding_window_view(U, L, axis=0)[..., ::-1]
 
 
+_CONTROLLER: ThreadpoolController | None = None
+
+
+def one_blas_thread():
+    """Context with one BLAS thread, for the many tiny products and factorizations of these estimators
+    (threads only add waiting: 10-20 times slower on a loaded 2-core machine). The controller is made
+    once: finding the BLAS libraries reads /proc and costs milliseconds per call."""
+    global _CONTROLLER
+    if _CONTROLLER is None:
+        _CONTROLLER = ThreadpoolController()
+    return _CONTROLLER.limit(limits=1)
+
+
 def gram_stack(X: np.ndarray) -> np.ndarray:
     """``X[i]^T X[i]`` for every row of a stack ``(rows, R, L)``: ``(rows, L, L)``, with one BLAS thread
     (thousands of tiny products gain nothing from threads and lose much on a loaded machine)."""
-    with threadpool_limits(limits=1):
+    with one_blas_thread():
         return np.matmul(X.transpose(0, 2, 1), X)
 
 
@@ -138,8 +151,8 @@ def mdl_solve(Phi: np.ndarray, phi: np.ndarray, yvar: np.ndarray, n_obs: float, 
     order : ndarray of int (T,)
         Singular vectors kept.
     """
-    with threadpool_limits(limits=1):   # thousands of tiny LAPACK calls: BLAS threads only add waiting
-        s, V = np.linalg.eigh(Phi)      # (20 times slower on a loaded 2-core machine)
+    with one_blas_thread():             # thousands of tiny LAPACK calls
+        s, V = np.linalg.eigh(Phi)
     s, V = s[:, ::-1], V[:, :, ::-1]
     keep = s > rcond * s[:, :1]
     proj = np.einsum("tli,tl->ti", V, phi)

@@ -7,10 +7,9 @@ from typing import Literal
 import numpy as np
 from numpy.polynomial import legendre
 from scipy.interpolate import BSpline
-from threadpoolctl import threadpool_limits
 
 from estimators import register
-from estimators._tvirf import EnsembleEstimator, TVLagSettings, centred, gram_stack, lag_samples
+from estimators._tvirf import EnsembleEstimator, TVLagSettings, centred, gram_stack, lag_samples, one_blas_thread
 from jointbench.ensemble import Ensemble
 from jointbench.errors import InputError
 from jointbench.estimate import TVIRFEstimate
@@ -196,7 +195,7 @@ class Guarin(EnsembleEstimator):
         S = gram_stack(X).reshape(n_rows, Ly * Ly)
         q = np.einsum("trl,tr->tl", X, Yv)
         PP = (Phi[:, :, None] * Phi[:, None, :]).reshape(n_rows, M * M)
-        with threadpool_limits(limits=1):     # a long, thin product: threads only wait on a loaded machine
+        with one_blas_thread():               # a long, thin product: threads only wait on a loaded machine
             G = (PP.T @ S).reshape(M, M, Ly, Ly).transpose(0, 2, 1, 3).reshape(M * Ly, M * Ly)
         b = (Phi.T @ q).reshape(M * Ly)
         scale = np.sqrt(np.maximum(np.diag(G), 1e-300))
