@@ -15,7 +15,7 @@ PAPER_STUDIES := westwick2012 xu1998 vanderuit2018_table1
 .PHONY: help venv test test-slow bench bench-save bench-studies reproduce westwick2012 westwick2012-fig2 westwick2012-fig3 \
         westwick2012-fig4 westwick2012-fig5 westwick2012-fig6 westwick2012-table1 westwick2012-fig7 \
         westwick2012-fig8 xu1998 xu1998-fig2 xu1998-fig3 xu1998-calibration vanderuit2018-table1 \
-        apparatus reproduce-mujoco example-ankle clean-results nightly chromium
+        vanderuit2018-table2 apparatus reproduce-mujoco example-ankle clean-results nightly chromium
 
 help:
 	@echo "make reproduce   run every implemented paper study (results/<study>/report.md)"
@@ -28,6 +28,7 @@ help:
 	@echo "make westwick2012[-fig2|-fig3|-fig4|-fig5|-fig6|-table1|-fig7|-fig8]"
 	@echo "make xu1998[-fig2|-fig3|-calibration]"
 	@echo "make vanderuit2018-table1"
+	@echo "make vanderuit2018-table2   Table II (single trial vs ensembles) on simulated subjects"
 	@echo "make apparatus   servo stiffness and gravity on the MuJoCo backend (results/apparatus/)"
 	@echo "make reproduce-mujoco   every paper study on MuJoCo too (results/<study>/backend-mujoco/), then"
 	@echo "                 the analytic reports again, with the MuJoCo value beside every check"
@@ -60,7 +61,7 @@ bench-studies: $(STAMP)
 	$(BIN)/python -m tests.benchmarks.bench --studies-only
 
 # The studies, then the README's status tables from their comparison.csv files (never typed by hand).
-reproduce: westwick2012 xu1998 vanderuit2018-table1
+reproduce: westwick2012 xu1998 vanderuit2018-table1 vanderuit2018-table2
 	$(BIN)/jointbench status --write-readme
 
 westwick2012: $(STAMP)
@@ -91,6 +92,9 @@ xu1998-calibration: $(STAMP)
 
 vanderuit2018-table1: $(STAMP)
 	$(RUN) vanderuit2018_table1
+
+vanderuit2018-table2: $(STAMP)
+	$(RUN) vanderuit2018_table2
 
 # Apparatus effects only a physics backend simulates (its parts say backend: mujoco).
 apparatus: $(STAMP)

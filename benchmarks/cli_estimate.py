@@ -22,8 +22,9 @@ from typing import Sequence
 
 import numpy as np
 
-from benchmarks import io
+from benchmarks import io, io_ensemble
 from benchmarks.metrics import vaf
+from jointbench.ensemble import Ensemble
 from jointbench.errors import ConfigError, InputError
 from jointbench.estimate import Estimate, FRFEstimate, IRFEstimate, ParametricEstimate
 from jointbench.files import atomic_write
@@ -38,7 +39,10 @@ _EPILOG = """\
 inputs: CSV with a header naming columns time, angle, torque (s, rad, N m; other columns ignored);
 NPZ or MATLAB .mat with variables time, angle, torque; or an N x 2 [angle, torque] array of an
 NPZ/.mat file chosen by --array NAME or FILE:NAME, sampled at the file's scalar 'fs' or --fs.
-Several --input are records of one condition, fitted together.
+Several --input are records of one condition, fitted together. Ensembles (realizations of one
+time-varying condition, aligned in time): an NPZ/.mat file whose angle and torque are 2-D (samples x
+realizations) with fs or time, or several --input records of equal length and rate with --ensemble
+(automatic for estimators that take ensembles only). IRF estimates go to OUT_irf.csv in long form.
 
 example:
   jointbench estimate -e ibk_irf -i ankle.npz:z_pf --decimate 10 --torque-sign -1 \\
@@ -67,6 +71,9 @@ def add_parser(subparsers) -> None:
     p.add_argument("--torque-sign", type=int, choices=(1, -1), default=1, metavar="{1,-1}",
                    help="-1 negates every torque record (for recordings whose torque is positive "
                         "opposite to the angle, e.g. the REKLAB ankle data)")
+    p.add_argument("--ensemble", action="store_true",
+                   help="take the --input records as realizations of one time-varying condition (an ensemble); "
+                        "a file with 2-D angle and torque always is one")
     p.add_argument("--plot", metavar="FIG.png", help="also draw the estimate (.png, .pdf or .svg)")
     p.add_argument("--list", action="store_true",
                    help="list the estimators (and with --estimator its settings) and exit")
@@ -95,11 +102,14 @@ def run(args: argparse.Namespace) -> int:
     plot = Path(args.plot) if args.plot else None
     _check_outputs(out, plot, sources)
 
-    raw = io.read_trials(sources, fs=args.fs)
+    ensemble = args.ensemble or (len(sources) > 1 and "ensemble" in estimator.accepts
+                                 and not {"trial", "pooled"} & estimator.accepts)
+    records = io_ensemble.read_records(sources, fs=args.fs, ensemble=ensemble)
+    raw = list(records)                     # the trials, or the realizations of an ensemble
     if args.torque_sign == -1:
         raw = [t.replace(torque=-t.torque) for t in raw]
     trials = [decimate_trial(t, args.decimate) for t in raw]
-    est = estimator.fit(trials)
+    est = estimator.fit(Ensemble(tuple(trials), name=records.name) if isinstance(records, Ensemble) else trials)
 
     frame = est.to_frame()
     response = est.response_frame()

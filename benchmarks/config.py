@@ -306,7 +306,7 @@ def _evidence(c: Mapping, where: str) -> tuple[str, str, str]:
     reading, free = str(c.get("reading", "")).strip(), str(c.get("free_parameter", "")).strip()
     if ev == "conditional":
         ids = [r.strip() for r in reading.split(",") if r.strip()]
-        if not ids or not all(re.fullmatch(r"R\d+", r) for r in ids):
+        if not ids or not all(re.fullmatch(r"[A-Z]+\d+", r) for r in ids):
             raise ConfigError(f"{where}: evidence 'conditional' needs key 'reading': the reading(s) chosen by "
                               f"outcome that the check passes under, e.g. 'R1' or 'R1, R2'; got {reading!r}")
     elif "reading" in c:
@@ -342,6 +342,8 @@ def load_checks(path: Path, parts: Mapping[str, Part]) -> tuple[Check, ...]:
         if extra:
             raise ConfigError(f"{where}: key {extra[0]!r} does not apply to check kind '{kind}'; "
                               f"it takes: {', '.join(sorted(allows))}")
+        if c.get("evidence", "reproduction") not in EVIDENCE:
+            raise ConfigError(f"{where}: key 'evidence': {c['evidence']!r} not allowed; allowed: {', '.join(EVIDENCE)}")
         agg = c.get("aggregate", "median")
         if agg not in AGGREGATES:
             raise ConfigError(f"{where}: key 'aggregate': {agg!r} not allowed; allowed: {', '.join(AGGREGATES)}")

@@ -11,6 +11,7 @@ import dataclasses
 from abc import ABC, abstractmethod
 from typing import Any, ClassVar, Mapping, Sequence
 
+from jointbench.ensemble import DATA_KINDS, Ensemble, data_kind
 from jointbench.errors import InputError
 from jointbench.estimate import Estimate
 from jointbench.registry import Registry, import_submodules
@@ -36,7 +37,14 @@ class NoSettings:
 
 
 class Estimator(ABC):
-    """Base class: holds validated settings, fits a list of trials."""
+    """Base class: holds validated settings, fits a trial, pooled records or an ensemble.
+
+    ``accepts`` declares the kinds of data the estimator takes (:data:`jointbench.ensemble.DATA_KINDS`):
+    ``trial`` (one record), ``pooled`` (several records of one stationary condition, fitted together)
+    and ``ensemble`` (an :class:`~jointbench.ensemble.Ensemble`: realizations of one time-varying
+    condition, aligned in time). Anything else is a one-line :class:`InputError`, and a harness can ask
+    :meth:`refuses` first to skip with the reason.
+    """
 
     name: ClassVar[str] = "?"
     Settings: ClassVar[type] = NoSettings
@@ -54,12 +62,36 @@ class Estimator(ABC):
             return (f"{cls.name} needs a {' or '.join(repr(k) for k in cls.perturbations)} perturbation, "
                     f"the experiment has {kind!r}")
         return None
+    accepts: ClassVar[frozenset[str]] = frozenset({"trial", "pooled"})
 
     def __init__(self, settings: Any = None):
         self.settings = self.Settings() if settings is None else settings
 
-    def fit(self, trials: Trial | Sequence[Trial]) -> Estimate:
-        """Fit one trial or several records of the same condition (pooled)."""
+    @classmethod
+    def refuses(cls, data) -> str | None:
+        """Why this estimator does not take ``data`` (its kind is not in ``accepts``), or ``None``."""
+        kind = data_kind(data)
+        if kind in cls.accepts:
+            return None
+        takes = " or ".join({"trial": "single trials", "pooled": "pooled records", "ensemble": "ensembles"}[k]
+                            for k in DATA_KINDS if k in cls.accepts)
+        if kind == "ensemble":
+            hint = "; give its realizations as a list of records to pool them" if "pooled" in cls.accepts else ""
+            return f"{cls.name}: takes {takes}, not an ensemble ('{data.name}', {data.size} realizations){hint}"
+        if kind == "trial":
+            name = data.name if isinstance(data, Trial) else list(data)[0].name
+            return f"{cls.name}: takes {takes}, not a single trial ('{name}')"
+        hint = ("; to fit them as realizations of one time-varying condition, give them as an Ensemble"
+                if "ensemble" in cls.accepts else "")
+        return f"{cls.name}: fits one record at a time (takes {takes}), got {len(list(data))} records{hint}"
+
+    def fit(self, trials: Trial | Sequence[Trial] | Ensemble) -> Estimate:
+        """Fit one trial, several records of the same condition (pooled) or an ensemble."""
+        if isinstance(trials, Ensemble):
+            why = self.refuses(trials)
+            if why:
+                raise InputError(why)
+            return self._fit_ensemble(trials)
         if isinstance(trials, Trial):
             trials = [trials]
         trials = list(trials)
@@ -68,7 +100,15 @@ class Estimator(ABC):
         fs = {t.fs for t in trials}
         if len(fs) > 1:
             raise InputError(f"{self.name}: all records must share one sampling rate, got {sorted(fs)} Hz")
+        why = self.refuses(trials)
+        if why:
+            raise InputError(why)
         return self._fit(trials)
+
+    def _fit_ensemble(self, ensemble: Ensemble) -> Estimate:
+        """Ensemble mode of a single-trial estimator: fit the ensemble average (van de Ruit et al.
+        2018, Table II). Ensemble estimators override this."""
+        return self._fit([ensemble.average()])
 
     @abstractmethod
     def _fit(self, trials: list[Trial]) -> Estimate:

@@ -175,7 +175,11 @@ class Problem:
     sv2: np.ndarray
 
 
-@register("kbr", tags=("ltv", "parametric", "multisine"))
+def _rfft_power(x: np.ndarray) -> np.ndarray:
+    return np.abs(np.fft.rfft(x - x.mean())) ** 2
+
+
+@register("kbr", tags=("ltv", "parametric", "multisine", "ensemble"))
 class KBR(Estimator):
     """Kernel-based regression of a time-varying differential equation (one multisine trial).
 
@@ -231,7 +235,8 @@ class KBR(Estimator):
     -----
     :meth:`fit` returns a :class:`KBREstimate`. :meth:`KBREstimate.stiffness` is ``|H(j w_1, t)|`` at
     the lowest excited line (the paper's "magnitude of the FRF at the lowest frequency"). Fits one
-    record at a time.
+    record at a time; given an :class:`~jointbench.ensemble.Ensemble` it fits the ensemble average
+    (ensemble mode, van de Ruit et al. 2018, Table II).
 
     References
     ----------
@@ -244,6 +249,7 @@ class KBR(Estimator):
     """
 
     perturbations = ("multisine",)   # it fits the excited lines of a sparse multisine
+    accepts = frozenset({"trial", "ensemble"})
 
     @dataclasses.dataclass(frozen=True)
     class Settings:

@@ -179,7 +179,7 @@ class SkirtEstimate(Estimate):
         return out
 
 
-@register("skirt", tags=("ltv", "nonparametric", "frf", "multisine"))
+@register("skirt", tags=("ltv", "nonparametric", "frf", "multisine", "ensemble"))
 class Skirt(Estimator):
     """Skirt decomposition of the output spectrum of a sparse-multisine experiment.
 
@@ -203,7 +203,8 @@ class Skirt(Estimator):
     ``I_Y(k) = sum_n r_n x^n``, ``x`` the bin scaled to [-1, 1] over the band (eq. A.2, order
     ``N_r``). Only the estimate at the centre line is kept; the first (last) line is taken from the
     first (last) band. Several records of one condition share the ``G_p`` (same length, same lines)
-    and each has its own transient polynomial.
+    and each has its own transient polynomial. Given an :class:`~jointbench.ensemble.Ensemble`, the
+    skirt fits the ensemble average (ensemble mode, van de Ruit et al. 2018, Table II).
 
     Lines are detected from the input's DFT (bins more than ``threshold_db`` above the median bin
     power and above both neighbours, on a regular grid with empty bins between them, with at most 1 %
@@ -245,6 +246,7 @@ class Skirt(Estimator):
     """
 
     perturbations = ("multisine",)   # it decomposes the skirts around the lines of a sparse multisine
+    accepts = frozenset({"trial", "pooled", "ensemble"})
 
     @dataclasses.dataclass(frozen=True)
     class Settings:

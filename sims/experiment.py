@@ -335,9 +335,13 @@ def _measure(sensor: Sensor, filtered: np.ndarray, rng: np.random.Generator,
     return clean + gain * w_acq, clean  # acquisition is linear: the same as acquiring filtered + gain * w
 
 
-def _streams(seed: int | np.random.SeedSequence, replicate: int) -> dict[str, np.random.Generator]:
-    """One generator per entry of :data:`STREAMS`; ``replicate`` > 0 redraws only the noise streams."""
+def _streams(seed: int | np.random.SeedSequence, replicate: int,
+             realization: int = 0) -> dict[str, np.random.Generator]:
+    """One generator per entry of :data:`STREAMS`; ``replicate`` > 0 redraws only the noise streams,
+    ``realization`` > 0 every stream (a child slot of its own, far from the replicates')."""
     ss = seed if isinstance(seed, np.random.SeedSequence) else np.random.SeedSequence(seed)
+    if realization:
+        ss = np.random.SeedSequence(ss.entropy, spawn_key=tuple(ss.spawn_key) + (100000 + realization,))
     children = ss.spawn(len(STREAMS))
     if replicate:
         # a child slot far from the primary streams' (0 ... len(STREAMS) - 1), one per replicate
@@ -362,7 +366,7 @@ def _truth(exp: Experiment, signals: dict[str, np.ndarray]) -> Truth:
 
 
 def simulate(experiment: Experiment, seed: int | np.random.SeedSequence, backend: str | Any | None = None, *,
-             name: str = "trial", replicate: int = 0) -> Trial:
+             name: str = "trial", replicate: int = 0, realization: int = 0) -> Trial:
     """Simulate one trial of ``experiment``.
 
     Steps: perturbation and voluntary torque at fs_sim -> backend (limb + apparatus) -> sensor models
@@ -384,6 +388,11 @@ def simulate(experiment: Experiment, seed: int | np.random.SeedSequence, backend
     replicate : int
         0 for the trial itself; 1, 2, ... for further trials with the same perturbation and voluntary
         torque but new sensor-noise realisations (e.g. the validation trial of van de Ruit et al. 2018).
+    realization : int
+        0 for the trial itself; 1, 2, ... for further realizations of the same experiment: every random
+        stream (perturbation, voluntary torque, noise) drawn anew, the joint's time variation unchanged
+        (an ensemble, MacNeil et al. 1992; a jittered time variation is the caller's, e.g.
+        :mod:`sims.subjects`). Combines with ``replicate`` (new noise for that realization).
 
     Returns
     -------
@@ -416,9 +425,10 @@ def simulate(experiment: Experiment, seed: int | np.random.SeedSequence, backend
         raise TypeError(f"simulate() needs an Experiment, got {type(exp).__name__}")
     if seed is None:
         raise TypeError("simulate() needs a seed (an int >= 0 or a SeedSequence); None is not reproducible")
-    if isinstance(replicate, bool) or not isinstance(replicate, int) or replicate < 0:
-        raise ValueError(f"simulate(): replicate must be a whole number >= 0, got {replicate!r}")
-    rng = _streams(seed, replicate)
+    for key, v in (("replicate", replicate), ("realization", realization)):
+        if isinstance(v, bool) or not isinstance(v, int) or v < 0:
+            raise ValueError(f"simulate(): {key} must be a whole number >= 0, got {v!r}")
+    rng = _streams(seed, replicate, realization)
     if backend is not None and backend != exp.backend:
         if isinstance(backend, str):
             exp = dataclasses.replace(exp, backend=backend)   # validates: check() of that backend

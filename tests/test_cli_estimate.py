@@ -14,6 +14,7 @@ import estimators
 from tests.multisine_data import multisine_impedance_trial
 from benchmarks import cli_estimate
 from estimators import Estimator
+from jointbench.ensemble import Ensemble
 from jointbench.errors import JointBenchError
 from jointbench.estimate import FRFEstimate, IRFEstimate, ParametricEstimate
 from jointbench.schema import param
@@ -237,7 +238,10 @@ def test_list(capsys, stubs):
 
 # Settings a method needs on the synthetic record: ibk_irf must be band-limited below the input's
 # 15 Hz bandwidth (Westwick & Perreault 2012, Sec. V-B); without it K comes out near 200 N m/rad.
-SYNTHETIC_SETTINGS = {"ibk_irf": ["--set", "bandlimit=20Hz"]}
+SYNTHETIC_SETTINGS = {"ibk_irf": ["--set", "bandlimit=20Hz"],
+                      # two copies of one record: 2 realizations < 17 lags, and no input left after removing
+                      # the ensemble mean: pool +-50 ms and remove each record's mean
+                      "ensemble_irf": ["--set", "pool=50ms", "--set", "remove_mean=record"]}
 
 
 @pytest.mark.parametrize("name", estimators.REGISTRY.names())
@@ -257,7 +261,8 @@ def test_each_registered_estimator(tmp_path, rec, capsys, name):
     assert frame.notna().all().all()
     side = [p.name for p in tmp_path.glob("o_*.csv")]
     est_cls = estimators.REGISTRY.get(name)
-    est = est_cls().fit([data])
+    est = est_cls().fit([data]) if "trial" in est_cls.accepts else \
+        estimators.make(name, {"pool": 0.05, "remove_mean": "record"}).fit(Ensemble((data, data.replace(name="b"))))
     kind = cli_estimate.response_kind(est)
     assert side == ([f"o_{kind}.csv"] if kind else [])
     # the synthetic joint has K = 100 N m/rad: any estimator should land in the right decade

@@ -9,8 +9,9 @@ from scipy import signal as sps
 import estimators
 from estimators import REGISTRY
 from jointbench.differentiators import impedance_irf
+from jointbench.ensemble import Ensemble
 from jointbench.errors import ConfigError, InputError
-from jointbench.estimate import FRFEstimate, IRFEstimate, ParametricEstimate
+from jointbench.estimate import FRFEstimate, IRFEstimate, ParametricEstimate, TVIRFEstimate
 from jointbench.types import Trial
 from tests.multisine_data import LINES, multisine_impedance_trial
 
@@ -91,12 +92,23 @@ RECOVERY = {
     "spectral": {"segment": 4.0},
     "ibk_spectral": {"segment": 4.0},
     "ibk_irf": {"bandlimit": 20.0, "edges": "valid"},
+    "ensemble_irf": {"pool": 0.02, "remove_mean": "record"},   # 30 realizations < 41 lags: pool +-10 samples
+    "sds": {"step": 0.01},                                     # 1 s windows every 5 samples, not every one
+    "guarin": {"n_basis": 6, "basis": "bspline"},              # a time-invariant record needs few functions
 }
 BAND = np.linspace(0.5, 15.0, 59)
 
 
 # ------------------------------------------------------------------------------------------- recovery
 MULTISINE = REGISTRY.names("multisine")   # estimators that need a periodic multisine input
+ENSEMBLE_ONLY = [n for n in REGISTRY.names() if "trial" not in REGISTRY.get(n).accepts]
+
+
+def pieces(trial: Trial, count: int) -> Ensemble:
+    """A stationary record cut into ``count`` equal realizations (an ensemble of a time-invariant system)."""
+    m = trial.n // count
+    return Ensemble(tuple(Trial.from_arrays(trial.angle[i * m:(i + 1) * m], trial.torque[i * m:(i + 1) * m],
+                                            trial.fs, name=f"{trial.name}[{i}]") for i in range(count)))
 
 
 @pytest.fixture(scope="module")
@@ -105,7 +117,10 @@ def elbow_multisine():
 
 
 def data_for(name, elbow, elbow_multisine):
-    """The elbow record each estimator is designed for: broadband noise, or a multisine."""
+    """The elbow record each estimator is designed for: broadband noise, or a multisine; an ensemble of
+    30 pieces of the noise record for the estimators that take ensembles only."""
+    if name in ENSEMBLE_ONLY:
+        return pieces(elbow, 30)
     return elbow_multisine if name in MULTISINE else elbow
 
 
@@ -119,8 +134,15 @@ def test_recovers_elbow_impedance(name, elbow, elbow_multisine):
         assert np.abs(H / true_impedance(f) - 1).max() < 0.01, name
         assert abs(est.stiffness(20.0) / abs(true_impedance(LINES[0])) - 1) < 0.01
         return
-    est = estimators.make(name, RECOVERY.get(name, {})).fit(elbow)
+    data = data_for(name, elbow, elbow_multisine)
+    est = estimators.make(name, RECOVERY.get(name, {})).fit(data)
     assert est.estimator == name
+    if isinstance(est, TVIRFEstimate):   # time-varying IRF of a time-invariant record: its mean frozen response
+        t = est.time[est.valid]
+        err = np.abs(est.frequency_response(BAND, t).mean(axis=0) / true_impedance(BAND) - 1)
+        assert err.max() < 0.05, (name, err.max())
+        assert abs(np.mean(est.stiffness(t)) / K0 - 1) < 0.03
+        return
     assert est.time is elbow.time
     if isinstance(est, ParametricEstimate):
         for got, want in ((est.I, I0), (est.B, B0), (est.K, K0)):
@@ -322,8 +344,10 @@ def test_valid_edges_underdetermined():
 @pytest.mark.parametrize("name", REGISTRY.names())
 def test_constant_angle_is_input_error(name):
     tr = Trial.from_arrays(np.full(2000, 0.3), np.random.default_rng(0).standard_normal(2000), FS)
+    data = pieces(Trial.from_arrays(np.full(60000, 0.3), np.random.default_rng(0).standard_normal(60000), FS), 30) \
+        if name in ENSEMBLE_ONLY else tr
     with pytest.raises(InputError):
-        estimators.make(name, RECOVERY.get(name, {})).fit(tr)
+        estimators.make(name, RECOVERY.get(name, {})).fit(data)
 
 
 # ------------------------------------------------------------------------------------- determinism

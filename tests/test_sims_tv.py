@@ -366,6 +366,7 @@ PERTURBATION_CASES = {
     "filtered_noise": {"kind": "filtered_noise", "cutoff": "10 Hz", "rms": "0.02 rad"},
     "prbs": {"kind": "prbs", "amplitude": 0.02, "clock": "10 ms"},
     "multisine": {"kind": "multisine", "quiet": "0.5 s", "period": "2 s", "f_min": "0.5 Hz", "spacing": "1.5 Hz"},
+    "pralds": {"kind": "pralds", "rms": "0.02 rad", "quiet": "0.5 s"},
 }
 
 

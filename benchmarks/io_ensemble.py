@@ -1,0 +1,126 @@
+"""Read ensembles (realizations of one time-varying condition) for ``jointbench estimate``.
+
+Two layouts (see ``docs/estimate.md``, *Ensembles*): one NPZ/.mat file whose ``angle`` and ``torque``
+are 2-D, samples × realizations, with a scalar ``fs`` or a 1-D ``time``; or several records of equal
+length and rate (read by :func:`benchmarks.io.read_trials`) taken as realizations. Every problem raises
+:class:`~jointbench.errors.InputError` with a message naming the file. Kept beside :mod:`benchmarks.io`
+(whose readers and checks it reuses) so that the single-record reader stays small.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+
+from benchmarks.io import (Source, _file_fs, _numeric, _read_mat, _read_npz, _shape, _time_base,
+                           _what_is_there, read_trials)
+from jointbench.ensemble import Ensemble
+from jointbench.errors import InputError
+
+def is_ensemble_file(source: Source | str | Path) -> bool:
+    """True for an NPZ/.mat file (column layout) whose ``angle`` and ``torque`` are 2-D (samples × realizations)."""
+    src = source if isinstance(source, Source) else Source(Path(source))
+    if src.array is not None or src.path.suffix.lower() not in (".npz", ".mat") or not src.path.is_file():
+        return False
+    try:
+        variables = _read_npz(src.path) if src.path.suffix.lower() == ".npz" else _read_mat(src.path)
+    except InputError:
+        return False
+    return all(k in variables and np.ndim(variables[k]) == 2 and min(np.shape(variables[k])) > 1
+               for k in ("angle", "torque"))
+
+
+def read_ensemble(path: str | Path, *, fs: float | None = None, name: str | None = None):
+    """Read an ensemble: an NPZ or .mat file whose ``angle`` and ``torque`` are 2-D, samples × realizations.
+
+    The sampling rate comes from a scalar ``fs`` variable, a 1-D ``time`` variable (one per sample, shared
+    by every realization) or the ``fs`` argument; time starts at ``time[0]`` (or 0).
+
+    Returns
+    -------
+    jointbench.ensemble.Ensemble
+        Realizations named ``FILE[r]`` (r from 0), ``imposed="angle"``.
+
+    Raises
+    ------
+    InputError
+        One line naming the file: missing or non-numeric variables, shapes that differ or look transposed,
+        a ``time`` that is not one shared time base, no sampling rate, NaN/inf (naming the realization).
+    """
+    path = Path(path)
+    where = str(path)
+    if not path.is_file():
+        raise InputError(f"{where}: no such file")
+    suffix = path.suffix.lower()
+    if suffix not in (".npz", ".mat"):
+        raise InputError(f"{where}: an ensemble file must be .npz or .mat with 2-D angle and torque "
+                         f"(samples x realizations), got {path.suffix or '(no extension)'!r}")
+    variables = _read_npz(path) if suffix == ".npz" else _read_mat(path)
+    missing = [k for k in ("angle", "torque") if k not in variables]
+    if missing:
+        raise InputError(f"{where}: missing variable{'s' if len(missing) > 1 else ''} "
+                         f"{', '.join(map(repr, missing))}; {_what_is_there(variables)}")
+    a = _numeric(variables["angle"], "'angle'", where)
+    y = _numeric(variables["torque"], "'torque'", where)
+    if a.ndim != 2 or y.ndim != 2:
+        raise InputError(f"{where}: an ensemble needs 2-D 'angle' and 'torque' (samples x realizations), got "
+                         f"shapes {_shape(a)} and {_shape(y)}")
+    if a.shape != y.shape:
+        raise InputError(f"{where}: 'angle' ({_shape(a)}) and 'torque' ({_shape(y)}) differ in shape; both must "
+                         f"be samples x realizations")
+    t0 = 0.0
+    if "time" in variables:
+        t = _numeric(variables["time"], "'time'", where)
+        t = np.squeeze(t) if t.ndim == 2 and min(t.shape) == 1 else t
+        if t.ndim == 2 and t.shape == a.shape:
+            if not np.allclose(t, t[:, :1]):
+                raise InputError(f"{where}: 'time' differs between realizations; the realizations of an ensemble "
+                                 f"share one time base (aligned sample by sample)")
+            t = t[:, 0]
+        if t.ndim != 1:
+            raise InputError(f"{where}: 'time' must be one time base for all realizations (1-D), got shape "
+                             f"{_shape(variables['time'])}")
+        if len(t) != a.shape[0]:
+            tip = " (transpose 'angle' and 'torque' to samples x realizations)" if len(t) == a.shape[1] else ""
+            raise InputError(f"{where}: 'time' has {len(t)} samples but 'angle' has {a.shape[0]} rows{tip}")
+        rate, t = _time_base(t, where)
+        file_fs = _file_fs(variables, fs, where)
+        if file_fs is not None and not np.isclose(rate, file_fs, rtol=1e-3):
+            raise InputError(f"{where}: the time variable gives {rate:.6g} Hz but the sampling rate is given as "
+                             f"{file_fs:g} Hz")
+        fs, t0 = (rate if file_fs is None else file_fs), float(t[0])
+    else:
+        fs = _file_fs(variables, fs, where)
+        if fs is None:
+            raise InputError(f"{where}: no sampling rate: the file has neither a scalar 'fs' nor a 'time' "
+                             f"variable; give it with --fs HZ")
+        if a.shape[0] < a.shape[1]:
+            raise InputError(f"{where}: 'angle' is {_shape(a)}: an ensemble is samples x realizations (more "
+                             f"samples than realizations); transpose 'angle' and 'torque'")
+    label = name or path.name
+    try:
+        return Ensemble.from_arrays(a, y, fs, t0=t0, name=label,
+                                    names=[f"{label}[{r}]" for r in range(a.shape[1])])
+    except InputError as exc:
+        raise InputError(f"{where}: {exc}") from None
+
+
+def read_records(sources: Sequence[Source | str | Path], *, fs: float | None = None, ensemble: bool = False):
+    """The ``--input`` records: a list of trials, or an ensemble.
+
+    An ensemble file (:func:`is_ensemble_file`) must be the only input and gives an
+    :class:`~jointbench.ensemble.Ensemble`; with ``ensemble=True`` several records of equal length and
+    rate become the realizations of one (their order is the realizations' order).
+    """
+    srcs = [s if isinstance(s, Source) else Source(Path(s)) for s in sources]
+    two_d = [s for s in srcs if is_ensemble_file(s)]
+    if two_d:
+        if len(srcs) > 1:
+            raise InputError(f"{two_d[0].path}: holds an ensemble (2-D angle and torque); give it as the only "
+                             f"--input, or give one record per file")
+        return read_ensemble(two_d[0].path, fs=fs)
+    trials = read_trials(srcs, fs=fs)
+    if not ensemble:
+        return trials
+    return Ensemble(tuple(trials), name=f"{len(trials)} records" if len(trials) > 1 else trials[0].name)
