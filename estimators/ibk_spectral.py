@@ -5,11 +5,12 @@ import dataclasses
 
 import numpy as np
 import scipy.linalg
+from scipy import stats
 
 from estimators import Estimator, register
-from estimators.spectral import WelchSettings, welch_frf
+from estimators.spectral import LEVEL, WelchSettings, frf_estimate
 from jointbench.errors import InputError
-from jointbench.estimate import FRFEstimate, ParametricEstimate
+from jointbench.estimate import Intervals, ParametricEstimate
 from jointbench.schema import param
 from jointbench.types import Trial
 
@@ -37,6 +38,12 @@ class IBKSpectral(Estimator):
     :meth:`fit` returns a :class:`~jointbench.estimate.ParametricEstimate` whose ``basis`` is the
     :class:`~jointbench.estimate.FRFEstimate` the parameters were fitted to.
 
+    Intervals (95 %): the covariance of the weighted least squares propagated from the variance of the
+    spectral estimate (:func:`spectral_covariance`: ``E|H_hat - H|^2 = |H|^2 (1 - gamma^2) /
+    (n gamma^2)`` with ``n`` effective averages, and the correlation of neighbouring frequencies that
+    the taper causes), normal quantiles. They describe the noise, not a model that does not fit (e.g.
+    reflexes, or an uncorrected sensor delay, which biases B).
+
     References
     ----------
     Westwick, D. T. & Perreault, E. J. (2012). Estimates of acausal joint impedance models. IEEE Trans.
@@ -56,8 +63,8 @@ class IBKSpectral(Estimator):
     def _fit(self, trials: list[Trial]) -> ParametricEstimate:
         s = self.settings
         fs = trials[0].fs
-        f, H, coh = welch_frf(self.name, trials, s)
-        frf = FRFEstimate(freq=f, H=H, coherence=coh, fs=fs, time=trials[0].time, estimator="spectral")
+        frf = frf_estimate(self.name, trials, s, "spectral")
+        f, H, coh = frf.freq, frf.H, frf.coherence
         sel = (f >= s.fmin) & (f <= s.fmax) & (coh > 0)
         if sel.sum() < 3:
             raise InputError(f"{self.name}: only {int(sel.sum())} frequency point(s) with nonzero coherence in "
@@ -76,4 +83,50 @@ class IBKSpectral(Estimator):
         if rank < 3:
             raise InputError(f"{self.name}: the band {s.fmin:g} ... {s.fmax:g} Hz cannot separate I, B and K")
         I, B, K = (float(v) for v in x / scale)
-        return ParametricEstimate(I=I, B=B, K=K, fs=fs, time=trials[0].time, estimator=self.name, basis=frf)
+        est = ParametricEstimate(I=I, B=B, K=K, fs=fs, time=trials[0].time, estimator=self.name, basis=frf,
+                                 band_hz=(s.fmin, s.fmax))
+        cov = spectral_covariance(A / scale, g, H[sel], coh[sel], frf.n_averages, np.flatnonzero(sel),
+                                  int(round(s.segment * fs)), s.window) / np.outer(scale, scale)
+        z = float(stats.norm.ppf(0.5 + LEVEL / 2))
+        se = np.sqrt(np.maximum(np.diag(cov), 0.0))
+        bounds = {k: (v - z * e, v + z * e) for k, v, e in zip("IBK", (I, B, K), se)}
+        bounds["stiffness"] = bounds["K"]
+        return est.with_intervals(Intervals(level=LEVEL, method="weighted least-squares covariance from the "
+                                            f"coherence ({frf.n_averages:.1f} effective averages)", bounds=bounds,
+                                            pointwise=False))
+
+
+def window_correlation(nseg: int, window: str, most: int) -> np.ndarray:
+    """``rho_m = |sum w^2 e^{j 2 pi m n / N}|^2 / (sum w^2)^2``, ``m = 0 ... most``: the correlation of the
+    spectral estimates ``m`` frequencies apart that the taper ``w`` causes (4/9 and 1/36 for Hann)."""
+    from scipy import signal as sps
+
+    w2 = sps.get_window(window, nseg) ** 2
+    n = np.arange(nseg)
+    c = np.array([abs(np.sum(w2 * np.exp(2j * np.pi * m * n / nseg))) for m in range(most + 1)]) / w2.sum()
+    return c * c
+
+
+def spectral_covariance(A: np.ndarray, g: np.ndarray, H: np.ndarray, coh: np.ndarray, n_avg: float,
+                        bins: np.ndarray, nseg: int, window: str) -> np.ndarray:
+    """Covariance of ``x`` in the weighted least squares ``A x ~ b`` of :class:`IBKSpectral`.
+
+    ``A`` (rows: real parts, then imaginary parts, each scaled by ``g = gamma``) and ``b`` scaled
+    alike; ``x = (A^T A)^-1 A^T b``, so ``Cov x = M A^T diag(g) C diag(g) A M`` with ``M = (A^T A)^-1``
+    and ``C`` the covariance of the unscaled real and imaginary parts of ``H_hat``: variance
+    ``v_k / 2`` each, ``v_k = |H|^2 (1 - gamma^2) / (n gamma^2)`` (Bendat & Piersol 2010, Sec. 9.2.5),
+    correlated between frequencies ``m`` apart by :func:`window_correlation`.
+    """
+    v = np.abs(H) ** 2 * (1 - coh) / (max(n_avg, 1.0) * np.maximum(coh, 1e-300)) / 2.0
+    rho = window_correlation(nseg, window, 4)
+    d = np.abs(bins[:, None] - bins[None, :])
+    P = np.where(d <= 4, rho[np.minimum(d, 4)], 0.0)
+    Ck = np.sqrt(np.outer(v, v)) * P
+    nk = len(H)
+    C = np.zeros((2 * nk, 2 * nk))
+    C[:nk, :nk] = Ck
+    C[nk:, nk:] = Ck
+    gg = np.concatenate([g, g])
+    M = np.linalg.pinv(A.T @ A)
+    Ag = A * gg[:, None]
+    return M @ Ag.T @ C @ Ag @ M
