@@ -6,7 +6,7 @@ Time-varying ``I``, ``B``, ``K`` of ``tau = I theta'' + B theta' + K theta``: ze
 from __future__ import annotations
 
 import dataclasses
-from typing import Literal
+from typing import ClassVar, Literal
 
 import numpy as np
 import pandas as pd
@@ -14,8 +14,9 @@ import scipy.fft
 from scipy import signal as sps
 
 from estimators import Estimator, register
+from estimators._ewls_band import forgetting_table, pointwise_bands
 from jointbench.errors import InputError
-from jointbench.estimate import ParametricEstimate
+from jointbench.estimate import Intervals, ParametricEstimate, Prediction
 from jointbench.schema import param
 from jointbench.types import Trial
 
@@ -269,6 +270,17 @@ class FSEWLSEstimate(ParametricEstimate):
             raise ValueError("output_vaf: no samples with a varying filtered torque")
         return float(100.0 * (1.0 - np.var(y - self.predicted_filtered_torque[:, keep]) / np.var(y)))
 
+    def prediction(self, trial, index: int = 0) -> Prediction:
+        """What FSEWLS predicts: the filtered torque ``y = L H tau`` of record ``index`` and
+        ``Phi^T Theta(t)``, on the :meth:`steady` samples (its :meth:`output_vaf` for that record).
+
+        :meth:`predict` instead differentiates the angle twice, which amplifies its noise: a VAF on it
+        says little about the fit (even the true parameters can score far below zero).
+        """
+        return Prediction(self.filtered_torque[index], self.predicted_filtered_torque[index], self.steady(),
+                          "the filtered torque L H tau (the regression's output, eqs. 3-5) against Phi^T "
+                          f"Theta(t), on the samples {self.transient:.3g} s or more from either end")
+
     def frequency_response(self, f: np.ndarray, t=None) -> np.ndarray:
         """Frozen impedance ``K(t) + j w B(t) - I(t) w^2`` at times ``t`` (s), frequencies ``f`` (Hz)."""
         if t is None:
@@ -344,8 +356,16 @@ class FSEWLS(Estimator):
         svf_cutoff_means: Literal["-3dB", "a"] = param("-3dB", doc="-3 dB point of a^n/(s+a)^n, or 'a' (2 pi cutoff)")
         svf_causal: bool = param(False, doc="true: causal L (lags ~ n/a); false: zero phase, |L| kept")
         svf_form: Literal["printed", "lowpass"] = param("printed", doc="L = s^(n-2) a^n/(s+a)^n as printed, or a^n/(s+a)^n")
-        forgetting: float = param(20.0, unit="1/s", gt=0, doc="forgetting rate lambda of the EWLS (eq. 6)")
+        forgetting: float | Literal["auto"] = param(20.0, unit="1/s", gt=0, doc="forgetting rate lambda of the EWLS "
+                                                                          "(eq. 6); auto = the held-out prediction's best")
         init_window: float = param(0.5, unit="s", gt=0, doc="first seconds fitted for Theta(0) and P(0)")
+
+    #: the setting ``--set auto=true`` chooses from the data (:meth:`choose_forgetting`)
+    AUTO: ClassVar[tuple[str, ...]] = ("forgetting",)
+    #: forgetting rates (1/s) tried by :meth:`choose_forgetting`
+    FORGETTING_GRID: ClassVar[tuple[float, ...]] = (5.0, 7.0, 10.0, 14.0, 20.0, 30.0, 45.0, 70.0, 100.0, 150.0)
+    #: confidence level of the pointwise bands
+    LEVEL: ClassVar[float] = 0.95
 
     def pole(self) -> float:
         """Pole ``a`` (rad/s) of the state-variable filter."""
@@ -386,6 +406,62 @@ class FSEWLS(Estimator):
                              f"svf_cutoff and forgetting) + init_window {s.init_window:g} s = {need:.3g} s")
 
     def _fit(self, trials: list[Trial]) -> FSEWLSEstimate:
+        if self.settings.forgetting == "auto":
+            lam, table = self.choose_forgetting(trials)
+            est = type(self)(dataclasses.replace(self.settings, forgetting=lam))._fit(trials)
+            est.fit_info = {**est.fit_info, "forgetting": f"{lam:g} 1/s chosen (auto: held-out prediction VAF "
+                            f"{table[lam]:.2f} %; tried " + ", ".join(f"{k:g}" for k in table) + " 1/s)"}
+            return est
+        Phi, y, R0, r0 = self._regression(trials)
+        s, fs = self.settings, trials[0].fs
+        try:
+            Theta = ewls(Phi, y, 1.0 / fs, s.forgetting, R0, r0)
+        except np.linalg.LinAlgError:
+            raise InputError(f"{self.name}: trial '{trials[0].name}': the EWLS information matrix became "
+                             f"singular (no perturbation for much longer than 1/forgetting?)") from None
+        est = FSEWLSEstimate(I=Theta[:, 0], B=Theta[:, 1], K=Theta[:, 2], fs=fs, time=trials[0].time,
+                             estimator=self.name, filtered_torque=y,
+                             predicted_filtered_torque=np.einsum("rni,ni->rn", Phi, Theta),
+                             transient=self.transient())
+        return est.with_intervals(self.bands(Phi, y, Theta, est.steady(), fs))
+
+    def holdout_delay(self, fs: float) -> int:
+        """Samples between an estimate and the sample it predicts when held out: ``2/a`` (the
+        state-variable filter's memory, beyond which the noise has decorrelated)."""
+        return max(1, int(round(2.0 / self.pole() * fs)))
+
+    def bands(self, Phi: np.ndarray, y: np.ndarray, Theta: np.ndarray, steady: np.ndarray, fs: float) -> Intervals:
+        """Pointwise 95 % bands of I(t), B(t), K(t) (:func:`estimators._ewls_band.pointwise_bands`)."""
+        return pointwise_bands(Phi, y, Theta, 1.0 / fs, float(self.settings.forgetting), self.holdout_delay(fs),
+                               steady, self.LEVEL)
+
+    def choose_forgetting(self, trials: list[Trial]) -> tuple[float, dict[float, float]]:
+        """The forgetting rate of :data:`FORGETTING_GRID` whose estimate best predicts held-out samples
+        (:func:`estimators._ewls_band.forgetting_table`); returns it and ``{rate: VAF}``. Rates the
+        record is too short for, or too fast for the RK4 step, are skipped."""
+        fs = trials[0].fs
+        grid = []
+        for lam in self.FORGETTING_GRID:
+            candidate = type(self)(dataclasses.replace(self.settings, forgetting=lam))
+            try:
+                candidate._check(trials)
+            except InputError:
+                continue
+            grid.append((lam, candidate))
+        if not grid:
+            raise InputError(f"{self.name}: forgetting = auto: the record ({trials[0].duration:.3g} s at {fs:g} Hz) is "
+                             f"too short or too slowly sampled for every rate tried "
+                             f"({', '.join(f'{v:g}' for v in self.FORGETTING_GRID)} 1/s)")
+        Phi, y, R0, r0 = grid[0][1]._regression(trials)
+        tr = max(e.transient() for _, e in grid)
+        t = trials[0].time
+        keep = (t - t[0] >= tr) & (t[-1] - t >= tr)
+        table = forgetting_table(Phi, y, R0, r0, 1.0 / fs, [lam for lam, _ in grid], self.holdout_delay(fs), keep,
+                                 ewls)
+        return max(table, key=table.get), table
+
+    def _regression(self, trials: list[Trial]) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Checked records -> ``Phi``, ``y`` (eqs. 3-5) and the initial ``R0``, ``r0`` of the EWLS."""
         self._check(trials)
         s, fs = self.settings, trials[0].fs
         x = np.stack([[t.angle for t in trials], [t.torque for t in trials]])
@@ -402,12 +478,4 @@ class FSEWLS(Estimator):
             raise InputError(f"{self.name}: trial '{trials[0].name}': the filtered angle cannot separate I, "
                              f"B and K in the first init_window = {s.init_window:g} s (constant angle or "
                              f"no perturbation?)")
-        try:
-            Theta = ewls(Phi, y, 1.0 / fs, s.forgetting, R0, r0)
-        except np.linalg.LinAlgError:
-            raise InputError(f"{self.name}: trial '{trials[0].name}': the EWLS information matrix became "
-                             f"singular (no perturbation for much longer than 1/forgetting?)") from None
-        return FSEWLSEstimate(I=Theta[:, 0], B=Theta[:, 1], K=Theta[:, 2], fs=fs, time=trials[0].time,
-                              estimator=self.name, filtered_torque=y,
-                              predicted_filtered_torque=np.einsum("rni,ni->rn", Phi, Theta),
-                              transient=self.transient())
+        return Phi, y, R0, r0

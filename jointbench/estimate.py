@@ -19,10 +19,13 @@ from __future__ import annotations
 import dataclasses
 import types
 from abc import ABC, abstractmethod
-from typing import Mapping
+from typing import TYPE_CHECKING, Mapping
 
 import numpy as np
-import pandas as pd
+
+# pandas is imported where a table is made: importing this module stays cheap (jointbench estimate --list)
+if TYPE_CHECKING:  # pragma: no cover
+    import pandas as pd
 
 from jointbench.errors import InputError
 
@@ -115,6 +118,7 @@ class Estimate(ABC):
     def to_frame(self) -> pd.DataFrame:
         """``time`` plus whichever of ``I``, ``B``, ``K`` exist, and ``stiffness``; each followed by its
         ``*_lo``, ``*_hi`` confidence limits when :attr:`intervals` has them."""
+        import pandas as pd
         cols = {"time": self.time}
         cols.update(self.parameters())
         cols["stiffness"] = self.stiffness(self.time)
@@ -135,6 +139,7 @@ class Estimate(ABC):
         ``response=False``: the per-sample bounds (:attr:`Intervals.bounds`, scalars broadcast);
         ``response=True``: the response bounds (:attr:`Intervals.response`).
         """
+        import pandas as pd
         iv = self.intervals
         if iv is None:
             return frame
@@ -213,6 +218,7 @@ class IRFEstimate(Estimate):
 
     def response_frame(self) -> pd.DataFrame:
         """``lag``, ``lag_s``, ``h`` (and ``h_lo``, ``h_hi`` with intervals)."""
+        import pandas as pd
         frame = pd.DataFrame({"lag": self.lags, "lag_s": self.lags / self.fs, "h": self.h})
         return self.add_interval_columns(frame, response=True)
 
@@ -312,6 +318,7 @@ class FRFEstimate(Estimate):
     def response_frame(self) -> pd.DataFrame:
         """``freq_hz, re, im, mag, phase_rad, coherence2, significant`` (and the ``*_lo``, ``*_hi``
         limits of ``mag`` and ``phase_rad`` with intervals)."""
+        import pandas as pd
         frame = pd.DataFrame({"freq_hz": self.freq, "re": self.H.real, "im": self.H.imag,
                               "mag": np.abs(self.H), "phase_rad": np.angle(self.H),
                               "coherence2": self.coherence, "significant": self.significant()})
