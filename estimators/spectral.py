@@ -77,6 +77,29 @@ def welch_frf(name: str, trials: list[Trial], s: WelchSettings) -> tuple[np.ndar
     return f, H, np.clip(coh, 0.0, 1.0)
 
 
+def segment_spectra(trials: list[Trial], s: WelchSettings) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Frequencies and each Welch segment's ``conj(U) U``, ``conj(Y) Y``, ``conj(U) Y`` (segments in record
+    order, shape ``(segments, frequencies)``), with the segmenting, taper and detrending of
+    :func:`welch_frf` (whose spectra are their means, up to a common scale)."""
+    fs = trials[0].fs
+    nseg = int(round(s.segment * fs))
+    step = nseg - min(int(round(s.overlap * nseg)), nseg - 1)
+    w = sps.get_window(s.window, nseg)
+    uu, yy, uy = [], [], []
+    for t in trials:
+        count = 1 + (t.n - nseg) // step
+        idx = np.arange(nseg)[None, :] + step * np.arange(count)[:, None]
+        U, Y = t.angle[idx], t.torque[idx]
+        if s.detrend != "none":
+            U = sps.detrend(U, axis=-1, type=s.detrend)
+            Y = sps.detrend(Y, axis=-1, type=s.detrend)
+        FU, FY = np.fft.rfft(U * w, axis=-1), np.fft.rfft(Y * w, axis=-1)
+        uu.append(np.abs(FU) ** 2)
+        yy.append(np.abs(FY) ** 2)
+        uy.append(np.conj(FU) * FY)
+    return np.fft.rfftfreq(nseg, 1.0 / fs), np.vstack(uu), np.vstack(yy), np.vstack(uy)
+
+
 def segment_count(trials: list[Trial], s: WelchSettings) -> int:
     """Welch segments over all records (as averaged by :func:`welch_frf`)."""
     nseg = int(round(s.segment * trials[0].fs))

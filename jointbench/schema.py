@@ -39,9 +39,13 @@ def _norm_unit(u: str) -> str:
 
 def param(default: Any = dataclasses.MISSING, *, unit: str | None = None, gt: float | None = None,
           ge: float | None = None, lt: float | None = None, le: float | None = None,
-          doc: str = "", default_factory: Any = dataclasses.MISSING) -> Any:
-    """A dataclass field with an optional unit and bounds, checked by :func:`parse`."""
-    meta = {"unit": unit, "gt": gt, "ge": ge, "lt": lt, "le": le, "doc": doc}
+          doc: str = "", default_factory: Any = dataclasses.MISSING, allow_inf: bool = False) -> Any:
+    """A dataclass field with an optional unit and bounds, checked by :func:`parse`.
+
+    Numbers must be finite unless ``allow_inf`` (e.g. an SNR of ``.inf`` meaning no noise): an infinite
+    lag or segment length only overflows further on.
+    """
+    meta = {"unit": unit, "gt": gt, "ge": ge, "lt": lt, "le": le, "doc": doc, "allow_inf": allow_inf}
     if default_factory is not dataclasses.MISSING:
         return dataclasses.field(default_factory=default_factory, metadata=meta)
     return dataclasses.field(default=default, metadata=meta)
@@ -51,7 +55,8 @@ def _fail(where: str, key: str, msg: str) -> ConfigError:
     return ConfigError(f"{where}: key '{key}': {msg}")
 
 
-def _number(value: Any, unit: str | None, where: str, key: str, integer: bool) -> float | int:
+def _number(value: Any, unit: str | None, where: str, key: str, integer: bool,
+            allow_inf: bool = False) -> float | int:
     kind = "a whole number" if integer else "a number"
     if isinstance(value, bool):
         raise _fail(where, key, f"expected {kind}, got {value!r}")
@@ -74,6 +79,8 @@ def _number(value: Any, unit: str | None, where: str, key: str, integer: bool) -
         raise _fail(where, key, f"expected {kind}" + (f" in {unit}" if unit else "") + f", got {value!r}")
     if isinstance(value, float) and math.isnan(value):
         raise _fail(where, key, "NaN is not allowed")
+    if isinstance(value, float) and math.isinf(value) and not allow_inf:
+        raise _fail(where, key, f"must be a finite number, got {value!r}")
     if integer:
         if float(value) != int(value):
             raise _fail(where, key, f"expected a whole number, got {value!r}")
@@ -103,7 +110,7 @@ def _convert(tp: Any, value: Any, meta: Mapping[str, Any], where: str, key: str)
             raise _fail(where, key, f"{value!r} is not allowed; allowed: {', '.join(map(repr, args))}")
         return value
     if tp is float or tp is int:
-        x = _number(value, meta.get("unit"), where, key, integer=tp is int)
+        x = _number(value, meta.get("unit"), where, key, integer=tp is int, allow_inf=bool(meta.get("allow_inf")))
         for bound, op, text in (("gt", float.__gt__, ">"), ("ge", float.__ge__, ">="),
                                 ("lt", float.__lt__, "<"), ("le", float.__le__, "<=")):
             b = meta.get(bound)
