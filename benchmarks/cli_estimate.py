@@ -419,6 +419,13 @@ def _check_outputs(out: Path, plot: Path | None, sources: Sequence["Source"]) ->
     for t in targets:
         if os.path.abspath(t) in inputs:
             raise ConfigError(f"refusing to overwrite input file {t}")
+        if t.is_dir():
+            raise ConfigError(f"{t}: is a folder; cannot write the output there")
+        parent = Path(os.path.abspath(t)).parent
+        while not parent.exists() and parent != parent.parent:
+            parent = parent.parent
+        if not parent.is_dir() or not os.access(parent, os.W_OK | os.X_OK):
+            raise ConfigError(f"{t}: cannot write there ({parent} is not a writable folder)")
 
 
 def _write_atomic(path: Path, write: Callable[[str], object]) -> None:

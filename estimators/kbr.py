@@ -8,7 +8,7 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-from estimators import Estimator, _kbr_solve as ks, register
+from estimators import Estimator, _kbr_posterior as kp, _kbr_solve as ks, register
 from jointbench.errors import InputError
 from jointbench.estimate import Estimate, Intervals, Prediction
 from jointbench.schema import param
@@ -305,13 +305,8 @@ class KBR(Estimator):
     BAND_POINTS: ClassVar[int] = 2000
 
     def memory_bytes(self, trials) -> int:
-        """Bytes the fit, its prediction and its tables need for ``trials`` (objects with ``n``, ``fs``).
-
-        The sum of the arrays alive during the fit (differentiator responses, derivatives, kernel
-        features and their DFTs, the stacked equations and their QR) and after it (GMRES's 50 vectors for
-        the periodic prediction, the frozen-response table of every sample and line, about 150 bytes a
-        cell once written as text). An upper bound within about a factor of two.
-        """
+        """Bytes the fit, its prediction and its tables need for ``trials`` (objects with ``n``, ``fs``;
+        :func:`estimators._kbr_posterior.memory_bytes`), the lines detected in the record itself."""
         s = self.settings
         n = max(t.n for t in trials)
         fs = trials[0].fs
@@ -322,17 +317,13 @@ class KBR(Estimator):
         P = s.na + s.nb + 1
         data = getattr(trials[0], "of", trials[0])          # the record itself (not a decimated shape)
         try:
-            found = self._lines(data) * data.fs / data.n
+            found = self._lines(data) * data.fs / data.n if data.n >= 64 else np.array([1.0 / T])
         except InputError:                                   # not a multisine: the fit will say so
             found = np.array([1.0 / T])
         lo, hi = (found[0], found[-1]) if s.band is None else s.band
         nk = max(1, int((hi - lo) * T) + 1)
         lines = len(found)
-        floats = (n * (2 * (max(s.na, s.nb) + 1) + 2 * P + points + 3 * r)   # D, derivatives, Phi and its DFTs
-                  + points * points * 2                                      # kernel eigenproblem
-                  + 2 * P * nk * r + 3 * 2 * nk * (P * r + P + 1)            # T; stacked equations and QR
-                  + 50 * n + (P + 3) * n)                                    # GMRES; the estimate's table
-        return int(8 * floats + 150 * n * lines)
+        return kp.memory_bytes(n, max(s.na, s.nb) + 1, P, points, r, nk, lines)
 
     # ------------------------------------------------------------------------------------- lines
     def _lines(self, trial: Trial) -> np.ndarray:
@@ -429,7 +420,7 @@ class KBR(Estimator):
 
         ``sigma = auto`` tries :data:`SIGMA_GRID` (widths up to twice the record), ``gamma = auto`` the
         factors :data:`GAMMA_SCALE_GRID` on the data-derived scales; the other is kept. The criterion is
-        the restricted marginal likelihood of :func:`estimators._kbr_solve.posterior` at each fit's final
+        the restricted marginal likelihood of :func:`estimators._kbr_posterior.posterior` at each fit's final
         noise weights. Returns the best estimate and ``{(sigma, gamma_scale): -2 log L}``.
         """
         s = self.settings
@@ -486,7 +477,7 @@ class KBR(Estimator):
             c, z, cost, steps = ks.refine(system, Db, pb.mask, pb.sv2, c, z, s.refine_iterations, s.tolerance)
             coef = system.trajectories(c, z)
         df = pb.df
-        neg2, cov = ks.posterior(system, used)
+        neg2, cov = kp.posterior(system, used)
         info = {"band_hz": f"{band[0] * df:g} ... {band[-1] * df:g}", "lines": len(pb.lines),
                 "gamma": (f"{s.gamma_scale:g} x " if s.gamma_scale != 1 else "") + "var(y)/var(x_p)"
                 if s.gamma is None else s.gamma, "neg2_log_evidence": neg2,
@@ -497,7 +488,7 @@ class KBR(Estimator):
                           f1=float(pb.lines[0] * df), lines=pb.lines * df, derivative=pb.D[:s.nb + 1],
                           info=info, estimator=self.name)
         rows = np.unique(np.linspace(0, trial.n - 1, min(trial.n, self.BAND_POINTS)).astype(int))
-        sd = np.interp(np.arange(trial.n), rows, ks.stiffness_sd(system, cov, coef, s.na, est.f1, rows))
+        sd = np.interp(np.arange(trial.n), rows, kp.stiffness_sd(system, cov, coef, s.na, est.f1, rows))
         z = float(stats.norm.ppf(0.5 + self.LEVEL / 2))
         k = est.stiffness(trial.time)
         return est.with_intervals(Intervals(level=self.LEVEL, method="posterior of the kernel regression at its "
