@@ -88,7 +88,7 @@ def memory_bytes(n: int, orders: int, P: int, points: int, r: int, nk: int, line
 
     The sum of the arrays alive during the fit (``orders`` differentiator responses and derivatives,
     the ``P`` regressors, ``r`` kernel features on ``points`` times and their DFTs, the stacked
-    equations of ``nk`` band bins and their QR) and after it (GMRES's 50 vectors for the periodic
+    equations of ``nk`` band bins and their QR) and after it (GMRES's 200 vectors for the periodic
     prediction, the frozen-response table of every sample and line, about 150 bytes a row with its
     temporaries). An upper bound within about a factor of two (100 000 samples, 25 lines: 475 MiB
     planned, 565 MB peak resident, the interpreter and libraries included).
@@ -96,5 +96,5 @@ def memory_bytes(n: int, orders: int, P: int, points: int, r: int, nk: int, line
     floats = (n * (2 * orders + 2 * P + points + 3 * r)       # D, derivatives, Phi and its DFTs
               + points * points * 2                           # kernel eigenproblem
               + 2 * P * nk * r + 3 * 2 * nk * (P * r + P + 1)  # T; stacked equations and QR
-              + 50 * n + (P + 3) * n)                         # GMRES; the estimate's table
+              + 200 * n + (P + 3) * n)                        # GMRES(200); the estimate's table
     return int(8 * floats + 150 * n * lines)
