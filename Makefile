@@ -8,7 +8,7 @@ STAMP  := $(VENV)/.installed-stamp
 RUN    := $(BIN)/jointbench run
 SHARED ?= ../shared
 
-.PHONY: help venv test bench reproduce westwick2012 westwick2012-fig2 westwick2012-fig3 \
+.PHONY: help venv test test-slow bench reproduce westwick2012 westwick2012-fig2 westwick2012-fig3 \
         westwick2012-fig4 westwick2012-fig5 westwick2012-fig6 westwick2012-table1 westwick2012-fig7 \
         westwick2012-fig8 xu1998 xu1998-fig2 xu1998-fig3 xu1998-calibration vanderuit2018-table1 \
         example-ankle clean-results
@@ -16,6 +16,7 @@ SHARED ?= ../shared
 help:
 	@echo "make reproduce   run every implemented paper study (results/<study>/report.md)"
 	@echo "make test        run the tests (creates .venv when missing)"
+	@echo "make test-slow   the long versions of some tests"
 	@echo "make bench       speed benchmarks (pytest-benchmark), JSON in results/benchmarks.json"
 	@echo "make westwick2012[-fig2|-fig3|-fig4|-fig5|-fig6|-table1|-fig7|-fig8]"
 	@echo "make xu1998[-fig2|-fig3|-calibration]"
@@ -32,6 +33,10 @@ venv: $(STAMP)
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q
+
+# the long versions of some tests (e.g. kbr on 50 s at 2.5 kHz, interval coverage on 30 s records)
+test-slow: $(STAMP)
+	$(BIN)/python -m pytest -q -m slow
 
 bench: $(STAMP)
 	mkdir -p results

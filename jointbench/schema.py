@@ -177,6 +177,18 @@ def parse(cls: type, data: Mapping[str, Any] | None, where: str) -> Any:
         raise ConfigError(f"{where}: {exc}") from None
 
 
+def _type_text(t: Any) -> str:
+    """``float | None``, ``'a' | 'b'``, ``float | 'auto'``, ``tuple[float, ...]``: a type as a user reads it."""
+    origin = typing.get_origin(t)
+    if origin is Literal:
+        return " | ".join(map(repr, typing.get_args(t)))
+    if origin in (typing.Union, types.UnionType):
+        return " | ".join(_type_text(a) for a in typing.get_args(t))
+    if t is type(None):
+        return "None"
+    return getattr(t, "__name__", str(t)).replace("typing.", "") if origin is None else str(t).replace("typing.", "")
+
+
 def describe(cls: type) -> list[tuple[str, str, str, str]]:
     """(name, type, default, doc) rows for help texts."""
     rows = []
@@ -184,11 +196,7 @@ def describe(cls: type) -> list[tuple[str, str, str, str]]:
     for f in dataclasses.fields(cls):
         default = "required" if f.default is dataclasses.MISSING else repr(f.default)
         unit = f.metadata.get("unit")
-        t = hints[f.name]
-        if typing.get_origin(t) is Literal:
-            tp = " | ".join(map(repr, typing.get_args(t)))
-        else:
-            tp = getattr(t, "__name__", str(t)).replace("typing.", "")
+        tp = _type_text(hints[f.name])
         rows.append((f.name, tp + (f" [{unit}]" if unit else ""), default, f.metadata.get("doc", "")))
     return rows
 
