@@ -50,7 +50,8 @@ def ewls_covariance(Phi: np.ndarray, y: np.ndarray, Theta: np.ndarray, dt: float
     ``gamma`` is estimated from held-out residuals ``e(t) = y(t) - Phi(t)^T Theta(t - delay)``
     (:func:`delayed_prediction_vaf`) on the ``keep`` samples: the fitted residuals ``y - Phi^T Theta``
     would underestimate it badly, the estimate following the noise within its short memory. Records pool
-    by summing ``R`` and ``S``; lags up to ``6 / lam``.
+    by summing ``R`` and ``S``; lags up to ``6 / lam``. The diagonal may come out slightly negative
+    where the estimate of ``S`` is not positive definite: callers clip it at zero.
     """
     nr, n, _ = Phi.shape
     Th = np.concatenate([np.repeat(Theta[:1], delay, axis=0), Theta[:n - delay]]) if delay else Theta
@@ -72,11 +73,9 @@ def ewls_covariance(Phi: np.ndarray, y: np.ndarray, Theta: np.ndarray, dt: float
     info = np.einsum("rni,rnj->nij", Phi, Phi)[:, _IU[0], _IU[1]] * dt
     R = _sym(_decay(info, c))
     S = _sym(_decay(om * dt * dt, c * c))
-    ev, V = np.linalg.eigh(S)                     # the estimate of a covariance: keep it positive semidefinite
-    S = (V * np.maximum(ev, 0.0)[:, None, :]) @ np.swapaxes(V, 1, 2)
     scale = 1.0 / np.sqrt(np.maximum(np.einsum("nii->ni", R), 1e-300))
-    Rs = R * scale[:, :, None] * scale[:, None, :]
-    Ri = np.linalg.pinv(Rs) * scale[:, :, None] * scale[:, None, :]
+    Rs = R * scale[:, :, None] * scale[:, None, :] + 1e-12 * np.eye(3)   # the first samples hold no information
+    Ri = np.linalg.inv(Rs) * scale[:, :, None] * scale[:, None, :]
     return Ri @ S @ Ri
 
 
