@@ -202,7 +202,8 @@ def _read_csv(path: Path) -> dict[str, np.ndarray]:
     return out
 
 
-def _available_memory() -> int:
+def available_memory() -> int:
+    """Bytes of memory available (``MemAvailable`` on Linux; 8 GiB when unknown)."""
     try:
         with open("/proc/meminfo") as f:
             for line in f:
@@ -262,9 +263,9 @@ def _read_npz(path: Path) -> dict[str, np.ndarray]:
             if nbytes > stored:
                 raise InputError(f"{where}: member '{name}' claims shape {shown} ({_size(nbytes)}), more than the "
                                  f"{_size(stored)} the archive holds for it: the file is corrupt")
-            if nbytes > _available_memory() // 2:
+            if nbytes > available_memory() // 2:
                 raise InputError(f"{where}: member '{name}' is {_size(nbytes)} ({shown}), more than half the memory "
-                                 f"available ({_size(_available_memory())}); split the recording")
+                                 f"available ({_size(available_memory())}); split the recording")
         with np.load(path, allow_pickle=False) as data:
             out = {}
             for k in data.files:
@@ -333,7 +334,7 @@ def _read_mat73(path: Path) -> dict[str, np.ndarray]:
                     out[name] = np.array([], dtype=object)
                     continue
                 nbytes = int(np.prod(obj.shape, dtype=object)) * obj.dtype.itemsize
-                if nbytes > _available_memory() // 2:
+                if nbytes > available_memory() // 2:
                     raise InputError(f"{where}: variable '{name}' is {_size(nbytes)}, more than half the memory "
                                      f"available; split the recording")
                 out[name] = np.asarray(obj[()]).T

@@ -9,7 +9,6 @@ imported inside the functions (``jointbench estimate --list`` must start quickly
 from __future__ import annotations
 
 import dataclasses
-import os
 import re
 
 from jointbench.errors import ConfigError, InputError
@@ -145,21 +144,6 @@ def check_information(trials: list) -> None:
                                  f"nothing to identify")
 
 
-def available_memory() -> int:
-    """Bytes of memory available to this process (``MemAvailable`` on Linux, else the physical memory)."""
-    try:
-        with open("/proc/meminfo") as f:
-            for line in f:
-                if line.startswith("MemAvailable:"):
-                    return int(line.split()[1]) * 1024
-    except OSError:
-        pass
-    try:
-        return int(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_AVPHYS_PAGES"))
-    except (ValueError, OSError, AttributeError):
-        return 8 << 30
-
-
 def _gib(b: float) -> str:
     return f"{b / 2 ** 30:.3g} GiB" if b >= 2 ** 29 else f"{b / 2 ** 20:.3g} MiB"
 
@@ -173,6 +157,8 @@ def check_memory(estimator, trials: list) -> None:
     if plan is None:
         return
     need = plan(trials)
+    from benchmarks.io import available_memory
+
     budget = MEMORY_FRACTION * available_memory()
     if need <= budget:
         return

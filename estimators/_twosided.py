@@ -171,15 +171,7 @@ def corr_irf(name: str, pairs: list[tuple[np.ndarray, np.ndarray]], m1: int, m2:
     symmetric Toeplitz system is solved by Levinson recursion (:func:`scipy.linalg.solve_toeplitz`).
     """
     n_lags = m1 + m2 + 1
-    phi_uu = np.zeros(n_lags)
-    phi_uy = np.zeros(n_lags)
-    for u, y in pairs:
-        nfft = scipy.fft.next_fast_len(len(u) + m1 + m2, real=True)
-        fu = scipy.fft.rfft(u, nfft)
-        r_uu = scipy.fft.irfft(np.abs(fu) ** 2, nfft)
-        r_uy = scipy.fft.irfft(np.conj(fu) * scipy.fft.rfft(y, nfft), nfft)  # sum_s u(s) y(s + k)
-        phi_uu += r_uu[:n_lags]
-        phi_uy += np.concatenate([r_uy[nfft - m1:], r_uy[:m2 + 1]])  # lags -M1 ... M2
+    phi_uu, phi_uy = corr_normal(pairs, m1, m2)
     try:
         h = scipy.linalg.solve_toeplitz(phi_uu, phi_uy, check_finite=False)
     except np.linalg.LinAlgError:
@@ -199,8 +191,8 @@ def corr_normal(pairs: list[tuple[np.ndarray, np.ndarray]], m1: int, m2: int) ->
         nfft = scipy.fft.next_fast_len(len(u) + m1 + m2, real=True)
         fu = scipy.fft.rfft(u, nfft)
         phi_uu += scipy.fft.irfft(np.abs(fu) ** 2, nfft)[:n_lags]
-        r_uy = scipy.fft.irfft(np.conj(fu) * scipy.fft.rfft(y, nfft), nfft)
-        phi_uy += np.concatenate([r_uy[nfft - m1:], r_uy[:m2 + 1]])
+        r_uy = scipy.fft.irfft(np.conj(fu) * scipy.fft.rfft(y, nfft), nfft)  # sum_s u(s) y(s + k)
+        phi_uy += np.concatenate([r_uy[nfft - m1:], r_uy[:m2 + 1]])         # lags -M1 ... M2
     return phi_uu, phi_uy
 
 

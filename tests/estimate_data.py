@@ -15,10 +15,15 @@ Three kinds of record a lab brings to the command, each with the imperfections o
 """
 from __future__ import annotations
 
+import contextlib
+import io
 from pathlib import Path
 
 import numpy as np
+import pytest
+from threadpoolctl import threadpool_limits
 
+from benchmarks.cli import main
 from jointbench.types import Trial
 from sims import simulate
 from sims.experiment import Experiment
@@ -65,3 +70,19 @@ def gated_wrist(seed: int, fs: float = 50.0, duration: float = 50.0, quiet: floa
 def save(path: Path, t: Trial) -> Path:
     np.savez(path, time=t.time, angle=t.angle, torque=t.torque)
     return path
+
+
+def run(argv) -> tuple[int, str, str]:
+    """``jointbench estimate ARGV`` in this process: exit status, stdout, stderr."""
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        code = main(["estimate", *map(str, argv)])
+    return code, out.getvalue(), err.getvalue()
+
+
+@pytest.fixture(autouse=True)
+def one_blas_thread():
+    """One BLAS thread, as the command itself runs (benchmarks.cli): threads on a loaded 2-core machine
+    turn seconds of linear algebra into minutes. Autouse in the modules that import it."""
+    with threadpool_limits(limits=1):
+        yield

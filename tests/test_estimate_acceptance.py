@@ -10,8 +10,6 @@ Records come from ``tests/estimate_data.py`` (sims), never from ../shared.
 """
 from __future__ import annotations
 
-import contextlib
-import io
 import re
 
 import numpy as np
@@ -20,17 +18,11 @@ import pytest
 from scipy import signal as sps
 
 import estimators
-from benchmarks.cli import main
-from tests.estimate_data import LTI_TRUTH, gated_wrist, lti_ankle, save, tv_elbow
+from tests.estimate_data import (LTI_TRUTH, gated_wrist, lti_ankle, one_blas_thread,  # noqa: F401 (autouse)
+                                  run, save, tv_elbow)
 
 TOL = 2.0   # points of VAF between the printed and the recomputed value (issue 13)
 
-
-def run(argv) -> tuple[int, str, str]:
-    out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        code = main(["estimate", *map(str, argv)])
-    return code, out.getvalue(), err.getvalue()
 
 
 def printed_vafs(text: str) -> list[float]:

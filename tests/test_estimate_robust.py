@@ -6,7 +6,6 @@ MATLAB v7.3 files are read; ``--list`` imports none of the heavy libraries.
 """
 from __future__ import annotations
 
-import contextlib
 import io
 import re
 import subprocess
@@ -19,18 +18,11 @@ import pandas as pd
 import pytest
 from numpy.lib import format as npf
 
-from benchmarks.cli import main
-from tests.estimate_data import gated_wrist, lti_ankle, save, tv_elbow
+from tests.estimate_data import gated_wrist, lti_ankle, one_blas_thread, run, save, tv_elbow  # noqa: F401 (autouse fixture)
 from tests.multisine_data import multisine_impedance_trial
 
 REPO = Path(__file__).resolve().parents[1]
 
-
-def run(argv) -> tuple[int, str, str]:
-    out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        code = main(["estimate", *map(str, argv)])
-    return code, out.getvalue(), err.getvalue()
 
 
 def refused(tmp_path: Path, argv, *words) -> str:
