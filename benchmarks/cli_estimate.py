@@ -3,42 +3,45 @@
 ::
 
     jointbench estimate --estimator NAME --input FILE [--input FILE ...] --output OUT.csv
-                        [--set key=value ...] [--decimate Q] [--array NAME] [--fs HZ]
-                        [--torque-sign {1,-1}] [--plot FIG.png] [--list]
+                        [--set key=value ...] [--decimate Q] [--window START:END] [--array NAME]
+                        [--fs HZ] [--torque-sign {1,-1}] [--plot FIG.png] [--list]
 
-Reads the records (:mod:`benchmarks.io`), optionally negates the torque and decimates them, fits them together with the
-estimator, writes ``OUT.csv`` (:meth:`~jointbench.estimate.Estimate.to_frame`) and, when the estimate
-has an impulse or frequency response, ``OUT_irf.csv`` or ``OUT_frf.csv`` beside it, and prints a
-summary. User errors raise :class:`~jointbench.errors.JointBenchError`; the top-level CLI prints
-them and exits with status 2. See ``docs/estimate.md``.
+Reads the records (:mod:`benchmarks.io`), optionally negates the torque, decimates and crops them,
+fits them together with the estimator, and only then, when every step that can fail has passed,
+writes ``OUT.csv`` (:meth:`~jointbench.estimate.Estimate.to_frame`), ``OUT_irf.csv`` or
+``OUT_frf.csv`` (the response, when the estimate has one), ``OUT_prediction.csv`` (what each VAF is
+computed on) and the figure, and prints a summary. User errors raise
+:class:`~jointbench.errors.JointBenchError`; the top-level CLI prints them on one line and exits with
+status 2. See ``docs/estimate.md``.
+
+Heavy modules (numpy's friends, the estimators, matplotlib) are imported inside the functions that need
+them, so that ``--list`` and ``--help`` start quickly.
 """
 from __future__ import annotations
 
 import argparse
 import dataclasses
+import io as _io
 import os
 from pathlib import Path
-from typing import Sequence
+from typing import TYPE_CHECKING, Sequence
 
-import numpy as np
-
-from benchmarks import io, io_ensemble
-from benchmarks.metrics import vaf
-from jointbench.ensemble import Ensemble
+from benchmarks.records import (check_information, check_magnitudes, check_memory, crop_gated, crop_window,
+                                decimate_trial, gate_hint, parse_window)
 from jointbench.errors import ConfigError, InputError
-from jointbench.estimate import Estimate, FRFEstimate, IRFEstimate, ParametricEstimate
 from jointbench.files import atomic_write
-from jointbench.schema import describe, parse_assignments
-from jointbench.signal import resample_trial
-from jointbench.types import Trial
+
+if TYPE_CHECKING:  # pragma: no cover
+    from benchmarks.io import Source
+    from jointbench.estimate import Estimate
 
 PLOT_SUFFIXES = (".png", ".pdf", ".svg")
 UNITS = {"I": "kg m^2", "B": "N m s/rad", "K": "N m/rad", "stiffness": "N m/rad"}
 
 _EPILOG = """\
 inputs: CSV with a header naming columns time, angle, torque (s, rad, N m; other columns ignored);
-NPZ or MATLAB .mat with variables time, angle, torque; or an N x 2 [angle, torque] array of an
-NPZ/.mat file chosen by --array NAME or FILE:NAME, sampled at the file's scalar 'fs' or --fs.
+NPZ or MATLAB .mat (v4-v7.3) with variables time, angle, torque; or an N x 2 [angle, torque] array of
+an NPZ/.mat file chosen by --array NAME or FILE:NAME, sampled at the file's scalar 'fs' or --fs.
 Several --input are records of one condition, fitted together. Ensembles (realizations of one
 time-varying condition, aligned in time): an NPZ/.mat file whose angle and torque are 2-D (samples x
 realizations) with fs or time, or several --input records of equal length and rate with --ensemble
@@ -61,11 +64,16 @@ def add_parser(subparsers) -> None:
     p.add_argument("--input", "-i", action="append", metavar="FILE[:ARRAY]",
                    help="a record (.csv, .npz, .mat); repeat for several records of one condition")
     p.add_argument("--output", "-o", metavar="OUT.csv",
-                   help="parameters over time; the IRF/FRF goes to OUT_irf.csv / OUT_frf.csv")
+                   help="parameters over time; the IRF/FRF goes to OUT_irf.csv / OUT_frf.csv, the "
+                        "torque and its prediction to OUT_prediction.csv")
     p.add_argument("--set", action="append", metavar="KEY=VALUE", dest="settings", default=[],
-                   help="estimator setting, repeatable; units allowed (lag_before=40ms)")
+                   help="estimator setting, repeatable; units allowed (lag_before=40ms); auto=true "
+                        "chooses a time-varying method's smoothing from the data")
     p.add_argument("--decimate", type=int, default=1, metavar="Q",
                    help="decimate every record by the whole factor Q (anti-alias filtered)")
+    p.add_argument("--window", metavar="START:END",
+                   help="keep only this part of every record, in seconds from its first sample "
+                        "(e.g. 5s:45s, 500ms:, :30)")
     p.add_argument("--array", metavar="NAME", help="N x 2 [angle, torque] array in NPZ/.mat inputs")
     p.add_argument("--fs", type=float, metavar="HZ", help="sampling rate when the file has none")
     p.add_argument("--torque-sign", type=int, choices=(1, -1), default=1, metavar="{1,-1}",
@@ -80,10 +88,22 @@ def add_parser(subparsers) -> None:
     p.set_defaults(func=run)
 
 
+@dataclasses.dataclass
+class Outcome:
+    """Everything a run produces, computed before anything is written."""
+
+    estimate: "Estimate"
+    raw: list
+    trials: list
+    notes: list[str]
+    predictions: list
+    frame: object
+    response: object
+    figure: bytes | None
+
+
 def run(args: argparse.Namespace) -> int:
     """Execute ``estimate``; returns 0 or raises :class:`~jointbench.errors.JointBenchError`."""
-    import estimators
-
     if args.list:
         print(list_text(args.estimator))
         return 0
@@ -93,74 +113,151 @@ def run(args: argparse.Namespace) -> int:
         raise ConfigError(f"estimate: missing {', '.join(missing)} (see jointbench estimate --help)")
     if args.decimate < 1:
         raise ConfigError(f"--decimate: must be a whole number >= 1, got {args.decimate}")
-    if args.fs is not None and not (np.isfinite(args.fs) and args.fs > 0):
-        raise ConfigError(f"--fs: must be > 0 Hz, got {args.fs}")
-    estimator = estimators.make(args.estimator, parse_assignments(args.settings, where="--set"),
-                                where="--set")
+    if args.fs is not None and not (args.fs == args.fs and 0 < args.fs < float("inf")):
+        raise ConfigError(f"--fs: must be a finite rate > 0 Hz, got {args.fs}")
+    window = parse_window(args.window) if args.window else None
+    estimator = make_estimator(args.estimator, args.settings)
+
+    from benchmarks import io
+
     sources = [io.parse_source(s, args.array) for s in args.input]
     out = Path(args.output)
     plot = Path(args.plot) if args.plot else None
     _check_outputs(out, plot, sources)
+    from benchmarks import io_ensemble
+    from jointbench.ensemble import Ensemble
 
     ensemble = args.ensemble or (len(sources) > 1 and "ensemble" in estimator.accepts
                                  and not {"trial", "pooled"} & estimator.accepts)
     records = io_ensemble.read_records(sources, fs=args.fs, ensemble=ensemble)
-    raw = list(records)                     # the trials, or the realizations of an ensemble
-    if args.torque_sign == -1:
-        raw = [t.replace(torque=-t.torque) for t in raw]
-    trials = [decimate_trial(t, args.decimate) for t in raw]
-    est = estimator.fit(Ensemble(tuple(trials), name=records.name) if isinstance(records, Ensemble) else trials)
-
-    frame = est.to_frame()
-    response = est.response_frame()
-    written = [(out, len(frame), list(frame.columns))]
-    atomic_write(out, lambda p: frame.to_csv(p, index=False))
-    if response is not None:
-        side = response_path(out, est)
-        atomic_write(side, lambda p: response.to_csv(p, index=False))
-        written.append((side, len(response), list(response.columns)))
-    if plot is not None:
-        from benchmarks.plots_estimate import plot_estimate
-
-        atomic_write(plot, lambda p: plot_estimate(est, p, trials=trials, fmt=plot.suffix[1:].lower()))
-        written.append((plot, None, None))
-    print(summary_text(args.estimator, estimator.settings, raw, trials, est, written,
-                       torque_sign=args.torque_sign))
+    outcome = compute(estimator, list(records), torque_sign=args.torque_sign, decimate=args.decimate,
+                      window=window, plot=plot, ensemble=records.name if isinstance(records, Ensemble) else None)
+    written = write_outputs(out, plot, outcome)
+    print(summary_text(args.estimator, estimator.settings, outcome, written, torque_sign=args.torque_sign))
     return 0
 
 
-# --- pieces (public so that tests and other commands can use them) --------------------------------
+# --- the steps (public so that tests and other commands can use them) ------------------------------
 
-def decimate_trial(trial: Trial, q: int) -> Trial:
-    """Decimate ``trial`` by the whole factor ``q`` with :func:`jointbench.signal.resample_trial`."""
-    try:
-        return resample_trial(trial, trial.fs / q)
-    except InputError as exc:
-        raise InputError(f"--decimate {q}: {exc}") from None
+def make_estimator(name: str, assignments: Sequence[str]):
+    """The estimator with its ``--set`` settings; ``auto=true`` sets each of its :attr:`AUTO` keys to 'auto'."""
+    import estimators
+    from jointbench.schema import parse_assignments
+
+    settings = parse_assignments(list(assignments), where="--set")
+    cls = estimators.REGISTRY.get(name)
+    if "auto" in settings:
+        value = settings.pop("auto").strip().lower()
+        if value not in ("true", "false", "yes", "no", "1", "0"):
+            raise ConfigError(f"--set (estimator '{name}'): key 'auto': expected true or false, got {value!r}")
+        keys = getattr(cls, "AUTO", ())
+        if not keys:
+            raise ConfigError(f"--set (estimator '{name}'): key 'auto': {name} has no smoothing or "
+                              f"regularisation parameter to choose from the data (the time-varying methods do)")
+        if value in ("true", "yes", "1"):
+            for k in keys:
+                settings.setdefault(k, "auto")
+    return estimators.make(name, settings, where="--set")
 
 
-def prediction_vaf(est: Estimate, trial: Trial) -> float:
-    """VAF (%) of the torque predicted from the angle, on one record.
+def compute(estimator, raw: list, *, torque_sign: int = 1, decimate: int = 1,
+            window: tuple[float | None, float | None] | None = None, plot: Path | None = None,
+            ensemble: str | None = None) -> Outcome:
+    """Every step that can fail, in order, without writing anything.
 
-    Both signals have their means removed: ``vaf(torque - mean(torque),
-    est.predict(angle - mean(angle)))``, over the whole record (edge samples included). ``nan`` when
-    the estimate cannot predict this record or the torque is constant.
+    With ``ensemble`` (its name), the records are the realizations of one time-varying condition and
+    are fitted as an :class:`~jointbench.ensemble.Ensemble` (after the same checks and cropping).
+
+    Checks the data's magnitudes, negates the torque, decimates, crops (``--window``, or the perturbed
+    part of a gated multisine for the multisine methods), checks the records carry information,
+    checks the memory the estimator plans to use, fits, checks the estimate is finite, computes the
+    VAFs, the tables and the figure.
     """
-    y = trial.output - np.mean(trial.output)
-    u = trial.input - np.mean(trial.input)
+    import numpy as np
+
+    notes: list[str] = []
+    check_magnitudes(raw)
+    if torque_sign == -1:
+        raw = [t.replace(torque=-t.torque) for t in raw]
+    trials = [decimate_trial(t, decimate) for t in raw]
+    if window is not None:
+        trials = [crop_window(t, window) for t in trials]
+    else:
+        trials, gate_notes = crop_gated(estimator, trials)
+        notes += gate_notes
+    check_information(trials)
+    check_memory(estimator, trials)
+    if ensemble is not None:
+        from jointbench.ensemble import Ensemble
+
+        est = fit(estimator, Ensemble(tuple(trials), name=ensemble))
+    else:
+        est = fit(estimator, trials)
+    frame = est.to_frame()
+    response = est.response_frame()
+    bad = [c for c in frame.columns if frame[c].dtype.kind == "f" and not np.all(np.isfinite(frame[c]))]
+    if bad:
+        raise InputError(f"{estimator.name}: the fit gave non-finite values in {', '.join(bad)}: the data do not "
+                         f"determine them (constant or far too small/large signals, or too few samples)")
+    predictions = [prediction_of(est, t, k) for k, t in enumerate(trials)]
+    figure = None
+    if plot is not None:
+        from benchmarks.plots_estimate import plot_estimate
+
+        buf = _io.BytesIO()
+        plot_estimate(est, buf, trials=trials, fmt=plot.suffix[1:].lower())
+        figure = buf.getvalue()
+    return Outcome(est, list(raw), trials, notes, predictions, frame, response, figure)
+
+
+def fit(estimator, trials: list):
+    """``estimator.fit(trials)`` with numerical failures turned into one-line errors."""
+    import numpy as np
+
     try:
-        yhat = np.asarray(est.predict(u), float)
-        return vaf(y, yhat)
-    except (NotImplementedError, ValueError):
+        with np.errstate(over="ignore", invalid="ignore", divide="ignore", under="ignore"):
+            return estimator.fit(trials)
+    except InputError as exc:
+        raise InputError(f"{exc}{gate_hint(estimator, trials)}") from None
+    except np.linalg.LinAlgError as exc:
+        raise InputError(f"{estimator.name}: the fit is numerically singular ({exc}): the records do not "
+                         f"determine the model (no perturbation, constant torque, or too few samples)"
+                         f"{gate_hint(estimator, trials)}") from None
+    except MemoryError:
+        n = sum(t.n for t in trials)
+        raise InputError(f"{estimator.name}: out of memory for {n} samples at {trials[0].fs:g} Hz; decimate "
+                         f"(--decimate) or shorten the records (--window)") from None
+
+
+def prediction_of(est, trial, index: int):
+    """:meth:`Estimate.prediction` of one record, its VAF checked to be computable."""
+    try:
+        p = est.prediction(trial, index)
+    except InputError as exc:
+        raise InputError(f"{trial.name}: {exc}") from None
+    except (ValueError, ArithmeticError) as exc:
+        raise InputError(f"{trial.name}: cannot predict the torque with the {est.estimator} estimate: "
+                         f"{exc}") from None
+    p.vaf()  # raises when the torque has no variance there
+    return p
+
+
+def prediction_vaf(est, trial, index: int = 0) -> float:
+    """VAF (%) of record ``trial`` as defined by :meth:`Estimate.prediction` (``nan`` if not computable)."""
+    try:
+        return est.prediction(trial, index).vaf()
+    except (NotImplementedError, ValueError, ArithmeticError):
         return float("nan")
 
 
-def response_kind(est: Estimate) -> str | None:
+def response_kind(est) -> str | None:
     """``"irf"``, ``"frf"`` or ``None``: the kind of :meth:`Estimate.response_frame`.
 
     For a :class:`ParametricEstimate` the kind of its ``basis``; otherwise the estimate's type, and
     for other types the frame's columns (``lag`` or ``freq_hz``).
     """
+    from jointbench.estimate import FRFEstimate, IRFEstimate, ParametricEstimate
+
     base = est.basis if isinstance(est, ParametricEstimate) else est
     if isinstance(base, IRFEstimate):
         return "irf"
@@ -176,9 +273,45 @@ def response_kind(est: Estimate) -> str | None:
     return "response"
 
 
-def response_path(out: Path, est: Estimate) -> Path:
+def response_path(out: Path, est) -> Path:
     """``OUT_irf.csv`` or ``OUT_frf.csv`` beside ``OUT.csv``."""
     return out.with_name(f"{out.stem}_{response_kind(est)}{out.suffix}")
+
+
+def prediction_path(out: Path) -> Path:
+    """``OUT_prediction.csv`` beside ``OUT.csv``."""
+    return out.with_name(f"{out.stem}_prediction{out.suffix}")
+
+
+def prediction_frame(trials: list, predictions: list):
+    """Long table: ``record, time, torque, predicted_torque, in_vaf`` (the torque as the VAF compares it)."""
+    import numpy as np
+    import pandas as pd
+
+    parts = [pd.DataFrame({"record": t.name, "time": t.time, "torque": p.y, "predicted_torque": p.yhat,
+                           "in_vaf": p.used}) for t, p in zip(trials, predictions)]
+    frame = pd.concat(parts, ignore_index=True)
+    frame["in_vaf"] = frame["in_vaf"].astype(np.int8)
+    return frame
+
+
+def write_outputs(out: Path, plot: Path | None, o: Outcome) -> list[tuple[Path, int | None, list[str] | None]]:
+    """Write every output (atomically each); nothing is written before :func:`compute` has succeeded."""
+    written = [(out, len(o.frame), list(o.frame.columns))]
+    tables = [(out, o.frame)]
+    if o.response is not None:
+        side = response_path(out, o.estimate)
+        tables.append((side, o.response))
+        written.append((side, len(o.response), list(o.response.columns)))
+    pred = prediction_frame(o.trials, o.predictions)
+    tables.append((prediction_path(out), pred))
+    written.append((prediction_path(out), len(pred), list(pred.columns)))
+    for path, table in tables:
+        atomic_write(path, lambda p, table=table: table.to_csv(p, index=False))
+    if plot is not None and o.figure is not None:
+        atomic_write(plot, lambda p: Path(p).write_bytes(o.figure))
+        written.append((plot, None, None))
+    return written
 
 
 def list_text(name: str | None = None) -> str:
@@ -189,11 +322,12 @@ def list_text(name: str | None = None) -> str:
     lines = ["estimators:"]
     width = max((len(n) for n in names), default=0)
     for n in names:
-        doc = (estimators.REGISTRY.get(n).__doc__ or "").strip().splitlines()
-        lines.append(f"  {n:<{width}}  {doc[0] if doc else ''}".rstrip())
+        lines.append(f"  {n:<{width}}  {estimators.REGISTRY.summary(n)}".rstrip())
     if not names:
         lines.append("  (none registered)")
     if name:
+        from jointbench.schema import describe
+
         cls = estimators.REGISTRY.get(name)
         rows = describe(cls.Settings)
         lines += ["", f"settings of {name!r} (--set KEY=VALUE):"]
@@ -203,46 +337,85 @@ def list_text(name: str | None = None) -> str:
         w = [max(len(r[i]) for r in [head, *rows]) for i in range(3)]
         for r in [head, *rows] if rows else []:
             lines.append(f"  {r[0]:<{w[0]}}  {r[1]:<{w[1]}}  {r[2]:<{w[2]}}  {r[3]}".rstrip())
+        auto = getattr(cls, "AUTO", ())
+        if auto:
+            lines.append(f"  auto=true chooses {', '.join(auto)} from the data (or give a key the value auto)")
     return "\n".join(lines)
 
 
-def summary_text(name: str, settings, raw: Sequence[Trial], trials: Sequence[Trial], est: Estimate,
-                 written: Sequence[tuple[Path, int | None, list[str] | None]],
+def summary_text(name: str, settings, o: Outcome, written: Sequence[tuple[Path, int | None, list[str] | None]],
                  torque_sign: int = 1) -> str:
     """The text printed after a successful run."""
+    est = o.estimate
     lines = [f"estimator: {name} ({_settings_text(settings)})",
              "inputs:" + (" (torque negated)" if torque_sign == -1 else "")]
-    w = max(len(t.name) for t in raw)
-    for r, t in zip(raw, trials):
+    w = max(len(t.name) for t in o.raw)
+    for r, t in zip(o.raw, o.trials):
         line = f"  {r.name:<{w}}  {r.n} samples at {r.fs:g} Hz ({r.duration:.3f} s)"
-        if t is not r:
-            line += f", decimated to {t.n} samples at {t.fs:g} Hz"
+        if t.fs != r.fs:
+            line += f", decimated to {t.fs:g} Hz"
+        if t.time[0] != r.time[0] or abs(t.duration - r.duration) > 1.5 / t.fs:
+            line += f", fitted on {t.time[0] - r.time[0]:.3f} ... {t.time[-1] - r.time[0] + 1 / t.fs:.3f} s ({t.n} samples)"
+        elif t.fs != r.fs:
+            line += f" ({t.n} samples)"
         lines.append(line)
+    lines += [f"  {n}" for n in o.notes]
     lines.append("estimate: " + parameters_text(est))
+    if est.intervals is not None:
+        iv = est.intervals
+        lines.append(f"  {100 * iv.level:g} % confidence intervals in [ ]: {iv.method}"
+                     + ("; pointwise bands over time" if any(_varies(b[0]) for b in iv.bounds.values()) else ""))
+    else:
+        lines.append("  (no confidence intervals: this estimator provides none)")
     extra = {k: v for k, v in est.summary().items()
              if k not in ("estimator", "fs_hz", "I", "B", "K", "stiffness")}
     for k, v in extra.items():
         lines.append(f"  {k}: {v:.6g}" if isinstance(v, float) else f"  {k}: {v}")
-    lines.append("VAF of predicted torque (means removed):")
-    for t in trials:
-        lines.append(f"  {t.name:<{w}}  {prediction_vaf(est, t):6.1f} %")
+    defs = []
+    for p in o.predictions:
+        if p.definition not in defs:
+            defs.append(p.definition)
+    lines.append("VAF of the predicted torque, 100 (1 - var(y - yhat) / var(y)) in %, y and yhat: "
+                 + "; ".join(defs))
+    for t, p in zip(o.trials, o.predictions):
+        lines.append(f"  {t.name:<{w}}  {p.vaf():6.1f} %")
     lines.append("wrote:")
     for path, rows, cols in written:
         lines.append(f"  {path}" + (f"  ({rows} rows: {', '.join(cols)})" if cols else ""))
     return "\n".join(lines)
 
 
-def parameters_text(est: Estimate) -> str:
-    """``I = ..., B = ..., K = ...`` with units (mean and range when time-varying), or the stiffness."""
+def _varies(v) -> bool:
+    import numpy as np
+
+    return np.ndim(v) > 0 and np.ptp(np.asarray(v, float)) > 0
+
+
+def parameters_text(est) -> str:
+    """``I = ... [lo, hi] unit, ...`` (mean and range when time-varying), or the stiffness."""
+    import numpy as np
+
     params = est.parameters()
     if not params:
         params = {"stiffness": np.atleast_1d(est.stiffness(est.time))}
+    bounds = est.intervals.bounds if est.intervals is not None else {}
     parts = []
     for k, v in params.items():
         v = np.asarray(v, float)
-        text = f"{k} = {np.mean(v):.4g} {UNITS.get(k, '')}".rstrip()
-        if np.ptp(v) > 1e-9 * max(abs(np.mean(v)), 1e-300):
-            text += f" (mean; {np.min(v):.4g} to {np.max(v):.4g})"
+        unit = UNITS.get(k, "")
+        varies = np.ptp(v) > 1e-9 * max(abs(np.mean(v)), 1e-300)
+        text = f"{k} = {np.mean(v):.4g}"
+        lo = hi = None
+        if k in bounds:
+            lo, hi = (np.broadcast_to(np.asarray(b, float), v.shape) for b in bounds[k])
+        if not varies and lo is not None:
+            text += f" [{np.min(lo):.4g}, {np.max(hi):.4g}]"
+        text += f" {unit}".rstrip()
+        if varies:
+            text += f" (mean; {np.min(v):.4g} to {np.max(v):.4g}"
+            if lo is not None:
+                text += f"; pointwise band +- {np.median((hi - lo) / 2):.3g} (median half-width)"
+            text += ")"
         parts.append(text)
     return ", ".join(parts)
 
@@ -254,16 +427,23 @@ def _settings_text(settings) -> str:
     return ", ".join(items) if items else "no settings"
 
 
-def _check_outputs(out: Path, plot: Path | None, sources: Sequence[io.Source]) -> None:
+def _check_outputs(out: Path, plot: Path | None, sources: Sequence["Source"]) -> None:
     if out.suffix.lower() != ".csv":
         raise ConfigError(f"--output: must name a .csv file, got {str(out)!r}")
     if out.is_dir():
         raise ConfigError(f"--output: {out} is a folder; give a file name such as {out / 'estimate.csv'}")
     if plot is not None and plot.suffix.lower() not in PLOT_SUFFIXES:
         raise ConfigError(f"--plot: must end in {', '.join(PLOT_SUFFIXES)}, got {str(plot)!r}")
-    targets = [out, out.with_name(f"{out.stem}_irf{out.suffix}"),
-               out.with_name(f"{out.stem}_frf{out.suffix}")] + ([plot] if plot else [])
+    targets = [out, out.with_name(f"{out.stem}_irf{out.suffix}"), out.with_name(f"{out.stem}_frf{out.suffix}"),
+               prediction_path(out)] + ([plot] if plot else [])
     inputs = {os.path.abspath(s.path) for s in sources}
     for t in targets:
         if os.path.abspath(t) in inputs:
             raise ConfigError(f"refusing to overwrite input file {t}")
+        if t.is_dir():
+            raise ConfigError(f"{t}: is a folder; cannot write the output there")
+        parent = Path(os.path.abspath(t)).parent
+        while not parent.exists() and parent != parent.parent:
+            parent = parent.parent
+        if not parent.is_dir() or not os.access(parent, os.W_OK | os.X_OK):
+            raise ConfigError(f"{t}: cannot write there ({parent} is not a writable folder)")

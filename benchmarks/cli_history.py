@@ -2,10 +2,12 @@
 from __future__ import annotations
 
 from pathlib import Path
-
-import pandas as pd
+from typing import TYPE_CHECKING
 
 from jointbench.errors import ConfigError
+
+if TYPE_CHECKING:  # pragma: no cover - pandas is imported where a table is made (`jointbench estimate
+    import pandas as pd  # --list` builds this parser and must start fast)
 
 
 def _history(args):
@@ -20,6 +22,8 @@ def _text(df: pd.DataFrame) -> str:
 
 
 def _list_runs(args) -> int:
+    import pandas as pd
+
     with _history(args) as h:
         if args.run is not None:
             return _show_run(h, args.run)
@@ -72,6 +76,8 @@ def _show_run(h, run_id: int) -> int:
 
 
 def _diff(args) -> int:
+    import pandas as pd
+
     from benchmarks.harness.compare import compare_runs
     from benchmarks.harness.nightly import DEFAULT_CONFIG, load_config
 

@@ -16,6 +16,10 @@ Two layouts are understood:
 
 The angle is taken as the imposed signal (``Trial.imposed == "angle"``). Every problem raises
 :class:`~jointbench.errors.InputError` with a message naming the file.
+
+MATLAB files of versions 4 to 7.2 are read with :func:`scipy.io.loadmat`, version 7.3 (HDF5) with
+``h5py``. An NPZ member is loaded only after its header's claimed size has been checked against the
+bytes stored and the memory available.
 """
 from __future__ import annotations
 
@@ -172,6 +176,12 @@ def _read_csv(path: Path) -> dict[str, np.ndarray]:
     except (pd.errors.ParserError, UnicodeDecodeError, OSError) as exc:
         raise InputError(f"{where}: cannot read as CSV: {str(exc).strip()}") from None
     out: dict[str, np.ndarray] = {}
+    header = _csv_header(path)
+    for key in COLUMNS:
+        same = [c for c in header if c.strip().lower() == key]
+        if len(same) > 1:
+            raise InputError(f"{where}: {len(same)} columns are named {key!r} (ignoring case): "
+                             f"{', '.join(map(repr, same))}; keep one or rename the others")
     for col in df.columns:
         key = str(col).strip().lower()
         if key not in COLUMNS or key in out:
@@ -192,12 +202,71 @@ def _read_csv(path: Path) -> dict[str, np.ndarray]:
     return out
 
 
+def available_memory() -> int:
+    """Bytes of memory available (``MemAvailable`` on Linux; 8 GiB when unknown)."""
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    return 8 << 30
+
+
+def _npy_header(zf: zipfile.ZipFile, member: str) -> tuple[tuple[int, ...], np.dtype]:
+    """Shape and dtype of an ``.npy`` member, read from its header alone."""
+    from numpy.lib import format as npf
+
+    with zf.open(member) as f:
+        version = npf.read_magic(f)
+        reader = {(1, 0): npf.read_array_header_1_0, (2, 0): npf.read_array_header_2_0}.get(version)
+        if reader is None:
+            raise ValueError(f"unsupported .npy version {version}")
+        shape, _, dtype = reader(f)
+    return tuple(shape), np.dtype(dtype)
+
+
+def _csv_header(path: Path) -> list[str]:
+    """The names of the first non-comment line of a CSV file, as written (pandas renames duplicates)."""
+    import csv
+
+    with open(path, newline="", encoding="utf-8", errors="replace") as f:
+        for row in csv.reader(f, skipinitialspace=True):
+            if row and not row[0].lstrip().startswith("#"):
+                return row
+    return []
+
+
 def _read_npz(path: Path) -> dict[str, np.ndarray]:
+    """Every member of an NPZ archive, each checked before it is loaded.
+
+    A member's header gives its shape and dtype; a member whose data would be larger than what the
+    archive stores for it (uncompressed), or than half the memory available, is refused before any
+    allocation (a corrupt or hostile header can claim hundreds of GiB).
+    """
     where = str(path)
     try:
+        with zipfile.ZipFile(path) as zf:
+            sizes = {i.filename: i.file_size for i in zf.infolist()}
+            claims = {}
+            for member in sizes:
+                if not member.endswith(".npy"):
+                    continue
+                shape, dtype = _npy_header(zf, member)
+                if dtype.hasobject:
+                    continue
+                claims[member[:-4]] = (shape, int(np.prod(shape, dtype=object)) * dtype.itemsize)
+        for name, (shape, nbytes) in claims.items():
+            stored = sizes[name + ".npy"]
+            shown = "x".join(map(str, shape)) or "scalar"
+            if nbytes > stored:
+                raise InputError(f"{where}: member '{name}' claims shape {shown} ({_size(nbytes)}), more than the "
+                                 f"{_size(stored)} the archive holds for it: the file is corrupt")
+            if nbytes > available_memory() // 2:
+                raise InputError(f"{where}: member '{name}' is {_size(nbytes)} ({shown}), more than half the memory "
+                                 f"available ({_size(available_memory())}); split the recording")
         with np.load(path, allow_pickle=False) as data:
-            if not hasattr(data, "files"):
-                raise InputError(f"{where}: is a single .npy array, not an .npz archive of named arrays")
             out = {}
             for k in data.files:
                 try:
@@ -207,8 +276,23 @@ def _read_npz(path: Path) -> dict[str, np.ndarray]:
             return out
     except InputError:
         raise
-    except (ValueError, OSError, zipfile.BadZipFile, EOFError) as exc:
+    except zipfile.BadZipFile:
+        try:  # a single .npy file saved under an .npz name
+            with open(path, "rb") as f:
+                if f.read(6) == b"\x93NUMPY":
+                    raise InputError(f"{where}: is a single .npy array, not an .npz archive of named arrays")
+        except OSError:
+            pass
+        raise InputError(f"{where}: cannot read as NPZ: not a zip archive (numpy.savez writes one)") from None
+    except (ValueError, OSError, EOFError, KeyError) as exc:
         raise InputError(f"{where}: cannot read as NPZ: {exc}") from None
+
+
+def _size(nbytes: int) -> str:
+    for unit, k in (("GiB", 30), ("MiB", 20), ("KiB", 10)):
+        if nbytes >= 1 << k:
+            return f"{nbytes / (1 << k):.3g} {unit}"
+    return f"{nbytes} bytes"
 
 
 def _read_mat(path: Path) -> dict[str, np.ndarray]:
@@ -217,12 +301,48 @@ def _read_mat(path: Path) -> dict[str, np.ndarray]:
     where = str(path)
     try:
         data = sio.loadmat(path)
-    except NotImplementedError:
-        raise InputError(f"{where}: MATLAB v7.3 (HDF5) files are not supported; "
-                         f"save with: save(file, ..., '-v7')") from None
+    except NotImplementedError:        # version 7.3: HDF5
+        return _read_mat73(path)
     except (sio.matlab.MatReadError, ValueError, TypeError, OSError, EOFError) as exc:
         raise InputError(f"{where}: cannot read as a MATLAB .mat file: {exc}") from None
     return {k: v for k, v in data.items() if not k.startswith("__")}
+
+
+def _read_mat73(path: Path) -> dict[str, np.ndarray]:
+    """Top-level numeric variables of a MATLAB v7.3 (HDF5) file, with MATLAB's shapes.
+
+    MATLAB stores arrays column-major, so HDF5 sees them transposed: an N x 2 matrix is a 2 x N
+    dataset; they are transposed back. Variables that are not numeric arrays (char, cell, struct,
+    sparse, ...) are kept as empty object arrays, reported only if used.
+    """
+    where = str(path)
+    try:
+        import h5py
+    except ImportError:  # pragma: no cover - h5py is a dependency
+        raise InputError(f"{where}: MATLAB v7.3 (HDF5) file: reading it needs the h5py package "
+                         f"(pip install h5py), or save with: save(file, ..., '-v7')") from None
+    try:
+        with h5py.File(path, "r") as f:
+            out = {}
+            for name, obj in f.items():
+                if name.startswith("#"):
+                    continue                  # MATLAB's internal references group
+                cls = obj.attrs.get("MATLAB_class", b"")
+                cls = cls.decode() if isinstance(cls, bytes) else str(cls)
+                numeric = isinstance(obj, h5py.Dataset) and obj.dtype.kind in "biuf" and cls not in ("char", "logical")
+                if not numeric or obj.attrs.get("MATLAB_empty", 0):
+                    out[name] = np.array([], dtype=object)
+                    continue
+                nbytes = int(np.prod(obj.shape, dtype=object)) * obj.dtype.itemsize
+                if nbytes > available_memory() // 2:
+                    raise InputError(f"{where}: variable '{name}' is {_size(nbytes)}, more than half the memory "
+                                     f"available; split the recording")
+                out[name] = np.asarray(obj[()]).T
+            return out
+    except InputError:
+        raise
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise InputError(f"{where}: cannot read as a MATLAB v7.3 (HDF5) .mat file: {exc}") from None
 
 
 # --- layouts: {name: ndarray} -> Trial -----------------------------------------------------------

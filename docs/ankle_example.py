@@ -2,8 +2,8 @@
 
 Usage: python docs/ankle_example.py PATH/TO/ankle_stationary.npz OUTDIR
 (`make example-ankle` passes ../shared/data/reklab-ankle/ankle_stationary.npz and docs/). Writes
-OUTDIR/ankle_example.md (a table of I, B, K or stiffness and VAF per record and estimator) and two
-figures made by `--plot`. Developers' data only: nothing here is read by the package at runtime.
+OUTDIR/ankle_example.md (a table of I, B, K or stiffness with their 95 % confidence intervals, and the
+VAF, per record and estimator) and two figures made by `--plot`. Developers' data only: nothing here is read by the package at runtime.
 """
 from __future__ import annotations
 
@@ -30,6 +30,16 @@ ESTIMATORS = {
 FIGURES = {("z_df", "ibk_irf"): "ankle_z_df_ibk_irf.png", ("z_df", "spectral"): "ankle_z_df_spectral.png"}
 
 
+def with_interval(frame: pd.DataFrame, col: str) -> str:
+    """``value [lo, hi]`` from OUT.csv (the 95 % interval columns), or empty when the column is absent."""
+    if col not in frame:
+        return ""
+    text = f"{frame[col].mean():.4g}"
+    if f"{col}_lo" in frame:
+        text += f" [{frame[f'{col}_lo'].mean():.4g}, {frame[f'{col}_hi'].mean():.4g}]"
+    return text
+
+
 def run(npz: Path, out: Path) -> pd.DataFrame:
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
@@ -46,9 +56,8 @@ def run(npz: Path, out: Path) -> pd.DataFrame:
                 frame = pd.read_csv(csv)
                 vaf = float(re.search(r"^\s+\S+\s+(-?[\d.]+) %", buf.getvalue(), re.M).group(1))
                 row = {"record": rec, "estimator": name}
-                for col in ("I", "B", "K"):
-                    row[col] = frame[col].mean() if col in frame else float("nan")
-                row["stiffness"] = frame["stiffness"].mean()
+                for col in ("I", "B", "K", "stiffness"):
+                    row[col] = with_interval(frame, col)
                 row["VAF_%"] = vaf
                 rows.append(row)
     return pd.DataFrame(rows)
@@ -59,4 +68,4 @@ if __name__ == "__main__":
     out.mkdir(parents=True, exist_ok=True)
     table = run(npz, out)
     (out / "ankle_example.md").write_text(markdown(table))
-    print(table.to_string(index=False, float_format=lambda v: f"{v:.4g}"))
+    print(table.to_string(index=False))

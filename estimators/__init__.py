@@ -14,7 +14,7 @@ from typing import Any, ClassVar, Mapping, Sequence
 from jointbench.ensemble import DATA_KINDS, Ensemble, data_kind
 from jointbench.errors import InputError
 from jointbench.estimate import Estimate
-from jointbench.registry import Registry, import_submodules
+from jointbench.registry import Registry, import_submodules, scan_registrations
 from jointbench.schema import parse
 from jointbench.types import Trial
 
@@ -121,4 +121,11 @@ def make(name: str, settings: Mapping[str, Any] | None = None, where: str = "set
     return cls(parse(cls.Settings, settings, f"{where} (estimator '{name}')"))
 
 
-import_submodules(__name__, __path__)
+# Names, tags and one-line summaries come from the modules' source; a module is imported when its
+# estimator is first used (``jointbench estimate --list`` starts without importing scipy).
+REGISTRY.defer(scan_registrations(__name__, __path__))
+
+
+def import_all() -> None:
+    """Import every estimator module (registering everything now rather than on first use)."""
+    import_submodules(__name__, __path__)

@@ -11,7 +11,7 @@ from estimators._tvirf import (EnsembleEstimator, TVLagSettings, centred, fill_i
                                lagged, mdl_solve)
 from jointbench.ensemble import Ensemble
 from jointbench.errors import InputError
-from jointbench.estimate import TVIRFEstimate
+from jointbench.estimate_tv import TVIRFEstimate
 from jointbench.schema import param
 
 

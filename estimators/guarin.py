@@ -12,7 +12,7 @@ from estimators import register
 from estimators._tvirf import EnsembleEstimator, TVLagSettings, centred, gram_stack, lag_samples, one_blas_thread
 from jointbench.ensemble import Ensemble
 from jointbench.errors import InputError
-from jointbench.estimate import TVIRFEstimate
+from jointbench.estimate_tv import TVIRFEstimate
 from jointbench.schema import param
 
 BasisKind = Literal["gaussian", "bspline", "legendre"]

@@ -8,10 +8,10 @@ import numpy as np
 import scipy.linalg
 
 from estimators import Estimator, register
-from estimators._twosided import Edges, LagSettings, estimate_irf, lag_samples
+from estimators._twosided import LEVEL, Edges, LagSettings, fit_irf, irf_intervals, lag_samples, t_quantile
 from jointbench import differentiators as dd
 from jointbench.errors import InputError
-from jointbench.estimate import IRFEstimate, ParametricEstimate
+from jointbench.estimate import IRFEstimate, Intervals, ParametricEstimate
 from jointbench.schema import param
 from jointbench.signal import bandlimit_fb
 from jointbench.types import Trial
@@ -61,6 +61,11 @@ class IBKIRF(Estimator):
     nonparametric :class:`~jointbench.estimate.IRFEstimate` the parameters were fitted to (band-limited
     when ``bandlimit`` is set).
 
+    Intervals (95 %): ``I``, ``B``, ``K`` are linear in the IRF (``x = A^+ F h``, ``F`` the band-limiting
+    filter), so their covariance is ``A^+ F Cov(h) F^T A^+T`` with the IRF's segment-robust covariance
+    (:func:`estimators._twosided.segment_covariance`), t quantiles. They describe the noise, not the
+    misfit of a second-order model (reflexes) or the bias of a band-limit above the input's band.
+
     References
     ----------
     Westwick, D. T. & Perreault, E. J. (2012). Estimates of acausal joint impedance models. IEEE Trans.
@@ -94,8 +99,10 @@ class IBKIRF(Estimator):
     def _fit(self, trials: list[Trial]) -> ParametricEstimate:
         s = self.settings
         fs = trials[0].fs
-        irf = estimate_irf(self.name, trials, s, s.irf_method, s.edges or "valid", f"irf2_{s.irf_method}")
         m1, m2 = lag_samples(s, fs)
+        fit = fit_irf(self.name, trials, s, s.irf_method, s.edges or "valid")
+        irf = IRFEstimate(lags=np.arange(-m1, m2 + 1), h=fit.h, fs=fs, time=trials[0].time,
+                          estimator=f"irf2_{s.irf_method}")
         n = s.differentiator_length or trials[0].n
         n += n % 2
         if n <= m1 + m2:
@@ -109,8 +116,10 @@ class IBKIRF(Estimator):
                                  f"frequency {fs / 2:g} Hz")
             h = bandlimit_fb(h, fs, s.bandlimit, s.bandlimit_order)
             cols = [_bandlimited(p, m1, m2, fs, s.bandlimit, s.bandlimit_order) for p in periodic]
+            F = np.column_stack([bandlimit_fb(e, fs, s.bandlimit, s.bandlimit_order) for e in np.eye(len(h))])
         else:
             cols = [dd.two_sided(p, m1, m2)[1] for p in periodic]
+            F = np.eye(len(h))
         A = np.column_stack(cols)
         scale = np.linalg.norm(A, axis=0)
         scale[scale == 0] = 1.0
@@ -120,4 +129,20 @@ class IBKIRF(Estimator):
         I, B, K = (float(v) for v in x / scale)
         label = irf.estimator if s.bandlimit is None else f"{irf.estimator}, band-limited to {s.bandlimit:g} Hz"
         basis = IRFEstimate(lags=irf.lags, h=h, fs=fs, time=irf.time, estimator=label)
-        return ParametricEstimate(I=I, B=B, K=K, fs=fs, time=trials[0].time, estimator=self.name, basis=basis)
+        band = None if s.bandlimit is None else (0.0, s.bandlimit)
+        est = ParametricEstimate(I=I, B=B, K=K, fs=fs, time=trials[0].time, estimator=self.name, basis=basis,
+                                 band_hz=band)
+        est.fit_info = fit.info
+        if fit.cov is None:
+            return est
+        G = (np.linalg.pinv(A / scale) / scale[:, None]) @ F       # x = G h_raw
+        cov = G @ fit.cov @ G.T
+        q = t_quantile(fit.dof)
+        se = np.sqrt(np.maximum(np.diag(cov), 0.0))
+        bounds = {k: (v - q * e, v + q * e) for k, v, e in zip("IBK", (I, B, K), se)}
+        bounds["stiffness"] = bounds["K"]
+        se_h = np.sqrt(np.maximum(np.diag(F @ fit.cov @ F.T), 0.0))
+        basis.with_intervals(Intervals(level=LEVEL, method=irf_intervals(fit).method, response={
+            "h": (h - q * se_h, h + q * se_h)}))
+        return est.with_intervals(Intervals(level=LEVEL, method=irf_intervals(fit).method, bounds=bounds,
+                                            pointwise=False))

@@ -5,11 +5,12 @@ import dataclasses
 
 import numpy as np
 import scipy.linalg
+from scipy import stats
 
 from estimators import Estimator, register
-from estimators.spectral import WelchSettings, welch_frf
+from estimators.spectral import LEVEL, WelchSettings, frf_estimate, segment_spectra
 from jointbench.errors import InputError
-from jointbench.estimate import FRFEstimate, ParametricEstimate
+from jointbench.estimate import Intervals, ParametricEstimate
 from jointbench.schema import param
 from jointbench.types import Trial
 
@@ -38,6 +39,11 @@ def weighted_ibk_fit(f: np.ndarray, H: np.ndarray, coh: np.ndarray, name: str = 
     return I, B, K
 
 
+#: the jackknife of :meth:`IBKSpectral._jackknife` uses at most / at least this many groups of segments
+MAX_GROUPS = 20
+MIN_GROUPS = 6
+
+
 @register("ibk_spectral", tags=("lti", "parametric", "frf"))
 class IBKSpectral(Estimator):
     """Second-order impedance ``K + j w B - I w^2`` fitted to ``S_uy / S_uu`` by coherence-weighted least squares.
@@ -61,6 +67,12 @@ class IBKSpectral(Estimator):
     :meth:`fit` returns a :class:`~jointbench.estimate.ParametricEstimate` whose ``basis`` is the
     :class:`~jointbench.estimate.FRFEstimate` the parameters were fitted to.
 
+    Intervals (95 %): a delete-a-group jackknife over the Welch segments (:meth:`_jackknife`), t
+    quantiles. They describe the noise, not a model that does not fit (e.g. reflexes, or an uncorrected
+    sensor delay, which biases B). (A covariance propagated from the coherence, with the taper's
+    correlation of neighbouring frequencies, came out 1.5 times too narrow for K on simulated ankles
+    with voluntary torque; the jackknife needs no noise model.)
+
     References
     ----------
     Westwick, D. T. & Perreault, E. J. (2012). Estimates of acausal joint impedance models. IEEE Trans.
@@ -80,12 +92,59 @@ class IBKSpectral(Estimator):
     def _fit(self, trials: list[Trial]) -> ParametricEstimate:
         s = self.settings
         fs = trials[0].fs
-        f, H, coh = welch_frf(self.name, trials, s)
-        frf = FRFEstimate(freq=f, H=H, coherence=coh, fs=fs, time=trials[0].time, estimator="spectral")
+        frf = frf_estimate(self.name, trials, s, "spectral")
+        f, H, coh = frf.freq, frf.H, frf.coherence
         sel = (f >= s.fmin) & (f <= s.fmax) & (coh > 0)
         if sel.sum() < 3:
             raise InputError(f"{self.name}: only {int(sel.sum())} frequency point(s) with nonzero coherence in "
                              f"fmin ... fmax = {s.fmin:g} ... {s.fmax:g} Hz (resolution {f[1]:g} Hz from "
                              f"segment = {s.segment:g} s); need at least 3: widen the band or lengthen 'segment'")
         I, B, K = weighted_ibk_fit(f[sel], H[sel], coh[sel], self.name, f"the band {s.fmin:g} ... {s.fmax:g} Hz")
-        return ParametricEstimate(I=I, B=B, K=K, fs=fs, time=trials[0].time, estimator=self.name, basis=frf)
+        est = ParametricEstimate(I=I, B=B, K=K, fs=fs, time=trials[0].time, estimator=self.name, basis=frf,
+                                 band_hz=(s.fmin, s.fmax))
+        jack = self._jackknife(trials, sel)
+        if jack is None:
+            return est
+        cov, dof = jack
+        q = float(stats.t.ppf(0.5 + LEVEL / 2, dof))
+        se = np.sqrt(np.maximum(np.diag(cov), 0.0))
+        bounds = {k: (v - q * e, v + q * e) for k, v, e in zip("IBK", (I, B, K), se)}
+        bounds["stiffness"] = bounds["K"]
+        return est.with_intervals(Intervals(level=LEVEL, method=f"delete-a-group jackknife over the Welch segments "
+                                            f"({dof + 1} groups; t quantile)", bounds=bounds, pointwise=False))
+
+    def _jackknife(self, trials: list[Trial], sel: np.ndarray) -> tuple[np.ndarray, int] | None:
+        """Covariance of (I, B, K) by the delete-a-group jackknife over the Welch segments, and its dof.
+
+        The segments (in record order) are cut into ``G`` contiguous groups (at most
+        :data:`MAX_GROUPS`, at least :data:`MIN_GROUPS`, else ``None``); the fit is repeated without
+        each group, and ``Cov = (G - 1)/G sum_g (x_g - mean x)(x_g - mean x)^T``. Contiguous groups of
+        overlapping segments are nearly independent (tapered spectra of Hann segments overlapping by half
+        correlate by 0.03), so the jackknife needs no model of the noise (the
+        voluntary torque, the taper's leakage and the overlap included).
+
+        References
+        ----------
+        Efron, B. & Stein, C. (1981). The jackknife estimate of variance. Ann. Stat. 9(3), 586-596;
+        Thomson, D. J. & Chave, A. D. (1991), jackknifed error estimates for spectra and coherences, in
+        Advances in Spectrum Analysis and Array Processing, vol. 1, Prentice Hall.
+        """
+        f, uu, yy, uy = segment_spectra(trials, self.settings)
+        n = len(uu)
+        G = min(MAX_GROUPS, n)
+        if G < MIN_GROUPS:
+            return None
+        edges = np.linspace(0, n, G + 1).astype(int)
+        tot = uu.sum(0), yy.sum(0), uy.sum(0)
+        xs = []
+        for a, b in zip(edges[:-1], edges[1:]):
+            suu, syy, suy = (t - x[a:b].sum(0) for t, x in zip(tot, (uu, yy, uy)))
+            ok = suu > 1e-14 * suu.max()
+            H = np.where(ok, suy / np.where(ok, suu, 1.0), 0.0)
+            den = suu * syy
+            coh = np.where(ok & (den > 0), np.abs(suy) ** 2 / np.where(den > 0, den, 1.0), 0.0)
+            keep = sel & (coh > 0)
+            xs.append(weighted_ibk_fit(f[keep], H[keep], np.clip(coh[keep], 0, 1), self.name))
+        xs = np.array(xs)
+        d = xs - xs.mean(axis=0)
+        return (G - 1) / G * d.T @ d, G - 1

@@ -2,14 +2,16 @@
 from __future__ import annotations
 
 import dataclasses
+from typing import ClassVar, Literal
 
 import numpy as np
 import pandas as pd
+from scipy import stats
 
-from estimators import Estimator, _kbr_solve as ks, register
+from estimators import Estimator, _kbr_posterior as kp, _kbr_solve as ks, register
 from estimators._multisine_lines import multisine_bins
 from jointbench.errors import InputError
-from jointbench.estimate import Estimate
+from jointbench.estimate import Estimate, Intervals, Prediction
 from jointbench.schema import param
 from jointbench.types import Trial
 
@@ -112,9 +114,21 @@ class KBREstimate(Estimate):
         Dp = ks.periodic_derivative_response(len(u), self.fs, len(self.a))
         return ks.periodic_response(self.a, r, Dp)
 
+    def prediction(self, trial, index: int = 0) -> Prediction:
+        """:meth:`predict` against the torque low-passed like the fit's derivatives (the response ``G`` of
+        their common low-pass, flat over the band of interest): the model describes nothing above it."""
+        y = trial.output - np.mean(trial.output)
+        n = len(y)
+        yf = np.fft.irfft(np.fft.rfft(y) * self.derivative[0], n) if len(self.derivative[0]) == n // 2 + 1 else y
+        yhat = self.predict(trial.input - np.mean(trial.input))
+        top = self.lines[-1]
+        return Prediction(yf, yhat, np.ones(n, bool), "torque (mean removed, low-passed as the fit's derivatives, "
+                          f"flat to {top:g} Hz) against the periodic solution of the fitted equation, every sample")
+
     def to_frame(self) -> pd.DataFrame:
-        """``time``, the coefficients and ``stiffness``."""
-        return pd.DataFrame({"time": self.time, **self.coefficients(), "stiffness": self.stiffness(self.time)})
+        """``time``, the coefficients and ``stiffness`` (with ``stiffness_lo``, ``stiffness_hi``)."""
+        frame = pd.DataFrame({"time": self.time, **self.coefficients(), "stiffness": self.stiffness(self.time)})
+        return self.add_interval_columns(frame)
 
     def response_frame(self) -> pd.DataFrame:
         """Frozen response at the excited lines for every sample time (long format)."""
@@ -255,9 +269,13 @@ class KBR(Estimator):
     class Settings:
         na: int = param(2, ge=0, le=6, doc="denominator order Na (eq. 9; a_0 = 1)")
         nb: int = param(3, ge=0, le=6, doc="numerator order Nb (eq. 9)")
-        sigma: float = param(20.0, unit="s", gt=0, doc="kernel width (eq. 15; paper: ~20 s with noise, ~8 s without)")
-        gamma: float | None = param(None, gt=0, doc="kernel scale (eq. 15) for every coefficient (paper: 25000 "
-                                                    "without noise); none = var(y)/var(x_p) per coefficient")
+        sigma: float | Literal["auto"] = param(20.0, unit="s", gt=0, doc="kernel width (eq. 15; paper: ~20 s with "
+                                                                        "noise, ~8 s without); auto = marginal likelihood")
+        gamma: float | None | Literal["auto"] = param(None, gt=0, doc="kernel scale (eq. 15) for every coefficient "
+                                                                     "(paper: 25000 without noise); none = "
+                                                                     "gamma_scale var(y)/var(x_p) per coefficient; "
+                                                                     "auto = marginal likelihood over gamma_scale")
+        gamma_scale: float = param(1.0, gt=0, doc="factor on the data-derived kernel scales (gamma = none)")
         band: tuple[float, ...] | None = param(None, unit="Hz", ge=0, doc="(low, high) band of the equation "
                                                                          "error; none = first to last line")
         lines_hz: tuple[float, ...] | None = param(None, unit="Hz", gt=0, doc="excited lines; none = detect "
@@ -283,6 +301,37 @@ class KBR(Estimator):
             if self.lines_hz is not None and len(set(self.lines_hz)) != len(self.lines_hz):
                 raise ValueError(f"lines_hz has repeated lines: {self.lines_hz}")
 
+    #: the settings ``--set auto=true`` chooses from the data (:meth:`choose_kernel`)
+    AUTO: ClassVar[tuple[str, ...]] = ("sigma", "gamma")
+    #: kernel widths (s) and factors on the data-derived kernel scales tried by ``auto``
+    SIGMA_GRID: ClassVar[tuple[float, ...]] = (2.0, 4.0, 8.0, 16.0, 32.0)
+    GAMMA_SCALE_GRID: ClassVar[tuple[float, ...]] = (0.01, 0.1, 1.0, 10.0, 100.0)
+    #: confidence level of the stiffness band
+    LEVEL: ClassVar[float] = 0.95
+    #: at most this many times for the band (interpolated in between; the coefficients vary on sigma)
+    BAND_POINTS: ClassVar[int] = 2000
+
+    def memory_bytes(self, trials) -> int:
+        """Bytes the fit, its prediction and its tables need for ``trials`` (objects with ``n``, ``fs``;
+        :func:`estimators._kbr_posterior.memory_bytes`), the lines detected in the record itself."""
+        s = self.settings
+        n = max(t.n for t in trials)
+        fs = trials[0].fs
+        T = n / fs
+        sigma = min(self.SIGMA_GRID) if s.sigma == "auto" else float(s.sigma)
+        points = min(n, s.kernel_points or max(16, int(np.ceil(8 * T / sigma)) + 1))
+        r = min(s.max_rank, points)
+        P = s.na + s.nb + 1
+        data = getattr(trials[0], "of", trials[0])          # the record itself (not a decimated shape)
+        try:
+            found = self._lines(data) * data.fs / data.n if data.n >= 64 else np.array([1.0 / T])
+        except InputError:                                   # not a multisine: the fit will say so
+            found = np.array([1.0 / T])
+        lo, hi = (found[0], found[-1]) if s.band is None else s.band
+        nk = max(1, int((hi - lo) * T) + 1)
+        lines = len(found)
+        return kp.memory_bytes(n, max(s.na, s.nb) + 1, P, points, r, nk, lines)
+
     # ------------------------------------------------------------------------------------- lines
     def _lines(self, trial: Trial) -> np.ndarray:
         s = self.settings
@@ -295,6 +344,10 @@ class KBR(Estimator):
         s = self.settings
         n, fs = trial.n, trial.fs
         where = f"{self.name}: trial '{trial.name}'"
+        if n < 64:
+            raise InputError(f"{where}: {n} samples are far too few for a kernel regression of a multisine "
+                             f"experiment (whole periods of a multisine, a noise estimate from the bins between its "
+                             f"lines); use a record of at least one period")
         u = trial.input - trial.input.mean()
         y = trial.output - trial.output.mean()
         lines = self._lines(trial)
@@ -326,7 +379,7 @@ class KBR(Estimator):
         du, dy = ks.derivatives(u, D[:s.nb + 1]), ks.derivatives(y, D[:s.na + 1])
         regressors = np.vstack([dy[1:], -du])
         if s.gamma is None:   # reading of "gamma from the variance of the data", per coefficient
-            gammas = np.var(dy[0]) / np.maximum(np.var(regressors[:, mask > 0], axis=1), 1e-300)
+            gammas = s.gamma_scale * np.var(dy[0]) / np.maximum(np.var(regressors[:, mask > 0], axis=1), 1e-300)
         else:
             gammas = np.full(P, s.gamma)
         points = min(n, s.kernel_points or max(16, int(np.ceil(8 * (n / fs) / s.sigma)) + 1))
@@ -341,9 +394,48 @@ class KBR(Estimator):
                        y0=dy[0], gammas=gammas, Phi=Phi, points=points, sv2=sv2)
 
     # --------------------------------------------------------------------------------------- fit
+    def choose_kernel(self, trials: list[Trial]) -> tuple[KBREstimate, dict]:
+        """The fit of the kernel width and scale with the largest marginal likelihood.
+
+        ``sigma = auto`` tries :data:`SIGMA_GRID` (widths up to twice the record), ``gamma = auto`` the
+        factors :data:`GAMMA_SCALE_GRID` on the data-derived scales; the other is kept. The criterion is
+        the restricted marginal likelihood of :func:`estimators._kbr_posterior.posterior` at each fit's final
+        noise weights. Returns the best estimate and ``{(sigma, gamma_scale): -2 log L}``.
+        """
+        s = self.settings
+        T = trials[0].duration
+        sigmas = [v for v in self.SIGMA_GRID if v <= 2 * T] or [min(self.SIGMA_GRID)] if s.sigma == "auto" \
+            else [float(s.sigma)]
+        scales = list(self.GAMMA_SCALE_GRID) if s.gamma == "auto" else [s.gamma_scale]
+        gamma = None if s.gamma == "auto" else s.gamma
+        table, best = {}, None
+        for sg in sigmas:
+            for gs in scales:
+                try:
+                    est = type(self)(dataclasses.replace(s, sigma=sg, gamma=gamma, gamma_scale=gs))._fit(trials)
+                except InputError:
+                    continue
+                table[(sg, gs)] = est.info["neg2_log_evidence"]
+                if best is None or table[(sg, gs)] < best.info["neg2_log_evidence"]:
+                    best = est
+        if best is None:
+            raise InputError(f"{self.name}: sigma/gamma = auto: no kernel of the grid fits this record")
+        return best, table
+
     def _fit(self, trials: list[Trial]) -> KBREstimate:
         if len(trials) != 1:
             raise InputError(f"{self.name}: fits one record at a time, got {len(trials)}")
+        if self.settings.sigma == "auto" or self.settings.gamma == "auto":
+            est, table = self.choose_kernel(trials)
+            (sg, gs) = min(table, key=table.get)
+            chosen = []
+            if self.settings.sigma == "auto":
+                chosen.append(f"sigma = {sg:g} s")
+            if self.settings.gamma == "auto":
+                chosen.append(f"gamma = {gs:g} x var(y)/var(x_p)")
+            est.info = {**est.info, "auto": f"{', '.join(chosen)} chosen (largest marginal likelihood of "
+                                            f"{len(table)} kernels tried)"}
+            return est
         trial, s = trials[0], self.settings
         pb = self.problem(trial)
         band, Db = pb.band, pb.D[:s.na + 1, pb.band]
@@ -351,6 +443,7 @@ class KBR(Estimator):
         weights = np.ones(len(band))          # sigma_E^2 = 1 at the first solve (App. B)
         costs = []
         for it in range(s.relax_iterations):
+            used = weights
             c, z, cost = ks.solve_weighted(system, weights)
             coef = system.trajectories(c, z)
             costs.append(cost)
@@ -363,11 +456,24 @@ class KBR(Estimator):
             c, z, cost, steps = ks.refine(system, Db, pb.mask, pb.sv2, c, z, s.refine_iterations, s.tolerance)
             coef = system.trajectories(c, z)
         df = pb.df
+        neg2, cov = kp.posterior(system, used)
         info = {"band_hz": f"{band[0] * df:g} ... {band[-1] * df:g}", "lines": len(pb.lines),
-                "gamma": "var(y)/var(x_p)" if s.gamma is None else s.gamma,
+                "gamma": (f"{s.gamma_scale:g} x " if s.gamma_scale != 1 else "") + "var(y)/var(x_p)"
+                if s.gamma is None else s.gamma, "neg2_log_evidence": neg2,
                 "rank": pb.Phi.shape[1], "kernel_points": pb.points, "discarded_samples": pb.half,
                 "relaxation_iterations": len(costs), "relaxation_converged": str(converged),
                 "gauss_newton_steps": steps, "cost": cost}
-        return KBREstimate(a=coef[:s.na], b=coef[s.na:], fs=trial.fs, time=trial.time,
-                           f1=float(pb.lines[0] * df), lines=pb.lines * df, derivative=pb.D[:s.nb + 1],
-                           info=info, estimator=self.name)
+        est = KBREstimate(a=coef[:s.na], b=coef[s.na:], fs=trial.fs, time=trial.time,
+                          f1=float(pb.lines[0] * df), lines=pb.lines * df, derivative=pb.D[:s.nb + 1],
+                          info=info, estimator=self.name)
+
+        def stiffness_band() -> Intervals:
+            rows = np.unique(np.linspace(0, trial.n - 1, min(trial.n, self.BAND_POINTS)).astype(int))
+            sd = np.interp(np.arange(trial.n), rows, kp.stiffness_sd(system, cov, coef, s.na, est.f1, rows))
+            z = float(stats.norm.ppf(0.5 + self.LEVEL / 2))
+            k = est.stiffness(trial.time)
+            return Intervals(level=self.LEVEL, method="posterior of the kernel regression at its noise weights "
+                             "(Gaussian prior eq. 15), linearised; without the Gauss-Newton refinement's "
+                             "curvature", bounds={"stiffness": (k - z * sd, k + z * sd)})
+
+        return est.with_intervals(stiffness_band)   # computed on first use

@@ -10,7 +10,7 @@ from estimators import register
 from estimators._tvirf import EnsembleEstimator, TVLagSettings, fill_invalid, lag_samples, lagged, mdl_solve
 from jointbench.ensemble import Ensemble
 from jointbench.errors import InputError
-from jointbench.estimate import TVIRFEstimate
+from jointbench.estimate_tv import TVIRFEstimate
 from jointbench.schema import param
 
 

@@ -9,9 +9,12 @@ from scipy import signal as sps
 
 from estimators import Estimator, register
 from jointbench.errors import InputError
-from jointbench.estimate import FRFEstimate
+from jointbench.estimate import FRFEstimate, Intervals
 from jointbench.schema import param
 from jointbench.types import Trial
+
+#: confidence level of the frequency response's band
+LEVEL = 0.95
 
 
 @dataclasses.dataclass(frozen=True)
@@ -61,6 +64,8 @@ def welch_frf(name: str, trials: list[Trial], s: WelchSettings) -> tuple[np.ndar
         suy = suy + w * puy
         count += w
     suu, syy, suy = suu / count, syy / count, suy / count
+    if not (np.all(np.isfinite(suu)) and np.all(np.isfinite(syy)) and np.all(np.isfinite(np.abs(suy)))):
+        raise InputError(f"{name}: the spectra overflow (values too large for double precision); rescale the data")
     scale = max(float(np.mean(t.angle ** 2)) for t in trials)
     if not suu.max() > 1e-20 * scale:
         raise InputError(f"{name}: the angle (input) has no power after detrending; nothing to identify")
@@ -70,6 +75,104 @@ def welch_frf(name: str, trials: list[Trial], s: WelchSettings) -> tuple[np.ndar
     den = suu * syy
     coh = np.where(ok & (den > tiny), np.abs(suy) ** 2 / np.where(den > tiny, den, 1.0), 0.0)
     return f, H, np.clip(coh, 0.0, 1.0)
+
+
+def segment_spectra(trials: list[Trial], s: WelchSettings) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Frequencies and each Welch segment's ``conj(U) U``, ``conj(Y) Y``, ``conj(U) Y`` (segments in record
+    order, shape ``(segments, frequencies)``), with the segmenting, taper and detrending of
+    :func:`welch_frf` (whose spectra are their means, up to a common scale)."""
+    fs = trials[0].fs
+    nseg = int(round(s.segment * fs))
+    step = nseg - min(int(round(s.overlap * nseg)), nseg - 1)
+    w = sps.get_window(s.window, nseg)
+    uu, yy, uy = [], [], []
+    for t in trials:
+        count = 1 + (t.n - nseg) // step
+        idx = np.arange(nseg)[None, :] + step * np.arange(count)[:, None]
+        U, Y = t.angle[idx], t.torque[idx]
+        if s.detrend != "none":
+            U = sps.detrend(U, axis=-1, type=s.detrend)
+            Y = sps.detrend(Y, axis=-1, type=s.detrend)
+        FU, FY = np.fft.rfft(U * w, axis=-1), np.fft.rfft(Y * w, axis=-1)
+        uu.append(np.abs(FU) ** 2)
+        yy.append(np.abs(FY) ** 2)
+        uy.append(np.conj(FU) * FY)
+    return np.fft.rfftfreq(nseg, 1.0 / fs), np.vstack(uu), np.vstack(yy), np.vstack(uy)
+
+
+def segment_count(trials: list[Trial], s: WelchSettings) -> int:
+    """Welch segments over all records (as averaged by :func:`welch_frf`)."""
+    nseg = int(round(s.segment * trials[0].fs))
+    nover = min(int(round(s.overlap * nseg)), nseg - 1)
+    return sum(1 + (t.n - nseg) // (nseg - nover) for t in trials)
+
+
+def effective_averages(trials: list[Trial], s: WelchSettings) -> float:
+    """Independent averages equivalent to the overlapping Welch segments.
+
+    ``K / (1 + 2 sum_{j >= 1} (1 - j/K) rho_j^2)`` with ``rho_j`` the correlation of the taper with
+    itself shifted by ``j`` segment steps (Welch 1967, eq. 11; 1.06 for Hann at 50 % overlap).
+
+    References
+    ----------
+    Welch, P. D. (1967). The use of fast Fourier transform for the estimation of power spectra. IEEE
+    Trans. Audio Electroacoust. 15(2), 70-73.
+    """
+    fs = trials[0].fs
+    nseg = int(round(s.segment * fs))
+    step = nseg - min(int(round(s.overlap * nseg)), nseg - 1)
+    w = sps.get_window(s.window, nseg)
+    K = segment_count(trials, s)
+    factor = 1.0
+    for j in range(1, nseg // step + 1):
+        if j >= K:
+            break
+        rho = float(w[j * step:] @ w[:nseg - j * step]) / float(w @ w)
+        factor += 2.0 * (1.0 - j / K) * rho * rho
+    return K / factor
+
+
+def frf_band(H: np.ndarray, coh: np.ndarray, n_avg: float, level: float = LEVEL) -> dict[str, tuple]:
+    """Confidence band of ``H`` from the squared coherence: a circle of radius ``r`` around ``H``.
+
+    For ``n`` independent averages and output noise independent of the input,
+    ``|H - H_hat|^2 n S_uu / sigma_hat^2`` follows ``F(2, 2(n - 1))`` with the residual spectrum
+    ``sigma_hat^2 = S_yy (1 - gamma^2) n / (n - 1)``, so
+    ``r^2 = F_level(2, 2(n - 1)) (1 - gamma^2) / ((n - 1) gamma^2) |H_hat|^2``. Returned as the limits
+    of the gain (``mag``: ``|H| -+ r``, floored at 0) and of the phase (``phase_rad``:
+    ``-+ asin(r / |H|)``, or ``-+ pi`` when the circle holds the origin). Frequencies without coherence
+    get an unbounded band (``mag`` 0 ... inf).
+
+    References
+    ----------
+    Bendat, J. S. & Piersol, A. G. (2010). Random Data, 4th ed., Wiley, Sec. 9.2.5 (confidence region of
+    the frequency response function from the coherence).
+    """
+    from scipy import stats
+
+    mag = np.abs(H)
+    dof = max(n_avg - 1.0, 1.0)
+    F = float(stats.f.ppf(level, 2, 2 * dof))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        r = np.where(coh > 0, mag * np.sqrt(F * (1 - coh) / (dof * np.where(coh > 0, coh, 1.0))), np.inf)
+        dphi = np.where(r < mag, np.arcsin(np.clip(r / np.where(mag > 0, mag, 1.0), 0.0, 1.0)), np.pi)
+    phase = np.angle(H)
+    return {"mag": (np.maximum(mag - r, 0.0), mag + r), "phase_rad": (phase - dphi, phase + dphi)}
+
+
+def frf_estimate(name: str, trials: list[Trial], s: WelchSettings, estimator: str) -> FRFEstimate:
+    """:func:`welch_frf` as an :class:`FRFEstimate` with its effective averages and coherence band."""
+    f, H, coh = welch_frf(name, trials, s)
+    n_avg = effective_averages(trials, s)
+    est = FRFEstimate(freq=f, H=H, coherence=coh, fs=trials[0].fs, time=trials[0].time, estimator=estimator,
+                      n_averages=n_avg)
+    band = frf_band(H, coh, n_avg)
+    i = int(np.argmax(f > 0))
+    k = {"stiffness": (band["mag"][0][i], band["mag"][1][i])}
+    est.fit_info = {"averages": f"{segment_count(trials, s)} segments, {n_avg:.1f} effective",
+                    "significant_coherence": f"{int(est.significant().sum())} of {len(f)} frequencies"}
+    return est.with_intervals(Intervals(level=LEVEL, method=f"coherence (F distribution, {n_avg:.1f} effective "
+                                                           f"averages)", bounds=k, response=band))
 
 
 @register("spectral", tags=("lti", "nonparametric", "frf"))
@@ -94,7 +197,10 @@ class Spectral(Estimator):
     -----
     :meth:`fit` returns a :class:`~jointbench.estimate.FRFEstimate` at the Welch frequencies
     ``0 ... fs/2`` (resolution ``1/segment``). Unlike the IRF estimates (eqs. 14, 15) it does not
-    depend on a memory length.
+    depend on a memory length. Its intervals are the coherence band of :func:`frf_band` (gain and phase,
+    with the overlap's effective number of averages, :func:`effective_averages`); it predicts (for its
+    VAF) only with ``H`` at the frequencies whose coherence is significant
+    (:meth:`~jointbench.estimate.FRFEstimate.significant`).
 
     References
     ----------
@@ -107,6 +213,4 @@ class Spectral(Estimator):
         pass
 
     def _fit(self, trials: list[Trial]) -> FRFEstimate:
-        f, H, coh = welch_frf(self.name, trials, self.settings)
-        return FRFEstimate(freq=f, H=H, coherence=coh, fs=trials[0].fs, time=trials[0].time,
-                           estimator=self.name)
+        return frf_estimate(self.name, trials, self.settings, self.name)

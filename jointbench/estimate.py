@@ -4,14 +4,92 @@ An :class:`Estimate` predicts the output (torque for an imposed angle) from the 
 low-frequency stiffness over time, and turns itself into tidy tables: :meth:`Estimate.to_frame` (one
 row per time sample: ``time`` plus ``I``, ``B``, ``K``, ``stiffness`` where available) and
 :meth:`Estimate.response_frame` (the impulse or frequency response, where there is one).
+
+Two optional parts, for estimators that provide them:
+
+* :attr:`Estimate.intervals`, an :class:`Intervals`: confidence intervals of the parameters and the
+  stiffness (``*_lo``, ``*_hi`` columns of :meth:`~Estimate.to_frame`) and of the response
+  (``*_lo``, ``*_hi`` columns of :meth:`~Estimate.response_frame`);
+* :attr:`Estimate.fit_info`: numbers about the fit worth printing (chosen regularisation, ...).
+
+:meth:`Estimate.prediction` says what the estimate's VAF is computed on (a :class:`Prediction`).
 """
 from __future__ import annotations
 
 import dataclasses
+import types
 from abc import ABC, abstractmethod
+from typing import TYPE_CHECKING, Callable, Mapping
 
 import numpy as np
-import pandas as pd
+
+# pandas is imported where a table is made: importing this module stays cheap (jointbench estimate --list)
+if TYPE_CHECKING:  # pragma: no cover
+    import pandas as pd
+
+from jointbench.errors import InputError
+
+_EMPTY: Mapping = types.MappingProxyType({})
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Intervals:
+    """Confidence intervals of an estimate, all at one level.
+
+    Attributes
+    ----------
+    level : float
+        Confidence level, e.g. 0.95.
+    method : str
+        How they were computed (printed in the summary), e.g. "segment-robust covariance".
+    bounds : mapping of str to (lo, hi)
+        Per quantity of :meth:`Estimate.to_frame` (``"I"``, ``"B"``, ``"K"``, ``"stiffness"``): lower
+        and upper limits, scalars (time-invariant) or arrays on :attr:`Estimate.time` (pointwise bands).
+    response : mapping of str to (lo, hi)
+        Per column of :meth:`Estimate.response_frame` (e.g. ``"h"``, ``"mag"``): row-aligned limits.
+    pointwise : bool
+        True when the bounds are pointwise (each time or lag on its own), not simultaneous.
+    """
+
+    level: float
+    method: str
+    bounds: Mapping[str, tuple] = dataclasses.field(default_factory=dict)
+    response: Mapping[str, tuple] = dataclasses.field(default_factory=dict)
+    pointwise: bool = True
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Prediction:
+    """The measured output and the estimate's prediction of it, on which the VAF is computed.
+
+    Attributes
+    ----------
+    y, yhat : ndarray
+        Measured and predicted output of one record, as compared (e.g. means removed, band-limited).
+    used : ndarray of bool
+        Samples entering the VAF (e.g. not the record ends the prediction cannot reach).
+    definition : str
+        What ``y`` and ``yhat`` are, in a few words (printed beside the VAF).
+    """
+
+    y: np.ndarray
+    yhat: np.ndarray
+    used: np.ndarray
+    definition: str
+
+    def vaf(self) -> float:
+        """``100 (1 - var(y - yhat) / var(y))`` over the :attr:`used` samples, in percent.
+
+        Raises
+        ------
+        InputError
+            Fewer than 2 samples used, or no variance in ``y`` there (nothing to explain).
+        """
+        y, yhat = self.y[self.used], self.yhat[self.used]
+        if y.size < 2 or not np.var(y) > 0:
+            raise InputError("the measured torque has no variance on the samples the VAF is computed on "
+                             "(constant or zero torque?); nothing to explain")
+        return float(100.0 * (1.0 - np.var(y - yhat) / np.var(y)))
 
 
 class Estimate(ABC):
@@ -20,6 +98,11 @@ class Estimate(ABC):
     estimator: str
     time: np.ndarray
     fs: float
+    #: confidence intervals, an :class:`Intervals` or a function computing them on first use (set by the
+    #: estimator after fitting: :meth:`with_intervals`), or None when the estimator gives none
+    _intervals: Intervals | Callable[[], Intervals | None] | None = None
+    #: numbers about the fit worth printing (regularisation chosen, ...), shown by :meth:`summary`
+    fit_info: Mapping[str, object] = _EMPTY
 
     @abstractmethod
     def predict(self, u: np.ndarray) -> np.ndarray:
@@ -34,15 +117,65 @@ class Estimate(ABC):
         return {}
 
     def to_frame(self) -> pd.DataFrame:
-        """``time`` plus whichever of ``I``, ``B``, ``K`` exist, and ``stiffness``."""
+        """``time`` plus whichever of ``I``, ``B``, ``K`` exist, and ``stiffness``; each followed by its
+        ``*_lo``, ``*_hi`` confidence limits when :attr:`intervals` has them."""
+        import pandas as pd
         cols = {"time": self.time}
         cols.update(self.parameters())
         cols["stiffness"] = self.stiffness(self.time)
-        return pd.DataFrame(cols)
+        return self.add_interval_columns(pd.DataFrame(cols))
 
     def response_frame(self) -> pd.DataFrame | None:
         """Impulse or frequency response as a table, or ``None``."""
         return None
+
+    @property
+    def intervals(self) -> Intervals | None:
+        """Confidence intervals, or None when the estimator gives none (computed on first use when the
+        estimator attached a function: a harness that scores only the estimate pays nothing for them)."""
+        iv = self._intervals
+        if callable(iv):
+            iv = self._intervals = iv()
+        return iv
+
+    def with_intervals(self, intervals: Intervals | Callable[[], Intervals | None] | None) -> "Estimate":
+        """Attach ``intervals``, or a function without arguments that computes them when first asked for
+        (returns ``self``)."""
+        self._intervals = intervals
+        return self
+
+    def add_interval_columns(self, frame: pd.DataFrame, response: bool = False) -> pd.DataFrame:
+        """Insert ``<col>_lo``, ``<col>_hi`` after every column of ``frame`` that :attr:`intervals` bounds.
+
+        ``response=False``: the per-sample bounds (:attr:`Intervals.bounds`, scalars broadcast);
+        ``response=True``: the response bounds (:attr:`Intervals.response`).
+        """
+        import pandas as pd
+        iv = self.intervals
+        if iv is None:
+            return frame
+        bounds = iv.response if response else iv.bounds
+        out = {}
+        for col in frame.columns:
+            out[col] = frame[col].to_numpy()
+            if col in bounds:
+                lo, hi = bounds[col]
+                out[f"{col}_lo"] = np.broadcast_to(np.asarray(lo, float), (len(frame),))
+                out[f"{col}_hi"] = np.broadcast_to(np.asarray(hi, float), (len(frame),))
+        return pd.DataFrame(out, index=frame.index)
+
+    def prediction(self, trial, index: int = 0) -> Prediction:
+        """What the VAF of record ``trial`` (the ``index``-th record fitted) is computed on.
+
+        Default: ``y`` = the output minus its mean, ``yhat`` = :meth:`predict` of the input minus its
+        mean, every sample. Estimates whose prediction is only defined on part of a record, or that
+        fit a filtered output, override it.
+        """
+        y = trial.output - np.mean(trial.output)
+        yhat = np.asarray(self.predict(trial.input - np.mean(trial.input)), float)
+        return Prediction(y, yhat, np.ones(len(y), bool),
+                          "torque (mean removed) against the prediction from the angle (mean removed), "
+                          "every sample")
 
     def frequency_response(self, f: np.ndarray, t: np.ndarray | float | None = None) -> np.ndarray:
         """Complex frequency response (input -> output) at frequencies ``f`` (Hz).
@@ -59,6 +192,7 @@ class Estimate(ABC):
         for k, v in self.parameters().items():
             out[k] = float(np.mean(v))
         out["stiffness"] = float(np.mean(self.stiffness(self.time)))
+        out.update(self.fit_info)
         return out
 
 
@@ -94,7 +228,22 @@ class IRFEstimate(Estimate):
         return _const(np.sum(self.h), t)
 
     def response_frame(self) -> pd.DataFrame:
-        return pd.DataFrame({"lag": self.lags, "lag_s": self.lags / self.fs, "h": self.h})
+        """``lag``, ``lag_s``, ``h`` (and ``h_lo``, ``h_hi`` with intervals)."""
+        import pandas as pd
+        frame = pd.DataFrame({"lag": self.lags, "lag_s": self.lags / self.fs, "h": self.h})
+        return self.add_interval_columns(frame, response=True)
+
+    def prediction(self, trial, index: int = 0) -> Prediction:
+        """The IRF's prediction where it is defined: the samples whose lags ``-M1 ... M2`` all lie in the
+        record (the first ``M2`` and last ``M1`` samples are dropped: their prediction would need angle
+        samples from outside the record)."""
+        base = super().prediction(trial, index)
+        m1, m2 = -int(self.lags[0]), int(self.lags[-1])
+        used = np.zeros(len(base.y), bool)
+        used[max(m2, 0):len(used) - max(m1, 0)] = True
+        return dataclasses.replace(base, used=used, definition=(
+            "torque (mean removed) against the IRF's prediction from the angle (mean removed), on the "
+            f"samples whose lags all lie in the record (first {max(m2, 0)} and last {max(m1, 0)} dropped)"))
 
     def summary(self):
         out = super().summary()
@@ -112,6 +261,55 @@ class FRFEstimate(Estimate):
     fs: float
     time: np.ndarray
     estimator: str = "frf"
+    #: effective number of independent spectral averages (None: unknown; every frequency is then used)
+    n_averages: float | None = None
+
+    def significant(self) -> np.ndarray:
+        """Frequencies whose squared coherence is significantly above zero (95 % level).
+
+        Under zero coherence the squared coherence of ``n`` independent averages exceeds
+        ``1 - 0.05^(1/(n - 1))`` with probability 0.05 (Carter, Knapp & Nuttall 1973); ``n`` is
+        :attr:`n_averages`. With ``n_averages`` unknown, every frequency with nonzero coherence.
+        """
+        coh = np.asarray(self.coherence, float)
+        if self.n_averages is None or self.n_averages <= 1:
+            return coh > 0
+        return coh > 1.0 - 0.05 ** (1.0 / (self.n_averages - 1.0))
+
+    def segment_samples(self) -> int:
+        """Length (samples) of the segments ``H`` was estimated on: ``fs / freq[1]``."""
+        f = np.asarray(self.freq, float)
+        return int(round(self.fs / f[1])) if len(f) > 1 and f[1] > 0 else 2 * (len(f) - 1)
+
+    def prediction(self, trial, index: int = 0) -> Prediction:
+        """Prediction with ``H`` only where the coherence is significant (:meth:`significant`).
+
+        The angle's DFT over the record is multiplied by ``H`` interpolated linearly between its
+        frequencies, with ``H = 0`` at the frequencies without significant coherence (the input did not
+        excite them measurably: ``H`` there is noise, however large) and at DC the real part at the
+        lowest frequency. The product is circular, so half a segment
+        (:meth:`segment_samples`) is left out at each end of the record.
+        """
+        y = trial.output - np.mean(trial.output)
+        u = trial.input - np.mean(trial.input)
+        n = len(u)
+        Hs = np.where(self.significant(), self.H, 0.0)
+        fr = np.fft.rfftfreq(n, 1.0 / self.fs)
+        Hr = np.interp(fr, self.freq, Hs.real) + 1j * np.interp(fr, self.freq, Hs.imag)
+        lowest = Hs[1] if len(Hs) > 1 else Hs[0]
+        Hr[fr < (self.freq[1] if len(self.freq) > 1 else np.inf)] = lowest.real
+        if n % 2 == 0:
+            Hr[-1] = Hr[-1].real
+        yhat = np.fft.irfft(np.fft.rfft(u) * Hr, n)
+        edge = self.segment_samples() // 2
+        used = np.zeros(n, bool)
+        used[edge:n - edge] = True
+        if not used.any():
+            raise InputError(f"record '{trial.name}' ({n} samples) is not longer than one segment "
+                             f"({2 * edge} samples) of the frequency response")
+        return Prediction(y, yhat, used, "torque (mean removed) against the prediction from the angle (mean "
+                          "removed) with H only at the frequencies of significant coherence (95 %), "
+                          f"without the first and last {edge} samples (half a segment)")
 
     def frequency_response(self, f: np.ndarray, t=None) -> np.ndarray:
         f = np.asarray(f, float)
@@ -129,9 +327,13 @@ class FRFEstimate(Estimate):
         return _const(abs(self.H[i]), t)
 
     def response_frame(self) -> pd.DataFrame:
-        return pd.DataFrame({"freq_hz": self.freq, "re": self.H.real, "im": self.H.imag,
-                             "mag": np.abs(self.H), "phase_rad": np.angle(self.H),
-                             "coherence2": self.coherence})
+        """``freq_hz, re, im, mag, phase_rad, coherence2, significant`` (and the ``*_lo``, ``*_hi``
+        limits of ``mag`` and ``phase_rad`` with intervals)."""
+        import pandas as pd
+        frame = pd.DataFrame({"freq_hz": self.freq, "re": self.H.real, "im": self.H.imag,
+                              "mag": np.abs(self.H), "phase_rad": np.angle(self.H),
+                              "coherence2": self.coherence, "significant": self.significant()})
+        return self.add_interval_columns(frame, response=True)
 
 
 @dataclasses.dataclass(eq=False)
@@ -149,6 +351,8 @@ class ParametricEstimate(Estimate):
     time: np.ndarray
     estimator: str = "parametric"
     basis: Estimate | None = None
+    #: (low, high) band (Hz) the parameters were fitted in; None = up to the Nyquist frequency
+    band_hz: tuple[float, float] | None = None
 
     def _on(self, v, t):
         return _const(v, t) if np.ndim(v) == 0 else np.interp(t, self.time, v)
@@ -170,6 +374,41 @@ class ParametricEstimate(Estimate):
         p = {k: self._on(getattr(self, k), t) for k in ("I", "B", "K")}
         return p["I"] * ddu + p["B"] * du + p["K"] * u
 
+    def prediction(self, trial, index: int = 0) -> Prediction:
+        """Time-invariant I, B, K: the model's torque in the band it was fitted in.
+
+        Angle and torque (means removed) are low-passed alike, zero phase, by the squared magnitude of
+        a 4th-order Butterworth at the band's top (:attr:`band_hz`; 0.8 of the Nyquist frequency when
+        the fit used the whole band), and the model ``K + j w B - I w^2`` is applied to the angle in the
+        frequency domain (exact derivatives of the band-limited angle; each end extended by its mirror
+        image). Samples within ``2 fs / f_top`` of either end are left out. Time-varying parameters: the
+        default of :class:`Estimate` (central-difference derivatives).
+        """
+        if np.ndim(self.I) or np.ndim(self.B) or np.ndim(self.K):
+            return super().prediction(trial, index)
+        fs = self.fs
+        top = 0.8 * fs / 2 if self.band_hz is None else min(float(self.band_hz[1]), 0.8 * fs / 2)
+        y = trial.output - np.mean(trial.output)
+        u = trial.input - np.mean(trial.input)
+        n = len(y)
+        pad = min(n - 1, int(np.ceil(4 * fs / top)))
+        ext = lambda x: np.concatenate([x[pad:0:-1], x, x[-2:-pad - 2:-1]])  # noqa: E731 (mirror ends)
+        m = n + 2 * pad
+        f = np.fft.rfftfreq(m, 1.0 / fs)
+        g2 = 1.0 / (1.0 + (f / top) ** 8)       # |Butterworth 4th order|^2: zero phase
+        w = 2 * np.pi * f
+        Z = self.K + 1j * w * self.B - self.I * w ** 2
+        yf = np.fft.irfft(np.fft.rfft(ext(y)) * g2, m)[pad:pad + n]
+        yhat = np.fft.irfft(np.fft.rfft(ext(u)) * g2 * Z, m)[pad:pad + n]
+        edge = int(np.ceil(2 * fs / top))
+        used = np.zeros(n, bool)
+        used[edge:n - edge] = True
+        if not used.any():
+            used[:] = True
+        return Prediction(yf, yhat, used, "torque against the I-B-K model's torque from the angle (means "
+                          f"removed), both low-passed to {top:.4g} Hz (the fitted band; zero phase), "
+                          f"without the first and last {edge} samples")
+
     def frequency_response(self, f: np.ndarray, t=None) -> np.ndarray:
         if np.ndim(self.I) or np.ndim(self.B) or np.ndim(self.K):
             raise NotImplementedError("time-varying parameters have no single frequency response")
@@ -178,117 +417,3 @@ class ParametricEstimate(Estimate):
 
     def response_frame(self) -> pd.DataFrame | None:
         return None if self.basis is None else self.basis.response_frame()
-
-
-@dataclasses.dataclass(eq=False)
-class TVIRFEstimate(Estimate):
-    """Time-varying two-sided impulse response ``h(k, t_i)``: lags ``k = -M1 ... M2`` by sample times.
-
-    The model is ``y(t_i) = sum_k h(k, t_i) u(t_i - k / fs)`` (zero outside the record), the frozen
-    IRF at each time applied to the input around it.
-
-    Unit convention (the same as :class:`IRFEstimate`): ``h`` is the weight of the discrete
-    convolution, not scaled by the sampling interval. Toolboxes that store the IRF as a density
-    ``g = h fs`` (N·m/rad/s; the REKLAB/NLID ``irf`` objects, ``tv_ident``) write the low-frequency gain
-    as ``Ts sum_k g(k, t)``; here that same number is ``sum_k h(k, t)`` = :meth:`stiffness`.
-
-    Attributes
-    ----------
-    lags : ndarray of int, shape (L,)
-        Lags in samples, increasing, ``-M1 ... M2``.
-    h : ndarray, shape (L, N)
-        The IRF at every sample time.
-    fs : float
-        Sampling rate (Hz).
-    time : ndarray, shape (N,)
-        Sample times (s) of the record(s) fitted.
-    valid : ndarray of bool, shape (N,)
-        Samples where the IRF was estimated from data; elsewhere (record ends that the lags or a
-        window do not reach) it is held from the nearest valid sample. See
-        :func:`jointbench.ensemble.valid_mask`.
-    estimator : str
-        Name of the estimator.
-    info : dict
-        Numbers about the fit (realizations, orders chosen, ...), shown by :meth:`summary`.
-
-    References
-    ----------
-    MacNeil, Kearney & Hunter (1992), IEEE TBME 39(12) (the ensemble time-varying IRF); Westwick &
-    Perreault (2012), eq. 9 (two-sided IRF, unscaled sum).
-    """
-
-    lags: np.ndarray
-    h: np.ndarray
-    fs: float
-    time: np.ndarray
-    valid: np.ndarray
-    estimator: str = "tv_irf"
-    info: dict = dataclasses.field(default_factory=dict)
-
-    def __post_init__(self):
-        self.lags = np.asarray(self.lags, int)
-        self.h = np.asarray(self.h, float)
-        self.time = np.asarray(self.time, float)
-        self.valid = np.asarray(self.valid, bool)
-        if self.h.shape != (len(self.lags), len(self.time)) or self.valid.shape != self.time.shape:
-            raise ValueError(f"TVIRFEstimate: h must be lags x time ({len(self.lags)} x {len(self.time)}) and valid "
-                             f"one flag per sample; got h {self.h.shape}, valid {self.valid.shape}")
-
-    @property
-    def m1(self) -> int:
-        """Anticipatory lags M1 (samples)."""
-        return -int(self.lags[0])
-
-    def irf_at(self, t) -> np.ndarray:
-        """The IRF at times ``t`` (linear interpolation between samples, held outside): ``(L, len(t))``."""
-        t = np.atleast_1d(np.asarray(t, float))
-        x = (t - self.time[0]) * self.fs
-        i0 = np.clip(np.floor(x).astype(int), 0, len(self.time) - 1)
-        i1 = np.minimum(i0 + 1, len(self.time) - 1)
-        w = np.clip(x - i0, 0.0, 1.0)
-        return self.h[:, i0] * (1 - w) + self.h[:, i1] * w
-
-    def stiffness(self, t) -> np.ndarray:
-        """Low-frequency gain ``sum_k h(k, t)`` (N·m/rad) at times ``t``."""
-        out = self.irf_at(t).sum(axis=0)
-        return out[0] if np.ndim(t) == 0 else out.reshape(np.shape(t))
-
-    def predict(self, u: np.ndarray) -> np.ndarray:
-        """``y(t_i) = sum_k h(k, t_i) u(i - k)`` for an input on the fitted time base (zero outside it)."""
-        u = np.asarray(u, float)
-        n = len(self.time)
-        if u.shape != (n,):
-            raise ValueError(f"{self.estimator}: predict needs an input on the fitted time base ({n} samples), got "
-                             f"shape {u.shape}")
-        m1, m2 = self.m1, int(self.lags[-1])
-        padded = np.concatenate([np.zeros(m2), u, np.zeros(m1)])
-        # column j of the window at sample i holds u(i + M1 - j), i.e. lag k = j - M1
-        from numpy.lib.stride_tricks import sliding_window_view
-        U = sliding_window_view(padded, len(self.lags))[:, ::-1]
-        return np.einsum("ij,ji->i", U, self.h)
-
-    def frequency_response(self, f: np.ndarray, t=None) -> np.ndarray:
-        """Frozen response ``sum_k h(k, t) exp(-j 2 pi f k / fs)``: ``(len(t), len(f))``, or ``(len(f),)``
-        for a scalar ``t``."""
-        if t is None:
-            raise ValueError(f"{self.estimator}: the estimate is time-varying; give the time(s) t")
-        w = 2 * np.pi * np.atleast_1d(np.asarray(f, float)) / self.fs
-        H = (np.exp(-1j * np.outer(w, self.lags)) @ self.irf_at(t)).T
-        return H[0] if np.ndim(t) == 0 else H
-
-    def to_frame(self) -> pd.DataFrame:
-        """``time``, ``stiffness`` and ``valid``."""
-        return pd.DataFrame({"time": self.time, "stiffness": self.h.sum(axis=0), "valid": self.valid})
-
-    def response_frame(self) -> pd.DataFrame:
-        """The IRF in long form: ``time, lag, lag_s, h`` (one row per sample and lag)."""
-        n, nl = len(self.time), len(self.lags)
-        return pd.DataFrame({"time": np.repeat(self.time, nl), "lag": np.tile(self.lags, n),
-                             "lag_s": np.tile(self.lags / self.fs, n), "h": self.h.T.ravel()})
-
-    def summary(self):
-        out = super().summary()
-        out["lags"] = f"{int(self.lags[0])} ... {int(self.lags[-1])} samples"
-        out["valid"] = f"{int(self.valid.sum())} of {len(self.valid)} samples"
-        out.update(self.info)
-        return out

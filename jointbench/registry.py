@@ -1,8 +1,11 @@
 """Name -> object registries filled by decorators (folder-as-registry, as in benchopt/dm_control)."""
 from __future__ import annotations
 
+import ast
+import dataclasses
 import importlib
 import pkgutil
+from pathlib import Path
 from typing import Callable, Generic, Iterable, TypeVar
 
 from jointbench.errors import ConfigError
@@ -23,6 +26,23 @@ class Registry(Generic[T]):
         self.kind = kind
         self._items: dict[str, T] = {}
         self._tags: dict[str, frozenset[str]] = {}
+        self._deferred: dict[str, Registration] = {}
+
+    def defer(self, registrations: Iterable["Registration"]) -> None:
+        """Know these names before their modules are imported; :meth:`get` imports a module on first use.
+
+        :meth:`names`, :meth:`tags` and :meth:`summary` answer from the registrations without importing
+        anything (e.g. ``jointbench estimate --list``); the decorator still does the registering.
+        """
+        for r in registrations:
+            self._deferred.setdefault(r.name, r)
+
+    def _load(self, name: str) -> None:
+        r = self._deferred.get(name)
+        if r is not None and name not in self._items:
+            importlib.import_module(r.module)
+            if name not in self._items:
+                raise RuntimeError(f"{self.kind} {name!r}: module {r.module} did not register it")
 
     def register(self, name: str, *, tags: Iterable[str] = ()) -> Callable[[T], T]:
         """Decorator registering ``obj`` under ``name`` (names are unique)."""
@@ -38,22 +58,82 @@ class Registry(Generic[T]):
 
     def get(self, name: str) -> T:
         """Return the object registered as ``name`` or raise a :class:`ConfigError` listing the names."""
+        self._load(name)
         try:
             return self._items[name]
         except KeyError:
-            known = ", ".join(sorted(self._items)) or "(none)"
+            known = ", ".join(self.names()) or "(none)"
             raise ConfigError(f"unknown {self.kind} {name!r}; known: {known}") from None
 
     def names(self, tag: str | None = None) -> list[str]:
         """Sorted registered names, optionally only those carrying ``tag``."""
-        return sorted(n for n in self._items if tag is None or tag in self._tags[n])
+        every = set(self._items) | set(self._deferred)
+        return sorted(n for n in every if tag is None or tag in self.tags(n))
 
     def tags(self, name: str) -> frozenset[str]:
+        if name in self._items:
+            return self._tags[name]
+        if name in self._deferred:
+            return self._deferred[name].tags
         self.get(name)
         return self._tags[name]
 
+    def summary(self, name: str) -> str:
+        """First line of the docstring of ``name`` (without importing it when deferred)."""
+        if name in self._items:
+            doc = (getattr(self._items[name], "__doc__", None) or "").strip().splitlines()
+            return doc[0] if doc else ""
+        if name in self._deferred:
+            return self._deferred[name].summary
+        self.get(name)
+        return self.summary(name)
+
     def __contains__(self, name: object) -> bool:
-        return name in self._items
+        return name in self._items or name in self._deferred
+
+
+@dataclasses.dataclass(frozen=True)
+class Registration:
+    """A ``@decorator("name", tags=...)`` class found in a module's source by :func:`scan_registrations`."""
+
+    name: str
+    module: str
+    tags: frozenset[str]
+    summary: str
+
+
+def scan_registrations(package_name: str, package_path: Iterable[str],
+                       decorator: str = "register") -> list[Registration]:
+    """Registrations in the non-private modules of a package, read from their source (nothing imported).
+
+    Finds classes decorated ``@decorator("name")`` or ``@decorator("name", tags=(...))`` (name and tags
+    literal strings), with the first line of the class docstring. ``tests/test_architecture.py``
+    checks that it finds exactly what importing every module registers.
+    """
+    out = []
+    for info in pkgutil.iter_modules(list(package_path)):
+        if info.name.startswith("_"):
+            continue
+        path = Path(info.module_finder.path) / f"{info.name}.py"
+        if not path.exists():
+            continue
+        tree = ast.parse(path.read_text(encoding="utf-8"), str(path))
+        for node in ast.walk(tree):
+            if not isinstance(node, ast.ClassDef):
+                continue
+            for dec in node.decorator_list:
+                if not (isinstance(dec, ast.Call) and getattr(dec.func, "id", getattr(dec.func, "attr", None))
+                        == decorator and dec.args and isinstance(dec.args[0], ast.Constant)
+                        and isinstance(dec.args[0].value, str)):
+                    continue
+                tags: frozenset[str] = frozenset()
+                for kw in dec.keywords:
+                    if kw.arg == "tags" and isinstance(kw.value, (ast.Tuple, ast.List)):
+                        tags = frozenset(e.value for e in kw.value.elts if isinstance(e, ast.Constant))
+                doc = (ast.get_docstring(node) or "").strip().splitlines()
+                out.append(Registration(dec.args[0].value, f"{package_name}.{info.name}", tags,
+                                        doc[0] if doc else ""))
+    return out
 
 
 def import_submodules(package_name: str, package_path: Iterable[str]) -> None:

@@ -42,9 +42,13 @@ def _norm_unit(u: str) -> str:
 
 def param(default: Any = dataclasses.MISSING, *, unit: str | None = None, gt: float | None = None,
           ge: float | None = None, lt: float | None = None, le: float | None = None,
-          doc: str = "", default_factory: Any = dataclasses.MISSING) -> Any:
-    """A dataclass field with an optional unit and bounds, checked by :func:`parse`."""
-    meta = {"unit": unit, "gt": gt, "ge": ge, "lt": lt, "le": le, "doc": doc}
+          doc: str = "", default_factory: Any = dataclasses.MISSING, allow_inf: bool = False) -> Any:
+    """A dataclass field with an optional unit and bounds, checked by :func:`parse`.
+
+    Numbers must be finite unless ``allow_inf`` (e.g. an SNR of ``.inf`` meaning no noise): an infinite
+    lag or segment length only overflows further on.
+    """
+    meta = {"unit": unit, "gt": gt, "ge": ge, "lt": lt, "le": le, "doc": doc, "allow_inf": allow_inf}
     if default_factory is not dataclasses.MISSING:
         return dataclasses.field(default_factory=default_factory, metadata=meta)
     return dataclasses.field(default=default, metadata=meta)
@@ -54,7 +58,8 @@ def _fail(where: str, key: str, msg: str) -> ConfigError:
     return ConfigError(f"{where}: key '{key}': {msg}")
 
 
-def _number(value: Any, unit: str | None, where: str, key: str, integer: bool) -> float | int:
+def _number(value: Any, unit: str | None, where: str, key: str, integer: bool,
+            allow_inf: bool = False) -> float | int:
     kind = "a whole number" if integer else "a number"
     if isinstance(value, bool):
         raise _fail(where, key, f"expected {kind}, got {value!r}")
@@ -77,6 +82,8 @@ def _number(value: Any, unit: str | None, where: str, key: str, integer: bool) -
         raise _fail(where, key, f"expected {kind}" + (f" in {unit}" if unit else "") + f", got {value!r}")
     if isinstance(value, float) and math.isnan(value):
         raise _fail(where, key, "NaN is not allowed")
+    if isinstance(value, float) and math.isinf(value) and not allow_inf:
+        raise _fail(where, key, f"must be a finite number, got {value!r}")
     if integer:
         if float(value) != int(value):
             raise _fail(where, key, f"expected a whole number, got {value!r}")
@@ -106,7 +113,7 @@ def _convert(tp: Any, value: Any, meta: Mapping[str, Any], where: str, key: str)
             raise _fail(where, key, f"{value!r} is not allowed; allowed: {', '.join(map(repr, args))}")
         return value
     if tp is float or tp is int:
-        x = _number(value, meta.get("unit"), where, key, integer=tp is int)
+        x = _number(value, meta.get("unit"), where, key, integer=tp is int, allow_inf=bool(meta.get("allow_inf")))
         for bound, op, text in (("gt", float.__gt__, ">"), ("ge", float.__ge__, ">="),
                                 ("lt", float.__lt__, "<"), ("le", float.__le__, "<=")):
             b = meta.get(bound)
@@ -173,6 +180,18 @@ def parse(cls: type, data: Mapping[str, Any] | None, where: str) -> Any:
         raise ConfigError(f"{where}: {exc}") from None
 
 
+def _type_text(t: Any) -> str:
+    """``float | None``, ``'a' | 'b'``, ``float | 'auto'``, ``tuple[float, ...]``: a type as a user reads it."""
+    origin = typing.get_origin(t)
+    if origin is Literal:
+        return " | ".join(map(repr, typing.get_args(t)))
+    if origin in (typing.Union, types.UnionType):
+        return " | ".join(_type_text(a) for a in typing.get_args(t))
+    if t is type(None):
+        return "None"
+    return getattr(t, "__name__", str(t)).replace("typing.", "") if origin is None else str(t).replace("typing.", "")
+
+
 def describe(cls: type) -> list[tuple[str, str, str, str]]:
     """(name, type, default, doc) rows for help texts."""
     rows = []
@@ -180,11 +199,7 @@ def describe(cls: type) -> list[tuple[str, str, str, str]]:
     for f in dataclasses.fields(cls):
         default = "required" if f.default is dataclasses.MISSING else repr(f.default)
         unit = f.metadata.get("unit")
-        t = hints[f.name]
-        if typing.get_origin(t) is Literal:
-            tp = " | ".join(map(repr, typing.get_args(t)))
-        else:
-            tp = getattr(t, "__name__", str(t)).replace("typing.", "")
+        tp = _type_text(hints[f.name])
         rows.append((f.name, tp + (f" [{unit}]" if unit else ""), default, f.metadata.get("doc", "")))
     return rows
 

@@ -127,3 +127,125 @@ def decimate_fft(x: np.ndarray, n_out: int) -> np.ndarray:
     if n_out % 2 == 0:
         Y[-1] = Y[-1].real  # the new Nyquist bin of a real signal: keep its real part only (symmetric)
     return np.fft.irfft(Y, n_out, axis=0) * (n_out / n)
+
+
+@dataclasses.dataclass(frozen=True)
+class Gate:
+    """Where a perturbation is on in a record that starts and/or ends quiet (see :func:`find_gate`).
+
+    Attributes
+    ----------
+    on, off : int
+        First sample of the perturbation and the sample after its last one.
+    period : int or None
+        Samples per period when the perturbation repeats (a periodic multisine), else None.
+    start, stop : int
+        The longest span of whole periods inside ``on ... off`` (centred), or ``on, off`` without a period.
+    """
+
+    on: int
+    off: int
+    period: int | None
+    start: int
+    stop: int
+
+    @property
+    def periods(self) -> int:
+        return 0 if not self.period else (self.stop - self.start) // self.period
+
+
+def find_gate(x: np.ndarray, fs: float, window_s: float = 0.25, quiet_ratio: float = 0.1) -> Gate | None:
+    """The part of a record where the perturbation is on, when the record starts or ends without it.
+
+    The moving standard deviation over ``window_s`` seconds marks the perturbed samples (above 0.2 of
+    its 90th percentile); the record is *gated* when a part of at least two windows at the start or the
+    end is quiet: its standard deviation below ``quiet_ratio`` times that of the perturbed part. The
+    onset and offset are then refined to the samples leaving the quiet level by more than five times
+    its noise. A repeating perturbation (autocorrelation above 0.9 at a lag past its first zero
+    crossing) gets its period and the centred span of whole periods (when the perturbation lasts
+    whole periods only, the start near the detected onset whose window puts the least power off the
+    harmonics of the period: filtering blurs the onset).
+
+    Returns
+    -------
+    Gate or None
+        None when the perturbation runs through the whole record (or there is none).
+
+    References
+    ----------
+    van de Ruit et al. (2018), Sec. IV-C: the multisine is off for the first and last 5 s of each trial.
+    """
+    x = np.asarray(x, float)
+    n = len(x)
+    w = max(4, int(round(window_s * fs)))
+    if n < 8 * w:
+        return None
+    c1 = np.concatenate([[0.0], np.cumsum(x - np.median(x))])
+    c2 = np.concatenate([[0.0], np.cumsum((x - np.median(x)) ** 2)])
+    m = (c1[w:] - c1[:-w]) / w
+    sd = np.sqrt(np.maximum((c2[w:] - c2[:-w]) / w - m * m, 0.0))   # window k covers samples k ... k + w - 1
+    level = np.percentile(sd, 90)
+    if not level > 0:
+        return None
+    active = np.flatnonzero(sd > 0.2 * level)
+    if active.size == 0:
+        return None
+    a, b = int(active[0]), int(active[-1]) + w           # perturbed samples within a ... b
+    head, tail = x[:max(a, 0)], x[min(b, n):]
+    body = x[a:b]
+    quiet = [p for p in (head, tail) if len(p) >= 2 * w]
+    if not quiet or len(body) < 4 * w:
+        return None
+    sb = float(np.std(body))
+    if any(float(np.std(p)) > quiet_ratio * sb for p in quiet):
+        return None
+
+    def edge(part: np.ndarray, lo: int, hi: int, forward: bool) -> int:
+        ref = part if len(part) >= 2 else body[:2]
+        base, noise = float(np.median(ref)), float(np.std(ref))
+        thr = max(5.0 * noise, 1e-6 * sb)
+        seg = x[lo:hi]
+        out = np.flatnonzero(np.abs(seg - base) > thr)
+        if out.size == 0:
+            return lo if forward else hi
+        return lo + int(out[0]) if forward else lo + int(out[-1]) + 1
+
+    on = edge(head, max(0, a - w), min(n, a + 2 * w), True) if len(head) >= 2 * w else 0
+    off = edge(tail, max(0, b - 2 * w), min(n, b + w), False) if len(tail) >= 2 * w else n
+    span = x[on:off] - np.mean(x[on:off])
+    L = len(span)
+    nfft = 1 << int(np.ceil(np.log2(2 * L)))
+    S = np.fft.rfft(span, nfft)
+    r = np.fft.irfft(np.abs(S) ** 2, nfft)[:L]
+    lag = np.arange(L)
+    norm = r / np.maximum(r[0], 1e-300) * L / np.maximum(L - lag, 1)
+    period = None
+    neg = np.flatnonzero(norm[1:L // 2] < 0)
+    if neg.size:
+        k0 = int(neg[0]) + 1
+        hits = np.flatnonzero(norm[k0:L // 2 + 1] > 0.9)
+        if hits.size:
+            k = k0 + int(hits[0])
+            # the peak of the first lobe above 0.9
+            stop = k
+            while stop + 1 < len(norm) and norm[stop + 1] >= norm[stop]:
+                stop += 1
+            period = int(stop)
+    if period:
+        whole = int((off - on + 0.02 * period) // period)
+        if whole >= 1:
+            span_n = whole * period
+            start = on + ((off - on) - span_n) // 2
+            if (off - on) - span_n < 2 * w:
+                # (about) whole periods only, and the onset may be blurred (filtered records): take the
+                # start near it whose window leaks least power off the harmonics of the period
+                reach = min(w, 16)
+                cand = np.arange(max(0, on - reach), min(n - span_n, on + reach) + 1)
+                if cand.size and whole >= 2:
+                    off_harm = np.arange(span_n // 2 + 1) % whole != 0
+                    leak = [float(np.sum(np.abs(np.fft.rfft(x[c:c + span_n] - np.mean(x[c:c + span_n])))[off_harm] ** 2))
+                            for c in cand]
+                    start = int(cand[int(np.argmin(leak))])
+            start = min(max(start, 0), n - span_n)
+            return Gate(on=on, off=off, period=period, start=start, stop=start + span_n)
+    return Gate(on=on, off=off, period=None, start=on, stop=off)

@@ -44,3 +44,15 @@ def test_modules_stay_small():
     big = [f"{f.relative_to(REPO)}: {n}" for pkg in ("jointbench", "sims", "estimators", "benchmarks")
            for f in (REPO / pkg).rglob("*.py") if (n := len(f.read_text().splitlines())) > 500]
     assert not big, big
+
+
+def test_estimator_index_matches_the_registry():
+    """The registry knows the estimators from their source (``jointbench estimate --list`` imports none
+    of them); importing every module must register exactly those names, tags and summaries."""
+    import estimators
+
+    known = {n: (estimators.REGISTRY.tags(n), estimators.REGISTRY.summary(n)) for n in estimators.REGISTRY.names()}
+    estimators.import_all()
+    loaded = {n: (estimators.REGISTRY._tags[n], (estimators.REGISTRY._items[n].__doc__ or "").strip().splitlines()[0])
+              for n in estimators.REGISTRY._items}
+    assert known == loaded

@@ -129,13 +129,15 @@ def test_outputs_by_estimate_type(tmp_path, rec, stubs, capsys, name, side, cols
     assert list(frame.columns) == cols and len(frame) == 4000
     assert np.allclose(frame["time"], np.arange(4000) / 200.0)
     resp = pd.read_csv(tmp_path / "deep" / "er" / f"est_{side}.csv")
-    want = ["lag", "lag_s", "h"] if side == "irf" else ["freq_hz", "re", "im", "mag", "phase_rad", "coherence2"]
+    want = ["lag", "lag_s", "h"] if side == "irf" else ["freq_hz", "re", "im", "mag", "phase_rad", "coherence2",
+                                                         "significant"]
     assert list(resp.columns) == want
     assert (tmp_path / "fig.png").read_bytes()[:4] == b"\x89PNG"
-    assert sorted(p.name for p in out.parent.iterdir()) == sorted(["est.csv", f"est_{side}.csv"])  # no temp files
+    assert sorted(p.name for p in out.parent.iterdir()) == sorted(["est.csv", f"est_{side}.csv",
+                                                                   "est_prediction.csv"])  # no temp files
     text = capsys.readouterr().out
     assert f"estimator: {name}" in text and "syn.npz  4000 samples at 200 Hz (20.000 s)" in text
-    assert "VAF of predicted torque" in text and str(out) in text
+    assert "VAF of the predicted torque" in text and str(out) in text
 
 
 def test_time_varying_plot_and_summary(tmp_path, rec, stubs, capsys):
@@ -151,7 +153,7 @@ def test_settings_units_pooling_decimation_and_vaf(tmp_path, stubs, capsys):
     assert cli(["-e", "stub_irf", "-i", a, "-i", b, "-o", tmp_path / "o.csv", "--set", "lag=50ms",
                 "--decimate", "2"]) == 0
     text = capsys.readouterr().out
-    assert "lag=0.05" in text and "decimated to 2000 samples at 100 Hz" in text
+    assert "lag=0.05" in text and "decimated to 100 Hz (2000 samples)" in text
     assert len(pd.read_csv(tmp_path / "o.csv")) == 2000
     assert len(pd.read_csv(tmp_path / "o_irf.csv")) == 11  # ±50 ms at 100 Hz
     vafs = [float(line.split()[-2]) for line in text.splitlines() if line.strip().endswith("%")]
@@ -259,16 +261,16 @@ def test_each_registered_estimator(tmp_path, rec, capsys, name):
     frame = pd.read_csv(out)
     assert frame.columns[0] == "time" and "stiffness" in frame.columns and len(frame) == data.n
     assert frame.notna().all().all()
-    side = [p.name for p in tmp_path.glob("o_*.csv")]
+    side = sorted(p.name for p in tmp_path.glob("o_*.csv"))
     est_cls = estimators.REGISTRY.get(name)
     est = est_cls().fit([data]) if "trial" in est_cls.accepts else \
         estimators.make(name, {"pool": 0.05, "remove_mean": "record"}).fit(Ensemble((data, data.replace(name="b"))))
     kind = cli_estimate.response_kind(est)
-    assert side == ([f"o_{kind}.csv"] if kind else [])
+    assert side == sorted(([f"o_{kind}.csv"] if kind else []) + ["o_prediction.csv"])
     # the synthetic joint has K = 100 N m/rad: any estimator should land in the right decade
     assert 50 < frame["stiffness"].mean() < 200
     assert (tmp_path / "f.png").stat().st_size > 1000
-    assert "VAF of predicted torque" in capsys.readouterr().out
+    assert "VAF of the predicted torque" in capsys.readouterr().out
 
 
 # --- real ankle recordings (REKLAB); the project never reads ../shared at run time ---------------

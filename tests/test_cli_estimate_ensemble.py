@@ -7,7 +7,7 @@ from scipy import io as sio
 from benchmarks import io_ensemble as io
 from jointbench.ensemble import Ensemble
 from jointbench.errors import InputError
-from jointbench.estimate import TVIRFEstimate
+from jointbench.estimate_tv import TVIRFEstimate
 from tests.test_cli_estimate import cli
 
 FS = 100.0
@@ -46,7 +46,7 @@ def test_npz_ensemble_gives_stiffness_and_long_irf(tmp_path, capsys):
     assert list(irf.columns) == ["time", "lag", "lag_s", "h"] and len(irf) == 1500 * 9
     assert np.allclose(irf["lag_s"], irf["lag"] / FS)
     text = capsys.readouterr().out
-    assert "ens.npz[0]" in text and "ens.npz[11]" in text and "VAF of predicted torque" in text
+    assert "ens.npz[0]" in text and "ens.npz[11]" in text and "VAF of the predicted torque" in text and "where the time-varying IRF is estimated" in text
 
 
 def test_mat_ensemble_with_time(tmp_path, capsys):

@@ -7,7 +7,8 @@ from estimators._tvirf import mdl_solve
 from estimators.guarin import GuarinEstimate, time_basis
 from jointbench.ensemble import Ensemble, data_kind, valid_mask
 from jointbench.errors import InputError
-from jointbench.estimate import IRFEstimate, TVIRFEstimate
+from jointbench.estimate import IRFEstimate
+from jointbench.estimate_tv import TVIRFEstimate
 from jointbench.types import Trial, Truth
 from tests.multisine_data import multisine_impedance_trial
 

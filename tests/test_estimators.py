@@ -11,7 +11,8 @@ from estimators import REGISTRY
 from jointbench.differentiators import impedance_irf
 from jointbench.ensemble import Ensemble
 from jointbench.errors import ConfigError, InputError
-from jointbench.estimate import FRFEstimate, IRFEstimate, ParametricEstimate, TVIRFEstimate
+from jointbench.estimate import FRFEstimate, IRFEstimate, ParametricEstimate
+from jointbench.estimate_tv import TVIRFEstimate
 from jointbench.types import Trial
 from tests.multisine_data import LINES, multisine_impedance_trial
 
@@ -233,7 +234,8 @@ def test_irf_ls_handles_many_blocks(monkeypatch):
 @pytest.mark.parametrize("name", ["irf2_ls", "irf2_corr"])
 def test_pooling_identical_copies(name):
     h, tr = random_irf_data(seed=3, n=2000, m1=5, m2=5, margin=5)
-    est = estimators.make(name, {"lag_before": 0.05, "lag_after": 0.05, "remove_mean": False})
+    est = estimators.make(name, {"lag_before": 0.05, "lag_after": 0.05, "remove_mean": False,
+                                 "pseudo_inverse": "off"})
     one, two = est.fit(tr), est.fit([tr, tr.replace(name="copy")])
     assert np.allclose(two.h, one.h, rtol=1e-9, atol=1e-12)
     assert rel(two.h, h) < 1e-6
@@ -258,7 +260,9 @@ def test_pooling_does_not_join_records():
 
 @pytest.mark.parametrize("name", ["spectral", "ibk_spectral", "ibk_irf"])
 def test_pooling_identical_copies_spectral_and_parametric(name, elbow):
-    est = estimators.make(name, RECOVERY[name])
+    # the MDL pseudo-inverse keeps more terms for more rows (by design): compare plain least squares
+    off = {"pseudo_inverse": "off"} if name == "ibk_irf" else {}
+    est = estimators.make(name, {**RECOVERY[name], **off})
     one, two = est.fit(elbow), est.fit([elbow, elbow.replace(name="copy")])
     if isinstance(one, ParametricEstimate):
         assert [two.I, two.B, two.K] == pytest.approx([one.I, one.B, one.K], rel=1e-9)

@@ -130,7 +130,8 @@ def test_estimate_interface(steady_elbow):
     keep = est.steady()
     assert np.abs(est.damping_ratio()[keep] / ZETA - 1).max() < 0.01
     frame = est.to_frame()
-    assert list(frame.columns) == ["time", "I", "B", "K", "stiffness", "steady", "filtered_torque",
+    assert list(frame.columns) == ["time", "I", "I_lo", "I_hi", "B", "B_lo", "B_hi", "K", "K_lo", "K_hi",
+                                   "stiffness", "stiffness_lo", "stiffness_hi", "steady", "filtered_torque",
                                    "predicted_filtered_torque"]
     assert frame["steady"].sum() == keep.sum() and frame.notna().all().all()
     assert est.filtered_torque.shape == est.predicted_filtered_torque.shape == (1, trial.n)

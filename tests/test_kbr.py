@@ -262,7 +262,8 @@ def test_nystrom_features_match_the_kernel():
 def test_estimate_interface(lti, lti_fit):
     est = lti_fit
     frame = est.to_frame()
-    assert list(frame.columns) == ["time", "a1", "a2", "b0", "b1", "b2", "b3", "stiffness"]
+    assert list(frame.columns) == ["time", "a1", "a2", "b0", "b1", "b2", "b3", "stiffness", "stiffness_lo",
+                                   "stiffness_hi"]
     assert len(frame) == lti.n and frame.notna().all().all()
     assert est.parameters() == {}                       # no I, B, K in this model
     f = np.array([0.1, 1.0, 5.0])

@@ -233,7 +233,7 @@ def test_estimate_interface(ltv):
     assert np.ndim(est.stiffness(3.0)) == 0
     assert est.stiffness(3.0) == pytest.approx(abs(est.frequency_response([0.1], 3.0)[0]))
     frame = est.to_frame()
-    assert list(frame.columns) == ["time", "stiffness"] and len(frame) == N
+    assert list(frame.columns) == ["time", "stiffness", "stiffness_lo", "stiffness_hi"] and len(frame) == N
     resp = est.response_frame()
     assert len(resp) == 8 * 25
     assert list(resp.columns) == ["p", "basis", "freq_hz", "re", "im", "mag", "phase_rad"]

@@ -118,7 +118,7 @@ class Table1Params:
     """One case of Table I; ``variation`` and ``snr_db`` normally come from the part's sweep."""
 
     variation: str = param(doc="name of the stiffness variation, a key of 'variations'")
-    snr_db: float = param(unit="dB", doc="nominal SNR (dB); .inf = no noise")
+    snr_db: float = param(unit="dB", doc="nominal SNR (dB); .inf = no noise", allow_inf=True)
     variations: dict = param(default_factory=dict, doc="name -> profile of the intrinsic stiffness k(t)")
     noise: Literal["snr_db", "variance_ratio"] = param("variance_ratio",
                                                        doc="how the nominal SNR sets the noise level")

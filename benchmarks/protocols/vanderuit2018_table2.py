@@ -32,7 +32,7 @@ from benchmarks.metrics import vaf
 from benchmarks.protocols import Context, register
 from jointbench.ensemble import Ensemble, valid_mask
 from jointbench.errors import InputError
-from jointbench.estimate import TVIRFEstimate
+from jointbench.estimate_tv import TVIRFEstimate
 from jointbench.schema import param, parse
 from jointbench.signal import decimate_fft
 from jointbench.types import Trial

@@ -16,7 +16,7 @@ from numpy.lib.stride_tricks import sliding_window_view
 import estimators
 from estimators.guarin import time_basis
 from jointbench.ensemble import Ensemble
-from jointbench.estimate import TVIRFEstimate
+from jointbench.estimate_tv import TVIRFEstimate
 
 FS = 100.0
 LAGS = np.arange(-4, 5)

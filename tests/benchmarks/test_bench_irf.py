@@ -11,7 +11,7 @@ from jointbench.estimate import IRFEstimate
 from jointbench.types import Trial
 
 FS, DURATION, M = 500.0, 30.0, 50
-SETTINGS = {"lag_before": M / FS, "lag_after": M / FS, "remove_mean": False}
+SETTINGS = {"lag_before": M / FS, "lag_after": M / FS, "remove_mean": False, "pseudo_inverse": "off"}  # plain LS
 LS_SETTINGS = {**SETTINGS, "edges": "zero"}   # same rows as the naive dense baseline
 
 
