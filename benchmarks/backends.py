@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from benchmarks.tables import markdown
+from benchmarks.harness.pages import Paragraph, Section, table as page_table
 
 PREFIX = "backend-"
 
@@ -75,7 +75,7 @@ def _label(label: str, info: dict) -> str:
     return names if label != "study" else f"{names} (study)"
 
 
-def section(study, comparison: pd.DataFrame, meta: dict) -> list[str]:
+def sections(study, comparison: pd.DataFrame, meta: dict) -> list[Section]:
     """The report's "Simulation backends" section, with "Checks by backend" when another run exists."""
     folder = meta.get("folder")
     if folder is None:
@@ -86,7 +86,6 @@ def section(study, comparison: pd.DataFrame, meta: dict) -> list[str]:
     this = next(label for label, path in found.items() if path == folder)
     if not infos[this]["backends"]:
         return []   # nothing simulated (analytic parts only)
-    lines = ["## Simulation backends", ""]
     rows = []
     for label, path in found.items():
         info = infos[label]
@@ -95,12 +94,13 @@ def section(study, comparison: pd.DataFrame, meta: dict) -> list[str]:
                      "backend by part": parts, "trials": info["trials"],
                      "simulation time per trial (median, s)": info["per_trial_s"],
                      "commit": info.get("commit", "")})
-    lines += ["Which backend simulated each part's trials, and the median time of one simulated trial (the "
-              "whole simulation: inputs, physics, sensors, acquisition; cached cases keep the time of the run "
-              "that computed them).", "", markdown(pd.DataFrame(rows))]
+    sec = Section("Simulation backends", anchor="backends", body=[
+        Paragraph("Which backend simulated each part's trials, and the median time of one simulated trial (the "
+                  "whole simulation: inputs, physics, sensors, acquisition; cached cases keep the time of the run "
+                  "that computed them)."), page_table("", pd.DataFrame(rows))])
     others = {label: path for label, path in found.items() if label != this}
     if comparison.empty or not others:
-        return lines
+        return [sec]
     table = comparison[["check", "description", "published"]].copy()
     table[_label(this, infos[this])] = comparison["reproduced"].to_numpy(float)
     for label, path in others.items():
@@ -113,9 +113,9 @@ def section(study, comparison: pd.DataFrame, meta: dict) -> list[str]:
     table["low"], table["high"] = comparison["low"].to_numpy(), comparison["high"].to_numpy()
     table["status"] = comparison["status"].to_numpy()
     own = "this run's" if this == "study" else "the study's own run's (`../report.md`)"
-    lines += ["### Checks by backend", "",
-              f"Every check computed from each run of this study (`within`: inside the tolerance). The "
-              f"status column is this report's; the study's status is {own}. A difference between the "
-              f"columns is what the physics engine's apparatus and integration change.", "",
-              markdown(table)]
-    return lines
+    sec.add(Section("Checks by backend", anchor="checks-by-backend", body=[
+        Paragraph(f"Every check computed from each run of this study (`within`: inside the tolerance). The "
+                  f"status column is this report's; the study's status is {own}. A difference between the "
+                  f"columns is what the physics engine's apparatus and integration change."),
+        page_table("", table, classes=lambda r: {"status": "pass" if r["status"] == "pass" else "miss"})]))
+    return [sec]

@@ -61,7 +61,8 @@ def _show_run(h, run_id: int) -> int:
     checks = h.checks(run_id)
     if len(checks):
         print(f"\nchecks ({int((checks['status'] == 'pass').sum())} of {len(checks)} pass):")
-        print(_text(checks[["check_id", "part", "status", "reproduced", "low", "high", "description"]]))
+        print(_text(checks.assign(evidence=checks["evidence"].fillna("unrecorded"))[
+            ["check_id", "evidence", "part", "status", "reproduced", "low", "high", "description"]]))
     cases = h.cases(run_id)
     failed = cases[cases["status"] != "ok"]
     if len(failed):
@@ -78,7 +79,7 @@ def _show_run(h, run_id: int) -> int:
 def _diff(args) -> int:
     import pandas as pd
 
-    from benchmarks.harness.compare import compare_runs
+    from benchmarks.harness.compare import by_evidence, compare_runs
     from benchmarks.harness.nightly import DEFAULT_CONFIG, load_config
 
     rules = load_config(Path(args.config) if args.config else DEFAULT_CONFIG).rules
@@ -92,8 +93,10 @@ def _diff(args) -> int:
           f"({b['started'][:19]}, {b['status']})")
     sections = [
         ("code, config and versions that changed", pd.DataFrame(d.changes, columns=["what", "before", "after"])),
-        ("checks that changed status", d.flipped[["check", "before", "after", "change", "reproduced_before",
-                                                  "reproduced_after"]] if len(d.flipped) else d.flipped),
+        ("checks that changed status (grouped by kind of evidence)",
+         pd.concat([g for _, g in by_evidence(d.flipped)])[["check", "evidence", "before", "after", "change",
+                                                            "reproduced_before", "reproduced_after"]]
+         if len(d.flipped) else d.flipped),
         ("metrics that drifted beyond their threshold", d.drift),
         ("cases that fail now and did not", d.new_failures),
         ("cases fixed", d.fixed),

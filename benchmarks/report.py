@@ -1,19 +1,25 @@
-"""The study report: ``results/<study>/report.md`` with checks, tables, figures and interpretation.
+"""The study report: ``results/<study>/report.md`` and ``report.html`` with checks, tables, figures and
+interpretation.
 
 :func:`model` turns a run into plain data (headline, check groups by kind of evidence, tolerance reasons,
-swap test, parts, not reproduced, readings); :func:`render` writes that model as markdown. A renderer of
-another format can take the same model.
+swap test, parts, not reproduced, readings); :func:`page` lays that out as a page of the report model
+(:mod:`benchmarks.harness.pages`), which :func:`write` renders to markdown and to one self-contained HTML
+file (figures inline). The nightly report embeds the same page (``StudyRun.report``).
 """
 from __future__ import annotations
 
 import dataclasses
 import datetime as _dt
+from pathlib import Path
 
 import pandas as pd
 
 from benchmarks import backends
 from benchmarks.config import EVIDENCE, Study
-from benchmarks.tables import DIRTY_BANNER, evidence_counts, headline, markdown
+from benchmarks.harness.pages import (Code, Figure, Items, Page, Paragraph, Section, paragraphs, table, to_html,
+                                      to_markdown)
+from benchmarks.tables import DIRTY_BANNER, evidence_counts, headline
+from jointbench.files import write_text
 
 #: what each kind of evidence means, as the report says it
 EVIDENCE_TEXT = {
@@ -143,85 +149,100 @@ def _headline_sentence(counts: dict) -> str:
     return out
 
 
-def render(study: Study, comparison: pd.DataFrame, part_reports: dict, failed: list, meta: dict) -> str:
-    """Markdown text of the report."""
+def _checks_section(m: dict, empty: bool) -> Section:
+    sec = Section("Checks against the published values", anchor="checks")
+    if empty:
+        return sec.add(Paragraph("_(no check belongs to the parts run)_"))
+    sec.add(Paragraph(_headline_sentence(m["counts"])),
+            Paragraph("`reproduced` combines the seeds as `over` says; `spread` is min to max over seeds; a pass "
+                      "needs low <= reproduced <= high. The reason for each band is under its table (column "
+                      "`band: why`)."))
+    if m["swap"]:
+        sec.add(Paragraph(m["swap"]))
+    for g in m["groups"]:
+        sec.add(Section(f"{g.evidence.capitalize()} checks ({g.passed} of {g.total} pass)",
+                        anchor=f"checks-{g.evidence}", body=[
+                            Paragraph(f"_{EVIDENCE_TEXT[g.evidence].capitalize()}._"),
+                            table("", g.table, classes=lambda r: {"status": "pass" if r["status"] == "pass"
+                                                                  else "miss"}),
+                            Paragraph("Why the bands are what they are:"),
+                            Items([f"{label} {text}" for label, text in g.reasons])]))
+    misses = [f"**{r['check']}** ({g.evidence}; {r['description']}): reproduced {r['reproduced']:.4g}, "
+              f"expected [{r['low']:.4g}, {r['high']:.4g}]. {r['note'] or 'No explanation recorded yet.'}"
+              for g in m["groups"] for r in g.misses]
+    if misses:
+        sec.add(Section("Misses and their likely reasons", anchor="misses", body=[Items(misses)]))
+    return sec
+
+
+def _part(study: Study, name: str, rep, folder) -> Section:
+    """The section of one part: its text, tables and figures (or why there are none)."""
+    sec = Section(f"{name}: {study.parts[name].description}", anchor=f"part-{name}")
+    if rep is None:
+        return sec.add(Paragraph("_(no figure maker for this protocol)_"))
+    if isinstance(rep, str):
+        return sec.add(Paragraph(f"Figures could not be drawn: {rep}"))
+    sec.add(*paragraphs(rep.text))
+    sec.add(*[table(title, df, empty="no rows") for title, df in rep.tables])
+    sec.add(*[Figure(caption, path=(folder / fname) if folder is not None else Path(fname))
+              for fname, caption in rep.figures])
+    return sec
+
+
+def page(study: Study, comparison: pd.DataFrame, part_reports: dict, failed: list, meta: dict) -> Page:
+    """The report as a page of the report model (every section of :func:`model`, in reading order)."""
     m = model(study, comparison, part_reports, failed, meta)
-    lines = [f"# {m['title']}", ""]
-    if m["dirty"]:
-        lines += [f"> **WARNING: {DIRTY_BANNER}.** Commit `{m['commit']}` has uncommitted changes, so these "
-                  "numbers cannot be traced to any commit. Commit the code, then regenerate.", ""]
-    lines.append(f"Study `{study.id}` (paper `{study.paper}`), config `{study.path.name}`. Generated "
-                 f"{m['generated']} at commit `{m['commit']}` by `{meta['command']}`: {meta['n_cases']} cases "
-                 f"({meta['n_cached']} from cache, {len(failed)} failed), {meta['wall_s']:.1f} s wall time on "
-                 f"{meta['workers']} worker(s).")
-    lines.append("")
+    folder = meta.get("folder")
+    folder = None if folder is None else Path(folder)
+    body: list = [Paragraph(
+        f"Study `{study.id}` (paper `{study.paper}`), config `{study.path.name}`. Generated {m['generated']} at "
+        f"commit `{m['commit']}` by `{meta['command']}`: {meta['n_cases']} cases ({meta['n_cached']} from cache, "
+        f"{len(failed)} failed), {meta['wall_s']:.1f} s wall time on {meta['workers']} worker(s).")]
     if meta["parts"] != list(study.parts):
-        lines.append(f"This run computed the parts {', '.join(meta['parts'])}"
-                     + (f"; the parts {', '.join(meta['from_cache'])} come from the cache of an earlier run "
-                        "with the same code" if meta["from_cache"] else "") + ".")
+        lines = [f"This run computed the parts {', '.join(meta['parts'])}"
+                 + (f"; the parts {', '.join(meta['from_cache'])} come from the cache of an earlier run with the "
+                    "same code" if meta["from_cache"] else "") + "."]
         missing = [p for p in study.parts if p not in meta["parts"] and p not in meta["from_cache"]]
         if missing:
             lines.append(f"Not included (not run with this code): {', '.join(missing)}.")
-        lines.append("")
-    lines += ["## Checks against the published values", ""]
-    if comparison.empty:
-        lines += ["_(no check belongs to the parts run)_", ""]
-    else:
-        lines += [_headline_sentence(m["counts"]), ""]
-        lines += ["`reproduced` combines the seeds as `over` says; `spread` is min to max over seeds; a pass needs "
-                  "low <= reproduced <= high. The reason for each band is under its table (column `band: why`).", ""]
-        if m["swap"]:
-            lines += [m["swap"], ""]
-        for g in m["groups"]:
-            lines += [f"### {g.evidence.capitalize()} checks ({g.passed} of {g.total} pass)", "",
-                      f"_{EVIDENCE_TEXT[g.evidence].capitalize()}._", "", markdown(g.table)]
-            lines += ["Why the bands are what they are:", ""]
-            lines += [f"- {label} {text}" for label, text in g.reasons] + [""]
-        if any(g.misses for g in m["groups"]):
-            lines += ["### Misses and their likely reasons", ""]
-            for g in m["groups"]:
-                for r in g.misses:
-                    lines.append(f"- **{r['check']}** ({g.evidence}; {r['description']}): reproduced "
-                                 f"{r['reproduced']:.4g}, expected [{r['low']:.4g}, {r['high']:.4g}]. "
-                                 f"{r['note'] or 'No explanation recorded yet.'}")
-            lines.append("")
-    lines += backends.section(study, comparison, meta)
-    for name, rep in m["results"]:
-        lines += _part(study, name, rep, "##")
+        body.append(Paragraph("\n".join(lines)))
+    body.append(_checks_section(m, comparison.empty))
+    body += backends.sections(study, comparison, meta)
+    body += [_part(study, name, rep, folder) for name, rep in m["results"]]
     if failed:
-        lines += ["## Failed cases", ""]
-        for r in failed:
-            lines.append(f"- `{r.case.case_id}`: {r.error}")
-        lines += ["", "Tracebacks are in `failures.log`.", ""]
-    lines += ["## Not reproduced", "",
-              "Published tables, figures and values this study leaves out, and why (from the study config):", ""]
-    lines += [f"- **{n.item}**: {n.reason}" for n in m["not_reproduced"]] or ["_(nothing: the study config "
-                                                                               "lists no left-out item)_"]
-    lines.append("")
-    lines += ["## Interpretation", "",
-              "Every reading chosen for an ambiguous or underspecified passage (also a comment in the config):", ""]
-    for r in m["readings"]:
-        lines.append(f"- **{r.id}. {r.topic}.** Paper: {r.passage} Reading: {r.reading}"
-                     + (f" Alternatives: {r.alternatives}" if r.alternatives else ""))
+        body.append(Section("Failed cases", anchor="failed", cls="changed", body=[
+            Items([f"`{r.case.case_id}`: {r.error}" for r in failed]),
+            Paragraph("Tracebacks are in `failures.log`.")]))
+    body.append(Section("Not reproduced", anchor="not-reproduced", body=[
+        Paragraph("Published tables, figures and values this study leaves out, and why (from the study config):"),
+        Items([f"**{n.item}**: {n.reason}" for n in m["not_reproduced"]]) if m["not_reproduced"] else
+        Paragraph("_(nothing: the study config lists no left-out item)_")]))
+    interp = Section("Interpretation", anchor="interpretation", body=[
+        Paragraph("Every reading chosen for an ambiguous or underspecified passage (also a comment in the "
+                  "config):"),
+        Items([f"**{r.id}. {r.topic}.** Paper: {r.passage} Reading: {r.reading}"
+               + (f" Alternatives: {r.alternatives}" if r.alternatives else "") for r in m["readings"]])])
     if m["interpretation"]:
-        lines += ["", "What the candidate readings give (parts run for the interpretation, not checked):", ""]
-        for name, rep in m["interpretation"]:
-            lines += _part(study, name, rep, "###")
-    lines += ["", "## Reproduce", "", "```", meta["command"], "```", ""]
-    return "\n".join(lines)
+        interp.add(Paragraph("What the candidate readings give (parts run for the interpretation, not checked):"),
+                   *[_part(study, name, rep, folder) for name, rep in m["interpretation"]])
+    body.append(interp)
+    body.append(Section("Reproduce", anchor="reproduce", body=[Code(meta["command"])]))
+    banner = (f"**WARNING: {DIRTY_BANNER}.** Commit `{m['commit']}` has uncommitted changes, so these numbers "
+              "cannot be traced to any commit. Commit the code, then regenerate.") if m["dirty"] else ""
+    links = [(f"#{s.anchor}", s.title.split(":")[0]) for s in body if isinstance(s, Section) and s.anchor
+             and not s.anchor.startswith("part-")]
+    return Page(m["title"], body, banner=banner, banner_cls="dirty" if m["dirty"] else "", links=links)
 
 
-def _part(study: Study, name: str, rep, heading: str) -> list[str]:
-    """The section of one part: its text, tables and figures (or why there are none)."""
-    lines = [f"{heading} {name}: {study.parts[name].description}", ""]
-    if rep is None:
-        return lines + ["_(no figure maker for this protocol)_", ""]
-    if isinstance(rep, str):
-        return lines + [f"Figures could not be drawn: {rep}", ""]
-    if rep.text:
-        lines += [rep.text, ""]
-    for title, df in rep.tables:
-        lines += [f"**{title}**", "", markdown(df)]
-    for fname, caption in rep.figures:
-        lines += [f"![{caption}]({fname})", "", f"_{caption}_", ""]
-    return lines
+def render(study: Study, comparison: pd.DataFrame, part_reports: dict, failed: list, meta: dict) -> str:
+    """Markdown text of the report."""
+    folder = meta.get("folder")
+    return to_markdown(page(study, comparison, part_reports, failed, meta), folder and Path(folder))
+
+
+def write(folder: Path, report: Page) -> tuple[Path, Path]:
+    """``report.md`` (figures linked) and ``report.html`` (self-contained, figures inline) in ``folder``."""
+    folder = Path(folder)
+    write_text(folder / "report.md", to_markdown(report, folder))
+    write_text(folder / "report.html", to_html(report))
+    return folder / "report.md", folder / "report.html"

@@ -11,7 +11,8 @@ from pathlib import Path
 import pandas as pd
 
 from benchmarks.config import EVIDENCE, REPO
-from benchmarks.tables import evidence_counts, headline, markdown
+from benchmarks.harness.pages import markdown_table as markdown
+from benchmarks.tables import evidence_counts, headline
 from jointbench.errors import ConfigError
 
 BEGIN = "<!-- status:begin -->"

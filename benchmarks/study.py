@@ -2,8 +2,9 @@
 record the run in the history.
 
 Outputs in ``results/<study>/``: ``cases.csv`` (tidy rows), ``curves.csv.gz`` (curves behind the
-figures), ``comparison.csv`` (one row per published check), ``report.md`` and its PNG figures,
-``failures.log`` (tracebacks of failed cases, when any). Beside them, shared by every study:
+figures), ``comparison.csv`` (one row per published check), ``report.md`` with its PNG figures,
+``report.html`` (the same report, self-contained), ``failures.log`` (tracebacks of failed cases, when
+any). Beside them, shared by every study:
 ``results/cache/`` (finished cases, :mod:`benchmarks.harness.cache`) and ``results/history.sqlite``
 (every run, :mod:`benchmarks.harness.history`).
 """
@@ -42,6 +43,7 @@ class StudyRun:
     part_reports: dict = dataclasses.field(default_factory=dict)
     wall_s: float = 0.0
     history: Path | None = None
+    report: object = None            # the report page (benchmarks.harness.pages.Page)
 
     @property
     def failed(self) -> list[CaseResult]:
@@ -179,7 +181,8 @@ def run_study(ref: str | Path, parts: list[str] | None = None, out_root: Path | 
             if swap is not None and swap.part in shown:
                 meta["method_swap"] = {**swap_survival(study.checks, rows, swap.part, swap.estimators),
                                        "part": swap.part, "estimators": swap.estimators}
-            write_text(folder / "report.md", report.render(study, comparison, part_reports, failed, meta))
+            page = report.page(study, comparison, part_reports, failed, meta)
+            report.write(folder, page)
     except KeyboardInterrupt as exc:
         history.finish_run(run_id, "interrupted", results, keys, comparison, check_metrics, wall,
                            error="interrupted while writing the outputs")
@@ -192,4 +195,4 @@ def run_study(ref: str | Path, parts: list[str] | None = None, out_root: Path | 
         raise
     history.finish_run(run_id, "ok", results, keys, comparison, check_metrics, wall)
     history.close()
-    return StudyRun(study, folder, results, rows, comparison, run_id, part_reports, wall, root / HISTORY_FILE)
+    return StudyRun(study, folder, results, rows, comparison, run_id, part_reports, wall, root / HISTORY_FILE, page)

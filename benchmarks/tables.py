@@ -296,19 +296,3 @@ def median_range(median: float, low: float, high: float, n: int, digits: int | N
 def summarize(rows: pd.DataFrame, part: str, by: list[str]) -> pd.DataFrame:
     """Median and min-max over seeds of every metric of a part, grouped by ``by`` columns."""
     return over_seeds(rows[rows["part"] == part], by + ["estimator", "metric"])
-
-
-def markdown(df: pd.DataFrame, floatfmt: str = ".4g") -> str:
-    """A GitHub markdown table (no extra dependency)."""
-    if df.empty:
-        return "_(no rows)_\n"
-
-    def fmt(v):
-        if isinstance(v, float):
-            return "" if np.isnan(v) else format(v, floatfmt)
-        return str(v).replace("|", "\\|").replace("\n", " ")
-
-    head = "| " + " | ".join(map(str, df.columns)) + " |"
-    sep = "|" + "|".join("---" for _ in df.columns) + "|"
-    body = ["| " + " | ".join(fmt(v) for v in row) + " |" for row in df.itertuples(index=False)]
-    return "\n".join([head, sep, *body]) + "\n"

@@ -78,13 +78,23 @@ def children(pid: int) -> list[int]:
     return out
 
 
-def alive(pid: int) -> bool:
-    """The process exists and is not a zombie."""
+def start_time(pid: int) -> int | None:
+    """The start time of process ``pid`` (clock ticks after boot, /proc): with the id, it names one
+    process, even when the id is reused later."""
+    try:
+        return int(Path(f"/proc/{pid}/stat").read_bytes().rsplit(b")", 1)[1].split()[19])
+    except (OSError, IndexError, ValueError):
+        return None
+
+
+def alive(pid: int, started: int | None = None) -> bool:
+    """The process exists and is not a zombie (and, with ``started``, is the one that started then)."""
     try:
         stat = Path(f"/proc/{pid}/stat").read_bytes()
     except OSError:
         return False
-    return stat.rsplit(b")", 1)[1].split()[0] != b"Z"
+    fields = stat.rsplit(b")", 1)[1].split()
+    return fields[0] != b"Z" and (started is None or int(fields[19]) == started)
 
 
 def wait_for(cond, timeout: float, step: float = 0.05) -> bool:

@@ -15,6 +15,7 @@ from benchmarks.harness.cache import case_key
 from benchmarks.runner import expand
 from benchmarks.study import run_study
 from jointbench.errors import ConfigError
+from tests.golden import check_golden
 from tests.test_harness import write_study
 
 pytest.importorskip("mujoco")
@@ -180,3 +181,4 @@ def test_apparatus_study_smoke(tmp_path):
     assert off[0] > 2.5 and off[180] < -2.5      # m g l = 2.75 N·m/rad
     text = (run.folder / "report.md").read_text()
     assert "mujoco: gravity, servo" in text
+    check_golden("apparatus", run.comparison)      # every check's status in this smoke run is pinned

@@ -154,6 +154,7 @@ def test_history_and_diff_commands(tmp_path, capsys, monkeypatch):
     assert main(["history", "2", "--out", str(out)]) == 0
     shown = capsys.readouterr().out
     assert "run 2 (run): study tiny, status ok" in shown and "T-K" in shown and "a-new-version" in shown
+    assert re.search(r"T-K\s+sanity\s+fit\s+pass", shown)          # each check with its kind of evidence
     assert main(["diff", "1", "2", "--out", str(out), "--strict"]) == 1
     d = capsys.readouterr().out
     assert "a-new-version" in d and re.search(r"fit\s+ibk_spectral\s+B\s+2\s+1.0\s", d)
@@ -204,3 +205,28 @@ def test_regenerated_reports_do_not_make_a_run_dirty(tmp_path, monkeypatch):
     (tmp_path / "sims" / "new_model.py").unlink()
     (tmp_path / "sims" / "a.py").write_text("x = 2\n")
     assert fingerprint.git_commit().endswith("-dirty")
+
+
+def test_a_version_1_history_gains_the_evidence_of_each_check(tmp_path):
+    """Histories written before checks recorded their kind of evidence are upgraded in place: old
+    runs keep their checks (evidence NULL, shown as 'unrecorded'), new runs record it."""
+    from benchmarks.harness.compare import compare_runs
+    from benchmarks.harness.history import SCHEMA
+
+    path = tmp_path / "history.sqlite"
+    v1 = SCHEMA.replace("note TEXT, evidence TEXT, PRIMARY KEY", "note TEXT, PRIMARY KEY")
+    assert v1 != SCHEMA
+    with sqlite3.connect(path) as db:
+        db.executescript(v1)
+        db.execute("INSERT INTO meta VALUES ('schema_version', '1')")
+    study = tiny_study(tmp_path / "cfg", seeds=1)
+    old = run_study(study, out_root=tmp_path, serial=True, progress=False)   # opens (and upgrades) it
+    with sqlite3.connect(path) as db:
+        assert db.execute("SELECT value FROM meta WHERE key = 'schema_version'").fetchone() == ("2",)
+        db.execute("UPDATE checks SET evidence = NULL WHERE run_id = ?", (old.run_id,))   # as a v1 run
+    new = run_study(study, out_root=tmp_path, serial=True, progress=False, use_cache=False)
+    with History(path) as h:
+        assert list(h.checks(new.run_id)["evidence"]) == list(new.comparison["evidence"]) == ["sanity", "sanity"]
+        assert h.checks(old.run_id)["evidence"].isna().all()
+        d = compare_runs(h, old.run_id, new.run_id)
+    assert list(d.checks["evidence"]) == ["sanity", "sanity"] and d.flipped.empty

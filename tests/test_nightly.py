@@ -55,8 +55,51 @@ def test_nightly_flags_exactly_the_perturbed_metrics_and_exits_nonzero(tmp_path,
                                "fit/ibk_spectral:K_err_pct"]
     html = res.index.read_text()
     assert html.index("REGRESSION") < html.index("Metrics that drifted") < html.index("Checks against the published")
+    # the study's section is its own report page (the same model as results/tiny/report.md and .html)
+    run = res.outcomes[0].run
+    assert run.report is not None and (run.folder / "report.html").is_file()
+    assert 'href="../tiny/report.html"' in html
+    for title in [s.title for s in run.report.body if hasattr(s, "title")]:
+        assert f">{title}</h3>" in html, title
+    summary = (out / "nightly" / "summary.md").read_text()
+    assert "### Checks against the published values" in summary and "### Interpretation" in summary
     assert main(args) == 0            # the next night compares with nightly 3 (unperturbed): no regression
     assert "nightly 4: ok" in capsys.readouterr().out
+
+
+def test_flipped_checks_show_their_evidence_grouped_and_every_kind_counts(tmp_path):
+    """Checks of every kind of evidence that flip from pass to miss are regressions; the page groups
+    the flipped checks by kind (reproduction, conditional, calibrated, sanity) and names the kind."""
+    cfg = nightly_config(tmp_path)
+    pub = tmp_path / "configs" / "tiny_published.yaml"
+    data = yaml.safe_load(pub.read_text())
+    impossible = {"part": "fit", "source": "-", "published": 1, "low": 0, "high": 1e-9,
+                  "select": {"metric": "K", "estimator": "ibk_spectral"}, "tolerance_reason": "test band"}
+    data["checks"] += [{**impossible, "id": "T-rep", "description": "never met", "evidence": "reproduction"},
+                       {**impossible, "id": "T-cal", "description": "never met either", "evidence": "calibrated",
+                        "free_parameter": "none"}]
+    pub.write_text(yaml.safe_dump(data, sort_keys=False))
+    out = tmp_path / "results"
+    first = run_nightly(load_config(cfg), out, serial=True, progress=False)
+    recorded = {}
+    with sqlite3.connect(out / "history.sqlite") as db:       # the history records each check's evidence
+        run = first.outcomes[0].run.run_id
+        recorded = dict(db.execute("SELECT check_id, evidence FROM checks WHERE run_id = ?", (run,)).fetchall())
+        db.execute("UPDATE checks SET status = 'pass' WHERE run_id = ? AND check_id IN ('T-rep', 'T-cal')", (run,))
+        db.execute("UPDATE checks SET status = 'miss' WHERE run_id = ? AND check_id = 'T-K'", (run,))
+    assert recorded == {"T-K": "sanity", "T-vaf": "sanity", "T-rep": "reproduction", "T-cal": "calibrated"}
+    res = run_nightly(load_config(cfg), out, serial=True, progress=False)
+    assert res.verdict == "regression"
+    assert res.regressions == ["tiny: 2 check(s) flipped from pass to miss (reproduction 1: T-rep; calibrated 1: T-cal)"]
+    flipped = res.outcomes[0].diff.flipped.set_index("check")
+    assert dict(flipped["evidence"]) == {"T-rep": "reproduction", "T-cal": "calibrated", "T-K": "sanity"}
+    assert dict(flipped["change"]) == {"T-rep": "regressed", "T-cal": "regressed", "T-K": "improved"}
+    html = res.index.read_text()
+    heads = ["Checks that flipped: reproduction (1 regressed)", "Checks that flipped: calibrated (1 regressed)",
+             "Checks that flipped: sanity (1 improved)"]
+    assert html.index(heads[0]) < html.index(heads[1]) < html.index(heads[2])
+    table = html[html.index(heads[0]):html.index(heads[1])]
+    assert "<th>evidence</th>" in table and "<td>reproduction</td>" in table and "T-rep" in table
 
 
 @pytest.mark.parametrize("edit, message", [
@@ -75,6 +118,12 @@ def test_nightly_config_is_strict(tmp_path, edit, message):
 def test_shipped_nightly_config_runs_every_paper_study():
     cfg = load_config()
     assert set(cfg.studies) == {p.stem for p in (CONFIGS / "studies").glob("*.yaml")}
+    # every study `make reproduce` runs (the paper studies) is in the nightly
+    makefile = (REPO / "Makefile").read_text()
+    targets = re.search(r"^reproduce:(.*)$", makefile, re.M)[1].split()
+    papers = {re.search(r"\$\(RUN\) (\S+)", makefile[makefile.index(f"\n{t}:"):])[1] for t in targets}
+    assert papers == {"westwick2012", "xu1998", "vanderuit2018_table1", "vanderuit2018_table2"}
+    assert papers <= set(cfg.studies)
     assert cfg.rules.threshold("vaf_output").metric == "vaf*" and cfg.rules.threshold("K").metric == "*"
 
 

@@ -14,6 +14,7 @@ from benchmarks.study import run_study
 from jointbench.errors import ConfigError
 from jointbench.schema import parse
 from jointbench.types import Trial
+from tests.golden import check_golden
 
 STUDY = CONFIGS / "studies" / "vanderuit2018_table2.yaml"
 
@@ -120,3 +121,8 @@ def test_smoke_run_writes_both_tables_the_figure_and_sane_numbers(smoke):
     assert "| P1 |" in text
     comp = pd.read_csv(folder / "comparison.csv")
     assert "G1-gap-kbr-sds" in set(comp["check"])
+
+
+def test_smoke_outcome_is_pinned(smoke):
+    """Every check's status in this smoke run is pinned: a check that flips fails here."""
+    check_golden("vanderuit2018_table2", smoke.comparison)

@@ -5,6 +5,7 @@ import numpy as np
 import pandas as pd
 
 from benchmarks.figures import PartReport, new_figure, register, save
+from benchmarks.tables import median_range, over_seeds
 
 
 def _ok(rows: pd.DataFrame) -> pd.DataFrame:
@@ -12,19 +13,13 @@ def _ok(rows: pd.DataFrame) -> pd.DataFrame:
 
 
 def _stat(rows: pd.DataFrame, metric: str, by: list[str], **eq) -> pd.DataFrame:
-    """Median, min and max over seeds of ``metric`` per ``by``, rows restricted to ``eq``."""
-    sel = _ok(rows)
-    sel = sel[sel["metric"] == metric]
+    """Median, min and max over seeds of ``metric`` per ``by`` (sorted), rows restricted to ``eq``."""
+    sel = rows
     for k, v in eq.items():
         sel = sel[sel[k] == v]
     if not by:
-        v = sel["value"]
-        return pd.DataFrame({"median": [v.median()], "min": [v.min()], "max": [v.max()], "count": [len(v)]})
-    return sel.groupby(by)["value"].agg(["median", "min", "max", "count"]).reset_index()
-
-
-def _fmt(m, lo, hi) -> str:
-    return f"{m:.4g} ({lo:.4g} to {hi:.4g})"
+        return over_seeds(sel.assign(_all=0), ["_all"], [metric])
+    return over_seeds(sel, by, [metric]).sort_values(by, ignore_index=True)
 
 
 @register("apparatus.servo")
@@ -90,7 +85,7 @@ def servo(part, rows, curves, folder, checks) -> PartReport:
                     .set_index("servo_stiffness").loc[k]
                 p = _stat(rows, "K_predicted", ["servo_stiffness"], input=inp, segment_s=seg, voluntary="present") \
                     .set_index("servo_stiffness").loc[k]
-                row[f"K-hat {inp}, {seg:g} s"] = _fmt(m["median"], m["min"], m["max"])
+                row[f"K-hat {inp}, {seg:g} s"] = median_range(m["median"], m["min"], m["max"], m["n"])
                 row[f"predicted {inp}, {seg:g} s"] = round(float(p["median"]), 3)
         table.append(row)
     tv = []
@@ -165,7 +160,7 @@ def gravity(part, rows, curves, folder, checks) -> PartReport:
         kh = _stat(rows, "K_hat_mean", ["posture_deg"]).set_index("posture_deg").loc[r.posture_deg]
         k0 = _stat(rows, "K_hat_mean_no_gravity", ["posture_deg"]).set_index("posture_deg").loc[r.posture_deg]
         table.append({"posture (deg)": r.posture_deg, "mean K-hat, gravity": kh["median"],
-                      "mean K-hat, none": k0["median"], "offset": _fmt(r.median, r.min, r.max),
+                      "mean K-hat, none": k0["median"], "offset": median_range(r.median, r.min, r.max, r.n),
                       "K_g (trajectory)": k["median"], "m g l cos(posture)": mgl * np.cos(np.radians(r.posture_deg))})
     dev = (off.set_index("posture_deg")["median"] - kg.set_index("posture_deg")["median"]).abs()
     text = (f"The offset FSEWLS reports follows K_g = m g l cos(posture + theta) within {dev.max():.3f} N·m/rad "

@@ -15,6 +15,7 @@ import math
 import numpy as np
 import pandas as pd
 
+from benchmarks.config import EVIDENCE
 from benchmarks.harness.history import History
 
 
@@ -70,7 +71,8 @@ class RunDiff:
         out = []
         reg = self.flipped[self.flipped["change"] == "regressed"] if len(self.flipped) else self.flipped
         if len(reg):
-            out.append(f"{self.study}: {len(reg)} check(s) flipped from pass to miss: {', '.join(reg['check'])}")
+            kinds = "; ".join(f"{kind} {len(g)}: {', '.join(g['check'])}" for kind, g in by_evidence(reg))
+            out.append(f"{self.study}: {len(reg)} check(s) flipped from pass to miss ({kinds})")
         if len(self.drift):
             names = sorted({f"{r.part}/{r.estimator + ':' if r.estimator else ''}{r.metric}"
                             for r in self.drift.itertuples()})
@@ -85,6 +87,17 @@ class RunDiff:
         if self.rules.timing_is_regression and len(self.timings_grew):
             out.append(f"{self.study}: compute time grew in part(s) {', '.join(self.timings_grew['part'])}")
         return out
+
+
+#: kinds of evidence in the order the reports show them, then that of runs recorded before the kind was
+EVIDENCE_ORDER = (*EVIDENCE, "unrecorded")
+
+
+def by_evidence(checks: pd.DataFrame):
+    """(kind, rows) per kind of evidence present in ``checks``, in :data:`EVIDENCE_ORDER`."""
+    ev = checks["evidence"].fillna("unrecorded") if "evidence" in checks else pd.Series("unrecorded", checks.index)
+    kinds = sorted(set(ev), key=lambda k: EVIDENCE_ORDER.index(k) if k in EVIDENCE_ORDER else len(EVIDENCE_ORDER))
+    return [(k, checks[ev == k]) for k in kinds]
 
 
 def _checks(history: History, a: int, b: int) -> tuple[pd.DataFrame, pd.DataFrame]:
@@ -106,13 +119,15 @@ def _checks(history: History, a: int, b: int) -> tuple[pd.DataFrame, pd.DataFram
             change = "gone"
         else:
             change = "regressed" if before == "pass" else "improved" if after == "pass" else "changed"
-        recs.append({"check": i, "part": src["part"], "metric": src["metric"], "description": src["description"],
+        evidence = src["evidence"] if "evidence" in src.index and isinstance(src["evidence"], str) else "unrecorded"
+        recs.append({"check": i, "evidence": evidence, "part": src["part"], "metric": src["metric"],
+                     "description": src["description"],
                      "published": src["published"], "low": src["low"], "high": src["high"],
                      "before": before, "after": after, "change": change,
                      "reproduced_before": np.nan if x is None or x["reproduced"] is None else float(x["reproduced"]),
                      "reproduced_after": np.nan if y is None or y["reproduced"] is None else float(y["reproduced"])})
-    df = pd.DataFrame(recs, columns=["check", "part", "metric", "description", "published", "low", "high", "before",
-                                     "after", "change", "reproduced_before", "reproduced_after"])
+    df = pd.DataFrame(recs, columns=["check", "evidence", "part", "metric", "description", "published", "low", "high",
+                                     "before", "after", "change", "reproduced_before", "reproduced_after"])
     return df, df[df["change"] != ""].reset_index(drop=True)
 
 

@@ -3,8 +3,8 @@
 Tables: ``runs`` (study, parts, config hash, code hash, commit and dirty flag, Python and package
 versions, machine, start and end, status), ``cases`` (one per case of a run: status, error, wall time,
 whether it came from the cache, its cache key), ``results`` (the tidy rows: estimator, metric, value and
-the case's labels as JSON), ``checks`` (the comparison with the published values) and ``nightlies``
-(one per ``jointbench nightly``, grouping its runs).
+the case's labels as JSON), ``checks`` (the comparison with the published values: each check's outcome
+with its kind of evidence) and ``nightlies`` (one per ``jointbench nightly``, grouping its runs).
 
 Writes are transactional (WAL journal, so readers never block a writer and two runs can write at once):
 a run row is created with status ``running`` when the run starts, and its cases, rows, checks and final
@@ -33,7 +33,7 @@ from benchmarks.harness.case import CaseResult
 from jointbench.errors import ConfigError, OutputError
 from jointbench.files import pid_alive
 
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2             # 2: checks.evidence (a version-1 history gains the column, NULL for old runs)
 SCHEMA = """
 CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);
 CREATE TABLE IF NOT EXISTS nightlies (
@@ -58,7 +58,7 @@ CREATE INDEX IF NOT EXISTS results_run ON results(run_id);
 CREATE TABLE IF NOT EXISTS checks (
     run_id INTEGER NOT NULL REFERENCES runs(id), check_id TEXT NOT NULL, part TEXT, metric TEXT,
     description TEXT, published TEXT, reproduced REAL, low REAL, high REAL, status TEXT, aggregate TEXT,
-    n INTEGER, spread TEXT, note TEXT, PRIMARY KEY (run_id, check_id));
+    n INTEGER, spread TEXT, note TEXT, evidence TEXT, PRIMARY KEY (run_id, check_id));
 CREATE INDEX IF NOT EXISTS runs_study ON runs(study, id);
 """
 FINAL = ("ok", "interrupted", "error")
@@ -124,6 +124,9 @@ class History:
                 row = self.db.execute("SELECT value FROM meta WHERE key = 'schema_version'").fetchone()
                 if row is None:
                     self.db.execute("INSERT INTO meta VALUES ('schema_version', ?)", (str(SCHEMA_VERSION),))
+                elif int(row[0]) == 1:
+                    self.db.execute("ALTER TABLE checks ADD COLUMN evidence TEXT")
+                    self.db.execute("UPDATE meta SET value = ? WHERE key = 'schema_version'", (str(SCHEMA_VERSION),))
                 elif int(row[0]) != SCHEMA_VERSION:
                     raise ConfigError(f"{self.path}: history schema version {row[0]}, this code reads "
                                       f"{SCHEMA_VERSION}")
@@ -215,7 +218,7 @@ class History:
                                r.get("description"), json.dumps(r.get("published"), default=str),
                                _num(r.get("reproduced")), _num(r.get("low")), _num(r.get("high")),
                                r.get("status"), r.get("aggregate"), int(r.get("n") or 0), r.get("spread"),
-                               r.get("note")))
+                               r.get("note"), r.get("evidence")))
         n_failed = sum(r.status != "ok" for r in results)
         n_cached = sum(bool(r.cached) for r in results)
         with self._tx():
@@ -224,7 +227,9 @@ class History:
                 raise RuntimeError(f"run {run_id} is not running (status {st and st[0]})")
             self.db.executemany("INSERT INTO cases VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?)", cases)
             self.db.executemany("INSERT INTO results VALUES (?, ?, ?, ?, ?, ?)", rows)
-            self.db.executemany("INSERT INTO checks VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)", checks)
+            self.db.executemany("INSERT INTO checks (run_id, check_id, part, metric, description, published, "
+                                "reproduced, low, high, status, aggregate, n, spread, note, evidence) "
+                                "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)", checks)
             self.db.execute("UPDATE runs SET status = ?, ended = ?, n_done = ?, n_failed = ?, n_cached = ?, "
                             "wall_s = ?, error = ? WHERE id = ?",
                             (status, now(), len(results), n_failed, n_cached, wall_s, error, run_id))

@@ -6,13 +6,17 @@ from __future__ import annotations
 import datetime as _dt
 import json
 import math
+import os
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
 from benchmarks.harness.history import History
-from benchmarks.harness.pages import Figure, Page, Section, Table, figure_png, table, to_html, to_markdown
+from benchmarks.harness.compare import by_evidence
+from benchmarks.harness.pages import (Figure, Items, Page, Paragraph, Section, Table, figure_png, table, to_html,
+                                      to_markdown)
+from benchmarks.tables import headline
 from jointbench.files import write_text
 
 VERDICT_TEXT = {
@@ -22,22 +26,33 @@ VERDICT_TEXT = {
 }
 
 
-def _status_cls(rec: dict) -> dict:
-    return {"status": "pass" if rec.get("status") == "pass" else "miss"}
+def _flipped_tables(flips: list[dict]) -> list[Table]:
+    """The checks that flipped, one table per kind of evidence (regressions of every kind count)."""
+    cls_change = lambda r: {"change": "bad" if r["change"] == "regressed" else "good" if r["change"] == "improved" else "warn"}  # noqa: E731
+    cols = {"study": "study", "check": "check", "evidence": "evidence", "description": "description",
+            "before": "before", "after": "after", "change": "change", "reproduced_before": "reproduced before",
+            "reproduced_after": "reproduced now", "low": "low", "high": "high"}
+    out = []
+    for kind, g in by_evidence(pd.DataFrame(flips)) if flips else []:
+        n = g["change"].value_counts()
+        counts = ", ".join(f"{n[c]} {c}" for c in ("regressed", "improved", "changed", "new", "gone") if c in n)
+        out.append(table(f"Checks that flipped: {kind} ({counts})", g, cols, classes=cls_change))
+    return out
 
 
 def _changed_section(outcomes, regressions: list[str]) -> Section:
     sec = Section("What changed", anchor="changed", cls="changed" if regressions else "")
     if regressions:
-        sec.paragraphs.append("Regressions (the reasons for the non-zero exit status):")
-        sec.items = list(regressions)
-    flips, drifts, fails, fixed, cover, times, changes = [], [], [], [], [], [], []
+        sec.add(Paragraph("Regressions (the reasons for the non-zero exit status):"), Items(list(regressions)))
+    flips, moved, drifts, fails, fixed, cover, times, changes = [], [], [], [], [], [], [], []
     for o in outcomes:
         d = o.diff
         if d is None:
             continue
-        for r in d.flipped.to_dict("records"):
-            flips.append({"study": o.study, **r})
+        flips += [{"study": o.study, **r} for r in d.flipped.to_dict("records")]
+        c = d.checks
+        same = c[(c["change"] == "") & ~_same(c["reproduced_before"], c["reproduced_after"])]
+        moved += [{"study": o.study, **r} for r in same.to_dict("records")]
         for r in d.drift.to_dict("records"):
             drifts.append({"study": o.study, **r, "drifted": f"{r['n_drifted']} of {r['n_compared']}"})
         fails += [{"study": o.study, **r} for r in d.new_failures.to_dict("records")]
@@ -45,47 +60,53 @@ def _changed_section(outcomes, regressions: list[str]) -> Section:
         cover += [{"study": o.study, **r} for r in d.coverage.to_dict("records")]
         times += [{"study": o.study, **r} for r in d.timings_grew.to_dict("records")]
         changes += [{"study": o.study, "what": w, "before": a, "after": b} for w, a, b in d.changes]
-    cls_change = lambda r: {"change": "bad" if r["change"] == "regressed" else "good" if r["change"] == "improved" else "warn"}  # noqa: E731
     candidates = [
-        (table("Checks that flipped", pd.DataFrame(flips),
-               {"study": "study", "check": "check", "description": "description", "before": "before",
-                "after": "after", "change": "change", "reproduced_before": "reproduced before",
-                "reproduced_after": "reproduced now", "low": "low", "high": "high"} if flips else {},
-               classes=cls_change), "no check changed status"),
-        (table("Metrics that drifted beyond their threshold", pd.DataFrame(drifts),
-               {"study": "study", "part": "part", "estimator": "estimator", "metric": "metric",
-                "drifted": "values drifted", "max_abs_delta": "largest |change|", "limit": "threshold",
-                "example": "example case", "before": "before", "after": "now"} if drifts else {},
-               note="A value drifted when |now - before| > abs + rel |before| (configs/nightly.yaml); "
-                    "'before' and 'now' are those of the example case."),
+        (_flipped_tables(flips), "no check changed status"),
+        ([table("Checks whose reproduced value moved (same status)", pd.DataFrame(moved),
+                {"study": "study", "check": "check", "evidence": "evidence", "after": "status",
+                 "reproduced_before": "reproduced before", "reproduced_after": "reproduced now", "low": "low",
+                 "high": "high"} if moved else {})] if moved else [], "no check's reproduced value moved"),
+        ([table("Metrics that drifted beyond their threshold", pd.DataFrame(drifts),
+                {"study": "study", "part": "part", "estimator": "estimator", "metric": "metric",
+                 "drifted": "values drifted", "max_abs_delta": "largest |change|", "limit": "threshold",
+                 "example": "example case", "before": "before", "after": "now"} if drifts else {},
+                note="A value drifted when |now - before| > abs + rel |before| (configs/nightly.yaml); "
+                     "'before' and 'now' are those of the example case.")] if drifts else [],
          "no metric drifted beyond its threshold"),
-        (table("Cases that fail now and did not", pd.DataFrame(fails)), "no case fails that did not"),
-        (table("Cases that failed before and pass now", pd.DataFrame(fixed)), "no case was fixed"),
-        (table("Values present in only one of the two runs", pd.DataFrame(cover),
-               {"study": "study", "part": "part", "only_before": "only before", "only_after": "only now"}
-               if cover else {}), "every value is in both runs"),
-        (table("Compute times that grew", pd.DataFrame(times),
-               {"study": "study", "part": "part", "cases": "cases", "before_s": "before (s)",
-                "after_s": "now (s)", "ratio": "ratio"} if times else {},
-               note="Sum of the wall times of the cases computed in both runs (cached ones left out)."),
-         "no part's compute time grew beyond the threshold"),
-        (table("Code, config and versions that changed", pd.DataFrame(changes)),
+        ([table("Cases that fail now and did not", pd.DataFrame(fails))] if fails else [],
+         "no case fails that did not"),
+        ([table("Cases that failed before and pass now", pd.DataFrame(fixed))] if fixed else [], "no case was fixed"),
+        ([table("Values present in only one of the two runs", pd.DataFrame(cover),
+                {"study": "study", "part": "part", "only_before": "only before", "only_after": "only now"})]
+         if cover else [], "every value is in both runs"),
+        ([table("Compute times that grew", pd.DataFrame(times),
+                {"study": "study", "part": "part", "cases": "cases", "before_s": "before (s)",
+                 "after_s": "now (s)", "ratio": "ratio"},
+                note="Sum of the wall times of the cases computed in both runs (cached ones left out).")]
+         if times else [], "no part's compute time grew beyond the threshold"),
+        ([table("Code, config and versions that changed", pd.DataFrame(changes))] if changes else [],
          "code, config and library versions are the same"),
     ]
     compared = [o for o in outcomes if o.diff is not None]
     if not compared:
-        sec.paragraphs.append("No study has a previous nightly run to compare with: this run is the baseline.")
+        sec.add(Paragraph("No study has a previous nightly run to compare with: this run is the baseline."))
     else:
-        sec.tables += [t for t, _ in candidates if t.rows]
-        quiet = [phrase for t, phrase in candidates if not t.rows]
+        sec.add(*[t for tables, _ in candidates for t in tables])
+        quiet = [phrase for tables, phrase in candidates if not tables]
         if quiet:
-            sec.children.append(Section("Unchanged", paragraphs=[
+            sec.add(Section("Unchanged", body=[Paragraph(
                 f"Compared with the previous nightly ({', '.join(o.study for o in compared)}): "
-                + "; ".join(quiet) + "."]))
+                + "; ".join(quiet) + ".")]))
     errors = [f"{o.study}: {o.error}" for o in outcomes if o.error]
     if errors:
-        sec.children.append(Section("Studies that could not run", items=errors, cls="changed"))
+        sec.add(Section("Studies that could not run", body=[Items(errors)], cls="changed"))
     return sec
+
+
+def _same(a: pd.Series, b: pd.Series) -> pd.Series:
+    """Equal values, NaN equal to NaN."""
+    x, y = a.to_numpy(float), b.to_numpy(float)
+    return pd.Series((x == y) | (np.isnan(x) & np.isnan(y)), index=a.index)
 
 
 def _summary_table(outcomes) -> Table:
@@ -93,54 +114,28 @@ def _summary_table(outcomes) -> Table:
     for o in outcomes:
         if o.error:
             recs.append({"study": o.study, "run": "", "compared with run": "", "cases": "", "failed": "",
-                         "checks pass": "", "wall time (s)": "", "regressions": "could not run"})
+                         "checks": "", "wall time (s)": "", "regressions": "could not run"})
             continue
-        comp = o.run.comparison
-        n_pass = int((comp["status"] == "pass").sum()) if len(comp) else 0
-        recs.append({"study": o.study, "run": o.run.run_id, "compared with run": o.previous or "",
-                     "cases": len(o.run.results), "failed": len(o.run.failed),
-                     "checks pass": f"{n_pass} of {len(comp)}", "wall time (s)": round(o.run.wall_s, 1),
-                     "regressions": len(o.regressions)})
+        recs.append({"study": f"[{o.study}](#study-{o.study})", "run": o.run.run_id,
+                     "compared with run": o.previous or "", "cases": len(o.run.results),
+                     "failed": len(o.run.failed), "checks": headline(o.run.comparison),
+                     "wall time (s)": round(o.run.wall_s, 1), "regressions": len(o.regressions)})
     return table("", pd.DataFrame(recs),
                  classes=lambda r: {"regressions": "bad" if r["regressions"] not in (0, "") else "good"})
 
 
-def _study_section(o) -> Section:
+def _study_section(o, site: Path) -> Section:
+    """The study's own report page (the same model as its report.md and report.html), under a line
+    with the run and links to the report files."""
     run = o.run
+    rel = Path(os.path.relpath(run.folder, site)).as_posix()
     sec = Section(f"{run.study.id}: {run.study.title}", anchor=f"study-{run.study.id}")
-    comp = run.comparison.copy()
-    if o.diff is not None and len(comp):
-        before = o.diff.checks.set_index("check")["reproduced_before"]
-        comp["before"] = [before.get(c, np.nan) for c in comp["check"]]
-    cols = {"check": "check", "description": "description", "published": "published", "reproduced": "reproduced",
-            "low": "low", "high": "high", "status": "status"}
-    if "before" in comp.columns:
-        cols["before"] = "previous nightly"
-    n_pass = int((comp["status"] == "pass").sum()) if len(comp) else 0
-    sec.paragraphs.append(f"Run {run.run_id}: {len(run.results)} cases, {len(run.failed)} failed, "
-                          f"{n_pass} of {len(comp)} checks pass, {run.wall_s:.1f} s.")
-    sec.tables.append(table("Checks against the published values", comp, cols, classes=_status_cls,
-                            empty="no check belongs to the parts run"))
-    for name, rep in run.part_reports.items():
-        part = Section(f"{name}: {run.study.parts[name].description}", anchor=f"{run.study.id}-{name}")
-        if rep is None:
-            part.paragraphs.append("(no figure maker for this protocol)")
-        elif isinstance(rep, str):
-            part.paragraphs.append(f"Figures could not be drawn: {rep}")
-        else:
-            if rep.text:
-                part.paragraphs.append(rep.text)
-            for fname, caption in rep.figures:
-                p = run.folder / fname
-                if p.is_file():
-                    part.figures.append(Figure(caption, p.read_bytes()))
-            if rep.tables:
-                part.children.append(Section(f"Tables of {name}", collapsed=True,
-                                             tables=[table(t, df) for t, df in rep.tables]))
-        sec.children.append(part)
-    if run.failed:
-        sec.children.append(Section("Failed cases", items=[f"{r.case.case_id}: {r.error}" for r in run.failed],
-                                    cls="changed"))
+    sec.add(Paragraph(f"Run {run.run_id}: {len(run.results)} cases, {len(run.failed)} failed; "
+                      f"{headline(run.comparison)}; {run.wall_s:.1f} s. Its report: "
+                      f"[{rel}/report.html]({rel}/report.html) ([markdown]({rel}/report.md)); the same report "
+                      "follows."))
+    if run.report is not None:
+        sec.add(*run.report.body)
     return sec
 
 
@@ -245,11 +240,11 @@ def write_pages(history: History, nightly_id: int, verdict: str, regressions: li
         facts.append(("compared with runs", ", ".join(map(str, prev))))
     banner = VERDICT_TEXT[verdict] + (f": {len(regressions)} reason(s) below" if regressions else "")
     sections = [_changed_section(outcomes, regressions),
-                Section("Studies", anchor="studies", tables=[_summary_table(outcomes)])]
-    sections += [_study_section(o) for o in outcomes if not o.error]
-    index = Page(title="JointBench nightly report", banner=banner, banner_cls=verdict, facts=facts,
+                Section("Studies", anchor="studies", body=[_summary_table(outcomes)])]
+    sections += [_study_section(o, site) for o in outcomes if not o.error]
+    index = Page(title="JointBench nightly report", banner=f"**{banner}**", banner_cls=verdict, facts=facts,
                  links=[("#changed", "What changed"), ("#studies", "Studies"), ("history.html", "History")],
-                 sections=sections, footer=f"Written by `{command}`; the run history is results/history.sqlite "
+                 body=sections, footer=f"Written by `{command}`; the run history is results/history.sqlite "
                                            "(`jointbench history`, `jointbench diff RUN_A RUN_B`).")
     per, checks = _history_data(history, nightly_id, verdict)
     hsections = []
@@ -258,14 +253,14 @@ def write_pages(history: History, nightly_id: int, verdict: str, regressions: li
             index=["nightly", "started", "commit", "verdict"], columns="study", values="cell", aggfunc="first")
         wide = wide.reset_index().sort_values("nightly", ascending=False)
         hsections.append(Section("Nightly runs", anchor="runs",
-                                 tables=[table("Checks passing per study", wide.fillna(""))]))
+                                 body=[table("Checks passing per study", wide.fillna(""))]))
         for study in sorted(per["study"].unique()):
             hsections.append(Section(study, anchor=f"history-{study}",
-                                     figures=_history_figures(study, per, checks, config.key_checks.get(study, ()))))
+                                     body=_history_figures(study, per, checks, config.key_checks.get(study, ()))))
     hist = Page(title="JointBench nightly history", facts=[("generated", stamp), ("nightlies", str(per["nightly"].nunique() if len(per) else 0))],
-                links=[("index.html", "Latest nightly")], sections=hsections,
+                links=[("index.html", "Latest nightly")], body=hsections,
                 footer="Every nightly run recorded in results/history.sqlite.")
     write_text(site / "index.html", to_html(index))
     write_text(site / "history.html", to_html(hist))
-    write_text(site / "summary.md", to_markdown(index))
+    write_text(site / "summary.md", to_markdown(index, site))
     return site / "index.html", site / "history.html"

@@ -1,7 +1,15 @@
-"""A small report model (page, sections, tables, figures) rendered to HTML by Jinja2 and to markdown.
+"""The report model: a page of sections holding paragraphs, lists, code, tables and figures in order,
+rendered by Jinja2 templates to HTML and to markdown.
 
+Every report of the harness is one of these pages: the study report (``results/<study>/report.md`` and
+``report.html``, :mod:`benchmarks.report`), the nightly report and its history page
+(:mod:`benchmarks.harness.nightly_pages`), and the README's status tables (:func:`markdown_table`).
+
+Every text in the model is *inline markdown*: ``**bold**``, ``_italic_``, ```code``` and
+``[text](relative link)``. The markdown template writes it as it is; the HTML template escapes it
+(autoescape) and turns those marks into tags (:func:`inline_html`), so no markup is assembled by hand.
 The HTML is static and self-contained: styles in the page, figures as ``data:`` URIs, no script and no
-network. Every text is escaped by the template engine (autoescape), never assembled by hand.
+network. In markdown a figure stored in a file is linked relative to the page's folder.
 """
 from __future__ import annotations
 
@@ -9,13 +17,36 @@ import base64
 import dataclasses
 import io
 import math
+import os
+import re
 from pathlib import Path
-from typing import Any, Iterable
+from typing import Any, ClassVar
 
 import numpy as np
 import pandas as pd
 
 TEMPLATES = Path(__file__).with_name("templates")
+
+
+@dataclasses.dataclass
+class Paragraph:
+    text: str
+    cls: str = ""            # css class: note, empty
+    kind: ClassVar[str] = "paragraph"
+
+
+@dataclasses.dataclass
+class Items:
+    """A bullet list."""
+
+    items: list[str]
+    kind: ClassVar[str] = "items"
+
+
+@dataclasses.dataclass
+class Code:
+    text: str
+    kind: ClassVar[str] = "code"
 
 
 @dataclasses.dataclass
@@ -31,40 +62,62 @@ class Table:
     rows: list[list[Cell]]
     note: str = ""
     empty: str = "none"
+    kind: ClassVar[str] = "table"
 
 
 @dataclasses.dataclass
 class Figure:
+    """A PNG figure: its bytes (``png``) or a file (``path``, linked from markdown, inlined in HTML)."""
+
     caption: str
-    png: bytes
+    png: bytes | None = None
+    path: Path | None = None
+    kind: ClassVar[str] = "figure"
+
+    def data(self) -> bytes | None:
+        if self.png is not None:
+            return self.png
+        if self.path is not None and Path(self.path).is_file():
+            return Path(self.path).read_bytes()
+        return None
 
     @property
     def data_uri(self) -> str:
-        return "data:image/png;base64," + base64.b64encode(self.png).decode("ascii")
+        """The figure as a ``data:`` URI; empty when its file is missing."""
+        png = self.data()
+        return "" if png is None else "data:image/png;base64," + base64.b64encode(png).decode("ascii")
 
 
 @dataclasses.dataclass
 class Section:
+    """A titled part of a page; ``body`` holds blocks and sections (one level deeper) in order."""
+
     title: str
+    body: list = dataclasses.field(default_factory=list)
     anchor: str = ""
-    paragraphs: list[str] = dataclasses.field(default_factory=list)
-    items: list[str] = dataclasses.field(default_factory=list)          # a bullet list
-    tables: list[Table] = dataclasses.field(default_factory=list)
-    figures: list[Figure] = dataclasses.field(default_factory=list)
-    children: list["Section"] = dataclasses.field(default_factory=list)
     cls: str = ""
-    collapsed: bool = False                                               # <details> in HTML
+    collapsed: bool = False                      # <details> in HTML
+    kind: ClassVar[str] = "section"
+
+    def add(self, *blocks) -> "Section":
+        self.body.extend(b for b in blocks if b is not None)
+        return self
 
 
 @dataclasses.dataclass
 class Page:
     title: str
+    body: list = dataclasses.field(default_factory=list)   # blocks and sections, in order
     banner: str = ""
-    banner_cls: str = ""
+    banner_cls: str = ""                          # regression, ok, baseline, dirty
     facts: list[tuple[str, str]] = dataclasses.field(default_factory=list)
     links: list[tuple[str, str]] = dataclasses.field(default_factory=list)
-    sections: list[Section] = dataclasses.field(default_factory=list)
     footer: str = ""
+
+
+def paragraphs(text: str) -> list[Paragraph]:
+    """A text with blank lines between its paragraphs, as paragraphs."""
+    return [Paragraph(p.strip()) for p in re.split(r"\n\s*\n", text or "") if p.strip()]
 
 
 def fmt(v: Any, spec: str = ".4g") -> str:
@@ -89,7 +142,7 @@ def table(title: str, df: pd.DataFrame, columns: dict[str, str] | None = None, c
         rows.append([Cell(fmt(rec.get(c)), css.get(c, "num" if isinstance(rec.get(c), (int, float, np.number))
                                             and not isinstance(rec.get(c), bool) else ""))
                      for c in columns])
-    return Table(title, list(columns.values()), rows, note, empty)
+    return Table(title, [str(c) for c in columns.values()], rows, note, empty)
 
 
 def figure_png(fig, dpi: int = 100) -> bytes:
@@ -101,66 +154,81 @@ def figure_png(fig, dpi: int = 100) -> bytes:
     return buf.getvalue()
 
 
-def _env():
-    import jinja2
-
-    return jinja2.Environment(loader=jinja2.FileSystemLoader(str(TEMPLATES)),
-                              autoescape=jinja2.select_autoescape(default=True, default_for_string=True),
-                              undefined=jinja2.StrictUndefined, trim_blocks=True, lstrip_blocks=True)
-
-
-def to_html(page: Page, template: str = "page.html.j2") -> str:
-    return _env().get_template(template).render(page=page)
+# ------------------------------------------------------------------------------------------ rendering
+_INLINE = re.compile(r"`(?P<code>[^`]+)`"
+                     r"|\*\*(?P<strong>.+?)\*\*"
+                     r"|(?<![\w\\])_(?P<em>[^\s_](?:.*?[^\s\\])?)_(?!\w)"
+                     r"|\[(?P<text>[^\]]+)\]\((?P<href>[^)\s]+)\)")
 
 
-def _md_escape(text: str) -> str:
+def inline_html(text: Any):
+    """Inline markdown as escaped HTML: code, strong, emphasis and links; everything else is text."""
+    from markupsafe import Markup, escape
+
+    text = str(text)
+    out, pos = [], 0
+    for m in _INLINE.finditer(text):
+        out.append(escape(text[pos:m.start()]))
+        if m["code"] is not None:
+            out.append(Markup("<code>%s</code>") % m["code"])
+        elif m["strong"] is not None:
+            out.append(Markup("<strong>%s</strong>") % inline_html(m["strong"]))
+        elif m["em"] is not None:
+            out.append(Markup("<em>%s</em>") % inline_html(m["em"]))
+        else:
+            out.append(Markup('<a href="%s">%s</a>') % (m["href"], inline_html(m["text"])))
+        pos = m.end()
+    out.append(escape(text[pos:]))
+    return Markup("").join(out)
+
+
+def md_cell(text: Any) -> str:
+    """A table cell (or header) in markdown: one line, ``|`` escaped."""
     return str(text).replace("|", "\\|").replace("\n", " ")
 
 
-def _md_table(t: Table) -> list[str]:
-    out = [f"**{t.title}**", ""] if t.title else []
-    if not t.rows:
-        return out + [f"_({t.empty})_", ""]
-    out.append("| " + " | ".join(_md_escape(c) for c in t.columns) + " |")
-    out.append("|" + "|".join("---" for _ in t.columns) + "|")
-    out += ["| " + " | ".join(_md_escape(c.text) for c in row) + " |" for row in t.rows]
-    if t.note:
-        out += ["", t.note]
-    return out + [""]
+def _env():
+    import jinja2
+
+    env = jinja2.Environment(loader=jinja2.FileSystemLoader(str(TEMPLATES)),
+                             autoescape=jinja2.select_autoescape(enabled_extensions=("html.j2",),
+                                                                 default_for_string=False),
+                             undefined=jinja2.StrictUndefined, trim_blocks=True, lstrip_blocks=True,
+                             keep_trailing_newline=True)
+    env.filters["md"] = inline_html
+    env.filters["md_cell"] = md_cell
+    return env
 
 
-def _md_section(s: Section, level: int, figures_to: Path | None, stem: str) -> list[str]:
-    out = ["#" * level + " " + s.title, ""]
-    for p in s.paragraphs:
-        out += [p, ""]
-    if s.items:
-        out += [f"- {i}" for i in s.items] + [""]
-    for t in s.tables:
-        out += _md_table(t)
-    for k, f in enumerate(s.figures):
-        if figures_to is not None:
-            name = f"{stem}-{s.anchor or 'fig'}-{k}.png"
-            (figures_to / name).write_bytes(f.png)
-            out += [f"![{f.caption}]({name})", ""]
-        out += [f"_{f.caption}_", ""]
-    for c in s.children:
-        out += _md_section(c, min(level + 1, 6), figures_to, stem)
-    return out
+def to_html(page: Page, template: str = "page.html.j2") -> str:
+    """The page as one static HTML file (figures inline)."""
+    return _env().get_template(template).render(page=page)
 
 
-def to_markdown(page: Page, figures_to: Path | None = None, stem: str = "figure") -> str:
-    """The same page as markdown (figures written beside it when ``figures_to`` is given)."""
-    out = [f"# {page.title}", ""]
-    if page.banner:
-        out += [f"**{page.banner}**", ""]
-    if page.facts:
-        out += [f"- {k}: {v}" for k, v in page.facts] + [""]
-    for s in page.sections:
-        out += _md_section(s, 2, figures_to, stem)
-    if page.footer:
-        out += [page.footer, ""]
-    return "\n".join(out)
+def _figure_links(page: Page, base: Path | None) -> dict[int, str]:
+    """Markdown link of every figure stored in a file: relative to ``base`` (the page's folder)."""
+    links = {}
+
+    def walk(body):
+        for b in body:
+            if isinstance(b, Section):
+                walk(b.body)
+            elif isinstance(b, Figure) and b.path is not None:
+                p = Path(b.path)
+                links[id(b)] = (os.path.relpath(p, base) if base is not None and p.is_absolute()
+                                else p.name).replace(os.sep, "/")
+    walk(page.body)
+    return links
 
 
-def cells(values: Iterable[Any]) -> list[Cell]:
-    return [Cell(fmt(v)) for v in values]
+def to_markdown(page: Page, base: Path | None = None) -> str:
+    """The same page as markdown; figure files are linked relative to ``base`` (the page's folder)."""
+    links = _figure_links(page, base)
+    text = _env().get_template("page.md.j2").render(page=page, link=lambda f: links.get(id(f), ""))
+    return re.sub(r"\n{3,}", "\n\n", text).rstrip("\n") + "\n"
+
+
+def markdown_table(df: pd.DataFrame, empty: str = "no rows") -> str:
+    """A frame as a markdown table (the template's own table: the one markdown table of the project)."""
+    module = _env().get_template("macros.md.j2").module
+    return str(module.render_table(table("", df, empty=empty))).strip("\n") + "\n"
