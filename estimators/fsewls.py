@@ -309,8 +309,10 @@ class FSEWLSEstimate(ParametricEstimate):
         ``Phi^T Theta`` with the parameters at each sample.
     transient : float
         Seconds at each end affected by the filters and the EWLS start (:meth:`FSEWLS.transient`).
+    highpassed : ndarray, shape (2, n_records, n)
+        Angle and torque after the high-pass ``H`` (eq. 3; as measured when it is off), means kept.
 
-    :meth:`predict` and :meth:`frequency_response` give torque from angle (impedance), whichever
+    :attr:`valid` = :meth:`steady` (read by :func:`jointbench.ensemble.valid_mask`). :meth:`predict` and :meth:`frequency_response` give torque from angle (impedance), whichever
     signal the trial imposed.
 
     References
@@ -321,11 +323,14 @@ class FSEWLSEstimate(ParametricEstimate):
     filtered_torque: np.ndarray
     predicted_filtered_torque: np.ndarray
     transient: float
+    highpassed: np.ndarray | None = None
 
     def steady(self) -> np.ndarray:
         """Boolean mask of the samples at least :attr:`transient` seconds from both ends."""
         t = self.time
         return (t - t[0] >= self.transient) & (t[-1] - t >= self.transient)
+
+    valid = property(steady)
 
     def damping_ratio(self) -> np.ndarray:
         """``B / (2 sqrt(K I))`` on :attr:`time`; NaN where ``K I <= 0`` (possible in transients).
@@ -475,7 +480,7 @@ class FSEWLS(Estimator):
         size = np.abs(x[0]).max(axis=-1)
         if s.highpass_cutoff is not None:
             x = highpass(x, fs, s.highpass_cutoff, s.highpass_order, s.highpass_ripple)
-        theta, tau = x - x.mean(axis=-1, keepdims=True)
+        highpassed, (theta, tau) = x, x - x.mean(axis=-1, keepdims=True)
         Phi, y = svf(theta, tau, fs, self.pole(), s.svf_order, s.svf_causal, s.svf_form)
         R0, r0 = ewls_start(Phi, y, fs, s.init_window)
         scale = np.sqrt(np.diag(R0))
@@ -492,4 +497,4 @@ class FSEWLS(Estimator):
         return FSEWLSEstimate(I=Theta[:, 0], B=Theta[:, 1], K=Theta[:, 2], fs=fs, time=trials[0].time,
                               estimator=self.name, filtered_torque=y,
                               predicted_filtered_torque=np.einsum("rni,ni->rn", Phi, Theta),
-                              transient=self.transient())
+                              transient=self.transient(), highpassed=highpassed)
