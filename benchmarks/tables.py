@@ -20,7 +20,8 @@ def cases_frame(results, commit: str) -> pd.DataFrame:
                 **{k: v for k, v in r.case.sweep.items()}, "status": r.status, "error": r.error,
                 "wall_time_s": round(r.wall_time_s, 4), "git_commit": commit,
                 "backend": getattr(r.case, "backend", "analytic"),
-                "sim_time_s": round(sum(t for _, t in r.sim_times), 6), "n_trials": len(r.sim_times)}
+                "sim_time_s": round(sum(e[1] for e in r.sim_times), 6), "n_trials": len(r.sim_times),
+                "n_responses": sum(1 for e in r.sim_times if not (len(e) > 2 and e[2]))}
         if r.status != "ok" or not r.rows:
             recs.append({**base, "estimator": "", "metric": "", "value": np.nan})
         for row in r.rows:

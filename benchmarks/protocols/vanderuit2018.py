@@ -179,7 +179,7 @@ def _case_estimators(ctx: Context, p: Table1Params) -> dict:
     return out
 
 
-@register("vanderuit2018.table1", Table1Params)
+@register("vanderuit2018.table1", Table1Params, share=lambda p: p.variations[p.variation])
 def table1(ctx: Context) -> None:
     """Table I, Figs. 3-4: VAF_self, VAF_optim, VAF_val and RMSE_k of each estimator for one case.
 
