@@ -152,10 +152,10 @@ def parse_grid(data: Mapping, experiment: Mapping | None, part_estimators: Mappi
     axes.setdefault("scenario", tuple(scenarios))
     _check_names("scenario", axes["scenario"], scenarios, where, "scenario", native=False)
     _check_names("estimator", axes["estimator"], estimators.REGISTRY.names(), where, "estimator", native=False)
-    extra = sorted(set(part_estimators) - set(axes["estimator"]))
-    if extra:
-        raise ConfigError(f"{where}: estimators.{extra[0]}: settings of an estimator that is not on the grid's "
-                          f"estimator axis ({', '.join(axes['estimator'])})")
+    unknown = sorted(set(part_estimators) - set(estimators.REGISTRY.names()))
+    if unknown:       # settings of an estimator not on the axis are kept (an axis shortened by --set)
+        raise ConfigError(f"{where}: estimators: unknown estimator {unknown[0]!r}; known: "
+                          f"{', '.join(estimators.REGISTRY.names())}")
     settings = {}
     for est in axes["estimator"]:
         base = dict(part_estimators.get(est) or {})

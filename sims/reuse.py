@@ -9,8 +9,9 @@ acquisition and the truth) is cheap and depends on the rest. Trials that differ 
 another estimator) can reuse the first.
 
 Inside ``with reuse_responses():`` every :func:`sims.simulate` call looks its first half up by
-:func:`response_key` and computes it only when it is new; outside such a block nothing is kept. A reused
-response is handed out as fresh copies of the same arrays, so the trial is bit-identical to one computed
+:func:`response_key` and computes it only when it is new; outside such a block nothing is kept. A whole trial asked for
+again (the same experiment, seed, replicate and realization: one trial fitted by several estimators) is
+kept too. A reused response or trial is handed out as fresh copies of the same arrays, so the trial is bit-identical to one computed
 alone (tests/test_reuse.py). The block is what a harness opens around a group of cases scheduled together.
 """
 from __future__ import annotations
@@ -81,6 +82,7 @@ class ResponseMemo:
 
     def __init__(self, max_bytes: float = 2e9, enabled: bool = True):
         self.max_bytes, self.enabled = max_bytes, enabled
+        self.trials: ResponseMemo | None = None      # whole trials (see reuse_responses)
         self.entries: collections.OrderedDict[bytes, tuple[Any, int]] = collections.OrderedDict()
         self.size = 0
         self.computed = 0
@@ -117,7 +119,8 @@ class reuse_responses:
     """
 
     def __init__(self, max_bytes: float = 2e9, enabled: bool = True):
-        self.memo = ResponseMemo(max_bytes, enabled)
+        self.memo = ResponseMemo(max_bytes / 2, enabled)
+        self.memo.trials = ResponseMemo(max_bytes / 2, enabled)
 
     def __enter__(self) -> ResponseMemo:
         _MEMOS.append(self.memo)
@@ -137,3 +140,22 @@ def lookup(key: bytes | None, compute: Callable[[], Any]) -> tuple[Any, bool]:
     if not _MEMOS:
         return compute(), False
     return _MEMOS[-1].get(key, compute)
+
+
+def trial_key(response: bytes | None, experiment: Any, replicate: int, name: str) -> bytes | None:
+    """Key of a whole trial: its response's key with the sensors, the acquisition, the replicate and the
+    name (a trial asked for twice, by two cases that fit it with different estimators, is the same)."""
+    if response is None:
+        return None
+    try:
+        return response + pickle.dumps((experiment.sensors, experiment.acquisition, int(replicate), str(name)),
+                                       protocol=4)
+    except (pickle.PicklingError, TypeError, AttributeError):
+        return None
+
+
+def lookup_trial(key: bytes | None, compute: Callable[[], Any]) -> tuple[Any, bool]:
+    """Like :func:`lookup`, for whole trials (the second memo of the innermost open block)."""
+    if not _MEMOS or _MEMOS[-1].trials is None:
+        return compute(), False
+    return _MEMOS[-1].trials.get(key, compute)

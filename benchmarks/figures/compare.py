@@ -115,8 +115,7 @@ def heat_map(sc: pd.DataFrame, rows: pd.DataFrame, folder, name: str) -> str | N
     fig, ax = new_figure(figsize=(max(6.0, 0.75 * len(scens) + 2.5), max(3.0, 0.42 * len(methods) + 1.5)))
     import matplotlib.pyplot as plt
 
-    cmap = plt.get_cmap("viridis").copy()
-    cmap.set_bad("0.85")
+    cmap = plt.get_cmap("viridis").with_extremes(bad="0.85")
     im = ax.imshow(np.clip(grid, 0, 100), cmap=cmap, vmin=0, vmax=100, aspect="auto")
     for i, m in enumerate(methods):
         for j, s in enumerate(scens):
@@ -128,6 +127,13 @@ def heat_map(sc: pd.DataFrame, rows: pd.DataFrame, folder, name: str) -> str | N
     fig.colorbar(im, ax=ax, label="VAF of the stiffness (%), median over realizations")
     ax.set_title("Methods x scenarios: VAF of the estimated stiffness (grey: skipped; n/f: not fitted)", fontsize=9)
     return save(fig, folder, name)
+
+
+def _bar(r) -> list | None:
+    """Error bar from the spread (a bootstrap interval need not contain the estimate: clipped at it)."""
+    if not (np.isfinite(r["lo"]) and np.isfinite(r["hi"])):
+        return None
+    return [[max(0.0, r["value"] - r["lo"])], [max(0.0, r["hi"] - r["value"])]]
 
 
 def trade_off(sc: pd.DataFrame, folder, name: str) -> str | None:
@@ -149,9 +155,7 @@ def trade_off(sc: pd.DataFrame, folder, name: str) -> str | None:
         e = sc[(sc["scenario"] == scen) & (sc["metric"] == "random_error")].set_index("method")
         for m in r.index.intersection(e.index):
             x, y = r.loc[m], e.loc[m]
-            ax.errorbar(x["value"], y["value"], xerr=[[max(0, x["value"] - x["lo"])], [max(0, x["hi"] - x["value"])]]
-                        if np.isfinite(x["hi"]) else None,
-                        yerr=[[y["value"] - y["lo"]], [y["hi"] - y["value"]]], fmt="o", color=colors[m], label=m,
+            ax.errorbar(x["value"], y["value"], xerr=_bar(x), yerr=_bar(y), fmt="o", color=colors[m], label=m,
                         ms=5, capsize=2)
         ax.set_title(scen, fontsize=8)
         ax.set_xlabel("rise time 10-90 % (s)")

@@ -15,7 +15,9 @@ stiffness with the metrics of the comparison framework (:mod:`benchmarks.metrics
   realizations (drawn from the case's seeded generator);
 * ``not_fitted`` (value NaN, label ``reason``) when the estimator refuses the data (an InputError).
 
-The simulated stiffness is the static gain of the true frozen impedance (angle to torque) at every sample:
+Every method is given the impedance direction, angle to torque (:func:`impedance`), and ``vaf_output``
+is the VAF of the torque predicted from the angle. The simulated stiffness is the static gain of the
+true frozen impedance at every sample:
 ``K(t)`` for a joint on its own, ``k(t)`` in series with the hand contact for the wrist (about
 ``k - k^2/k_c``), the gain every estimator's ``stiffness(t)`` estimates. The scored samples lie
 ``discard`` seconds from both ends, where the estimate is valid (:func:`jointbench.ensemble.valid_mask`),
@@ -30,7 +32,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import time
 from typing import Any, Literal
 
 import numpy as np
@@ -38,6 +39,7 @@ import numpy as np
 import sims
 from benchmarks import metrics
 from benchmarks.protocols import Context, register
+from benchmarks.scoring import fit_timed, frozen_stiffness, scored_samples
 from jointbench.ensemble import Ensemble, valid_mask
 from jointbench.errors import InputError
 from jointbench.schema import param
@@ -64,26 +66,12 @@ class CompareParams:
     backend: str = param("", doc="label: the simulation backend")
 
 
-def true_stiffness(trial) -> np.ndarray:
-    """Static gain of the true frozen impedance at the trial's samples (N·m/rad): ``|H(0, t)|`` of the
-    input-to-output transfer function when the angle is imposed, ``1 / |H(0, t)|`` when the torque is."""
-    tr, t = trial.truth, trial.time
-    h0 = np.abs(np.atleast_1d(tr.frozen_response(np.array([0.0]), t, t))).reshape(-1)
-    if h0.size == 1:
-        h0 = np.full(len(t), float(h0[0]))
-    return h0 if trial.imposed == "angle" else 1.0 / h0
-
-
-def scored_samples(time: np.ndarray, discard: float) -> np.ndarray:
-    """Samples at least ``discard`` seconds from both ends of ``time``."""
-    return (time - time[0] >= discard - 1e-9) & (time[-1] - time >= discard - 1e-9)
-
-
-def fit_timed(estimator, data) -> tuple[Any, float]:
-    """``(estimate, wall seconds)`` of one fit."""
-    t0 = time.perf_counter()
-    est = estimator.fit(data)
-    return est, time.perf_counter() - t0
+def impedance(trial):
+    """The trial as every method is given it: the impedance, angle to torque (``imposed='angle'``), also
+    when the apparatus imposed the torque (Xu's torque drive): the direction every method's stiffness and
+    prediction refer to (FSEWLS fits torque from angle whatever was imposed; Westwick & Perreault's
+    two-sided IRFs exist to identify the impedance of torque-driven joints)."""
+    return trial if trial.imposed == "angle" else trial.replace(imposed="angle")
 
 
 def _share(p: CompareParams) -> tuple:
@@ -101,17 +89,18 @@ def compare(ctx: Context) -> None:
     R, M = p.realizations, p.ensemble_size
     first = sims.simulate(ctx.experiment, ctx.seed, name="realization 0")
     t = first.time
-    k = true_stiffness(first)
+    k = frozen_stiffness(first)
     keep = scored_samples(t, p.discard)
     if keep.sum() < 2:
         raise ValueError(f"discard: {p.discard:g} s at each end leaves nothing of the {t[-1] - t[0]:.3g} s record")
     khats, masks = [], []
     for r in range(R):
-        trial = first if r == 0 else sims.simulate(ctx.experiment, ctx.seed, realization=r, name=f"realization {r}")
+        trial = impedance(first if r == 0 else sims.simulate(ctx.experiment, ctx.seed, realization=r,
+                                                             name=f"realization {r}"))
         data = trial
         if p.data == "ensemble":
-            data = Ensemble((trial, *(sims.simulate(ctx.experiment, ctx.seed, realization=r + R * m,
-                                                    name=f"realization {r + R * m}") for m in range(1, M))),
+            data = Ensemble((trial, *(impedance(sims.simulate(ctx.experiment, ctx.seed, realization=r + R * m,
+                                                              name=f"realization {r + R * m}")) for m in range(1, M))),
                             name=f"ensemble {r}")
         try:
             est, seconds = fit_timed(estimator, data)

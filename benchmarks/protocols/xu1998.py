@@ -304,7 +304,7 @@ def track(ctx: Context) -> None:
     if p.measured_voluntary and exp.voluntary.active:
         trial = trial.replace(torque=trial.torque + np.asarray(trial.truth.signals["voluntary"]))
     fit = est.fit(trial) if p.regressors == "filtered" else exact_fit(est, trial)
-    keep = scored_window(trial.n, trial.fs, p.discard, valid_mask(fit))
+    keep = scored_window(trial.n, trial.fs, p.discard, valid_mask(fit) if p.regressors == "filtered" else None)
     dt = 1.0 / trial.fs
     labels = {"condition": p.condition}
     if p.f_v is not None:
