@@ -64,8 +64,13 @@ bench-save: $(STAMP)
 bench-studies: $(STAMP)
 	$(BIN)/python -m tests.benchmarks.bench --studies-only
 
-# The studies, then the README's status tables from their comparison.csv files (never typed by hand).
-reproduce: westwick2012 xu1998 vanderuit2018-table1 vanderuit2018-table2
+# The studies, side by side (each one's last cases, figures and report overlap the others' computing, so
+# both cores stay busy; quiet: four progress bars would garble each other), then the README's status
+# tables from their comparison.csv files (never typed by hand).
+REPRODUCE_STUDIES := westwick2012 xu1998 vanderuit2018-table1 vanderuit2018-table2
+reproduce: $(STAMP)
+	@echo "running $(REPRODUCE_STUDIES) side by side; each prints its summary when it is done"
+	@$(MAKE) --no-print-directory -j4 $(REPRODUCE_STUDIES) RUN_ARGS="--quiet $(RUN_ARGS)"
 	$(BIN)/jointbench status --write-readme
 
 westwick2012: $(STAMP)

@@ -45,7 +45,6 @@ from typing import Any, Callable, Mapping
 
 import estimators
 import sims
-from benchmarks.harness.case import Case
 from jointbench.errors import ConfigError
 from jointbench.schema import param, parse
 
@@ -269,10 +268,10 @@ def _refusal(cls, mode: str) -> str | None:
     return f"{cls.name} takes {takes}, not {'an ensemble' if mode == 'ensemble' else 'a single trial'}"
 
 
-def expand_grid(study_id: str, part, backend: str | None = None) -> tuple[list[Case], list[dict]]:
-    """Cases of a grid part (one per estimator and combination, each with all its seeds' realizations)
-    and the skipped combinations (labels, ``estimator``, ``reason``). ``backend`` (``--backend``)
-    replaces the backend axis."""
+def expand_grid(study_id: str, part, backend: str | None = None) -> tuple[list[dict], list[dict]]:
+    """The cases of a grid part as the fields of :class:`benchmarks.harness.case.Case` (one per estimator,
+    combination and seed; each case simulates every realization), and the skipped combinations (labels,
+    ``estimator``, ``reason``). ``backend`` (``--backend``) replaces the backend axis."""
     grid: Grid = part.grid
     axes = dict(grid.axes)
     if backend is not None:
@@ -304,7 +303,7 @@ def expand_grid(study_id: str, part, backend: str | None = None) -> tuple[list[C
             params["discard"] = sc.discard
         settings = {**grid.settings[est], **(sc.estimators.get(est) or {})}
         for seed in part.seeds:
-            cases.append(Case(study=study_id, part=part.name, protocol=part.protocol, params=params,
+            cases.append(dict(study=study_id, part=part.name, protocol=part.protocol, params=params,
                               sweep={**combo, "data": mode}, experiment=mapping, estimators={est: settings},
                               seed=seed, where=part.where, backend=combo["backend"]))
     return cases, skipped
@@ -323,17 +322,21 @@ def skipped_rows(study_id: str, skipped: list[dict]) -> list[dict]:
 
 
 # --------------------------------------------------------------------------------------- time estimate
-#: rough seconds per simulated step of one trial, by backend (response + sensors + acquisition), measured
-#: on the 2-core development machine; the estimate says it is rough
-SIM_S_PER_STEP = {"analytic": 1.2e-6, "lti": 1.2e-6, "ltv": 1.2e-6, "mujoco": 9e-6}
-#: rough fit seconds per acquired sample (per realization of an ensemble), by estimator; others: FIT_DEFAULT
-FIT_S_PER_SAMPLE = {"fsewls": 1e-6, "kbr": 4e-4, "skirt": 2e-4, "sds": 1e-5, "guarin": 2e-6,
-                    "ensemble_irf": 5e-6, "irf2_ls": 1e-6, "irf2_corr": 1e-6, "ibk_irf": 2e-6,
-                    "ibk_spectral": 1e-6, "spectral": 1e-6}
+#: rough CPU seconds per simulated step of one response, by backend, and of the sensors and acquisition of
+#: every trial; measured on the 2-core development machine (the matrix study); the estimate says it is rough
+SIM_S_PER_STEP = {"analytic": 0.8e-6, "lti": 0.8e-6, "ltv": 0.8e-6, "mujoco": 4e-6}
+TRIAL_S_PER_STEP = 0.15e-6
+#: rough fit seconds per acquired sample (of every realization of an ensemble), by estimator (the matrix
+#: study's medians); others: FIT_DEFAULT
+FIT_S_PER_SAMPLE = {"fsewls": 0.7e-6, "kbr": 12e-6, "skirt": 3e-6, "sds": 6e-6, "guarin": 4e-6,
+                    "ensemble_irf": 3e-6, "irf2_ls": 0.3e-6, "irf2_corr": 0.1e-6, "ibk_irf": 2.5e-6,
+                    "ibk_spectral": 2.5e-6, "spectral": 2.5e-6}
 FIT_DEFAULT = 1e-5
+#: rough CPU seconds a case spends besides its fits (scoring, the bootstrap of the spread, parsing)
+CASE_OVERHEAD_S = 0.15
 
 
-def estimate_seconds(cases: list[Case], groups: list[list[int]]) -> float:
+def estimate_seconds(cases: list, groups: list[list[int]]) -> float:
     """A rough estimate (s of one core) of computing ``cases`` of a grid, scheduled in ``groups`` (each
     group simulates its distinct responses once: R realizations, times the ensemble size when a case of
     it fits ensembles)."""
@@ -348,11 +351,12 @@ def estimate_seconds(cases: list[Case], groups: list[list[int]]) -> float:
         if exp is not None:
             per_step = SIM_S_PER_STEP.get(first.backend, SIM_S_PER_STEP["mujoco"])
             total += R * (M if ens else 1) * exp.n_sim * per_step
-            total += len(g) * R * exp.n_sim * 0.2e-6          # sensors and acquisition of every trial
+            noises = {json.dumps(cases[i].experiment.get("sensors"), sort_keys=True, default=str) for i in g}
+            total += len(noises) * R * (M if ens else 1) * exp.n_sim * TRIAL_S_PER_STEP
         for i in g:
             c = cases[i]
             est = next(iter(c.estimators), "")
             n = exp.n if exp is not None else 0
             k = M if c.sweep.get("data") == "ensemble" else 1
-            total += R * k * n * FIT_S_PER_SAMPLE.get(est, FIT_DEFAULT)
+            total += R * k * n * FIT_S_PER_SAMPLE.get(est, FIT_DEFAULT) + CASE_OVERHEAD_S
     return total

@@ -71,7 +71,8 @@ def expand_study(study: Study, parts: Iterable[str] | None = None,
     for name in names:
         part: Part = study.parts[name]
         if part.grid is not None:
-            got, skip = expand_grid(study.id, part, backend)
+            specs, skip = expand_grid(study.id, part, backend)
+            got = [Case(**spec) for spec in specs]
             cases += got
             skipped += [{"part": name, **s} for s in skip]
             if got:

@@ -58,8 +58,8 @@ def labelled(rows: pd.DataFrame) -> pd.DataFrame:
 
 def scores(rows: pd.DataFrame) -> pd.DataFrame:
     """One row per method, scenario and metric: ``value`` (median over realizations and seeds), ``lo`` and
-    ``hi`` (min and max over the realizations for per-realization metrics; the bootstrap 5th and 95th
-    percentiles over realizations for the others), ``n`` (values combined)."""
+    ``hi`` (min and max over the realizations for per-realization metrics; the basic bootstrap 90 %
+    interval over realizations for the others), ``n`` (values combined)."""
     ok = rows[(rows["status"] == "ok") & rows["metric"].isin(list(METRICS))]
     recs = []
     for (method, scen, metric), g in ok.groupby(["method", "scenario_label", "metric"], sort=False):
@@ -101,7 +101,8 @@ def heat_map(sc: pd.DataFrame, rows: pd.DataFrame, folder, name: str) -> str | N
     """Methods x scenarios, coloured by the median VAF of the stiffness (clipped to 0-100 %); skipped
     combinations grey ('skip'), estimates that could not be fitted 'n/f'."""
     v = sc[sc["metric"] == "vaf_stiffness"]
-    methods = list(dict.fromkeys(rows.loc[rows["estimator"] != "", "method"]))
+    ran = rows[(rows["estimator"] != "") & (rows["metric"] != "skipped")]
+    methods = list(dict.fromkeys(ran["method"]))          # a method skipped everywhere: in the reasons table
     scens = list(dict.fromkeys(rows["scenario_label"]))
     if not methods or not scens:
         return None
@@ -119,18 +120,21 @@ def heat_map(sc: pd.DataFrame, rows: pd.DataFrame, folder, name: str) -> str | N
     im = ax.imshow(np.clip(grid, 0, 100), cmap=cmap, vmin=0, vmax=100, aspect="auto")
     for i, m in enumerate(methods):
         for j, s in enumerate(scens):
-            text = _fmt(grid[i, j]) if np.isfinite(grid[i, j]) else state.get((m, s), "")
+            value = grid[i, j]
+            text = (state.get((m, s), "") if not np.isfinite(value) else
+                    "<-99" if value < -99 else f"{value:.0f}" if abs(value) >= 10 else f"{value:.1f}")
             dark = np.isfinite(grid[i, j]) and grid[i, j] < 60
             ax.text(j, i, text, ha="center", va="center", fontsize=7, color="white" if dark else "black")
     ax.set_xticks(range(len(scens)), scens, rotation=60, ha="right", fontsize=7)
     ax.set_yticks(range(len(methods)), methods, fontsize=8)
     fig.colorbar(im, ax=ax, label="VAF of the stiffness (%), median over realizations")
-    ax.set_title("Methods x scenarios: VAF of the estimated stiffness (grey: skipped; n/f: not fitted)", fontsize=9)
+    ax.set_title("Methods x scenarios: VAF of the estimated stiffness, % (grey: skipped; n/f: not fitted; "
+                 "exact values in the scores file)", fontsize=9)
     return save(fig, folder, name)
 
 
 def _bar(r) -> list | None:
-    """Error bar from the spread (a bootstrap interval need not contain the estimate: clipped at it)."""
+    """Error bar from the spread (clipped at the estimate, should an interval not contain it)."""
     if not (np.isfinite(r["lo"]) and np.isfinite(r["hi"])):
         return None
     return [[max(0.0, r["value"] - r["lo"])], [max(0.0, r["hi"] - r["value"])]]
@@ -170,7 +174,8 @@ def trade_off(sc: pd.DataFrame, folder, name: str) -> str | None:
             seen.setdefault(lab, h)
     fig.legend(list(seen.values()), list(seen.keys()), loc="lower center", ncol=min(6, len(seen)), fontsize=7,
                bbox_to_anchor=(0.5, -0.02 - 0.02 * (len(seen) // 6)))
-    fig.suptitle("Rise time against random error (square-wave stiffness; bars: bootstrap 5-95 % over realizations)",
+    fig.suptitle("Rise time against random error (square-wave stiffness; bars: basic bootstrap 90 % intervals over "
+                 "realizations)",
                  fontsize=9)
     fig.tight_layout(rect=(0, 0.06, 1, 0.96))
     return save(fig, folder, name)
@@ -208,8 +213,8 @@ def compare_figures(part, rows, curves, folder, checks) -> PartReport:
                 "(total^2 = bias^2 + random^2 (R-1)/R); rise time = 10-90 % of the mean estimate at each step of "
                 "a square wave, averaged over the steps. k is the static gain of the true frozen impedance; "
                 "scored between the part's discarded ends, where the estimate is valid in every realization. "
-                "Spread: min to max over realizations (per-realization metrics) or the bootstrap 5th to 95th "
-                "percentile over realizations (the others).")
+                "Spread: min to max over realizations (per-realization metrics) or the basic bootstrap 90 % "
+                "interval over realizations (the others).")
     if not sc.empty:
         rep.tables.append(("Best method per scenario (value, spread)", best_table(sc)))
         f = heat_map(sc, rows, folder, f"{part.name}_heatmap.png")
