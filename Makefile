@@ -8,14 +8,15 @@ VENV    := .venv
 BIN     := $(VENV)/bin
 STAMP   := $(VENV)/.installed-stamp
 BACKEND ?=
-RUN     := $(BIN)/jointbench run $(if $(BACKEND),--backend $(BACKEND))
+RUN_ARGS ?=
+RUN     := $(BIN)/jointbench run $(if $(BACKEND),--backend $(BACKEND)) $(RUN_ARGS)
 SHARED  ?= ../shared
 PAPER_STUDIES := westwick2012 xu1998 vanderuit2018_table1
 
 .PHONY: help venv test test-slow bench bench-save bench-studies reproduce westwick2012 westwick2012-fig2 westwick2012-fig3 \
         westwick2012-fig4 westwick2012-fig5 westwick2012-fig6 westwick2012-table1 westwick2012-fig7 \
         westwick2012-fig8 xu1998 xu1998-fig2 xu1998-fig3 xu1998-calibration vanderuit2018-table1 \
-        vanderuit2018-table2 apparatus reproduce-mujoco example-ankle clean-results nightly chromium
+        vanderuit2018-table2 apparatus matrix reproduce-mujoco example-ankle clean-results nightly chromium
 
 help:
 	@echo "make reproduce   run every implemented paper study (results/<study>/report.md)"
@@ -30,6 +31,9 @@ help:
 	@echo "make vanderuit2018-table1"
 	@echo "make vanderuit2018-table2   Table II (single trial vs ensembles) on simulated subjects"
 	@echo "make apparatus   servo stiffness and gravity on the MuJoCo backend (results/apparatus/)"
+	@echo "make matrix      every estimator on every scenario of the three papers, both backends (results/matrix/;"
+	@echo "                 a comparison grid: heat map, best method per scenario, rise-time/random-error trade-off)"
+	@echo "RUN_ARGS=...     more options for jointbench run, e.g. RUN_ARGS='--set table1.seeds=3 --executor dask'"
 	@echo "make reproduce-mujoco   every paper study on MuJoCo too (results/<study>/backend-mujoco/), then"
 	@echo "                 the analytic reports again, with the MuJoCo value beside every check"
 	@echo "BACKEND=mujoco   (on any study target) simulate every part on MuJoCo"
@@ -40,7 +44,7 @@ help:
 $(STAMP): pyproject.toml
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e '.[test]'
+	$(BIN)/python -m pip install --quiet -e '.[test,dask]'
 	@touch $(STAMP)
 
 venv: $(STAMP)
@@ -61,8 +65,13 @@ bench-save: $(STAMP)
 bench-studies: $(STAMP)
 	$(BIN)/python -m tests.benchmarks.bench --studies-only
 
-# The studies, then the README's status tables from their comparison.csv files (never typed by hand).
-reproduce: westwick2012 xu1998 vanderuit2018-table1 vanderuit2018-table2
+# The studies, side by side (each one's last cases, figures and report overlap the others' computing, so
+# both cores stay busy; quiet: four progress bars would garble each other), then the README's status
+# tables from their comparison.csv files (never typed by hand).
+REPRODUCE_STUDIES := westwick2012 xu1998 vanderuit2018-table1 vanderuit2018-table2
+reproduce: $(STAMP)
+	@echo "running $(REPRODUCE_STUDIES) side by side; each prints its summary when it is done"
+	@$(MAKE) --no-print-directory -j4 $(REPRODUCE_STUDIES) RUN_ARGS="--quiet $(RUN_ARGS)"
 	$(BIN)/jointbench status --write-readme
 
 westwick2012: $(STAMP)
@@ -96,6 +105,10 @@ vanderuit2018-table1: $(STAMP)
 
 vanderuit2018-table2: $(STAMP)
 	$(RUN) vanderuit2018_table2
+
+# The comparison matrix (configs/studies/matrix.yaml): every estimator on every scenario of the three papers.
+matrix: $(STAMP)
+	$(RUN) matrix
 
 # Apparatus effects only a physics backend simulates (its parts say backend: mujoco).
 apparatus: $(STAMP)

@@ -62,12 +62,21 @@ def _root(args) -> Path:
 
 def _run(args) -> int:
     from benchmarks.config import check_backend
+    from benchmarks.harness.pool import make_executor
     from benchmarks.study import run_study
 
     backend = check_backend(args.backend, "option --backend") if args.backend else None
-    run = run_study(args.study, parts=args.parts or None, out_root=_root(args), serial=args.serial,
-                    workers=args.workers, use_cache=not args.no_cache, progress=not args.quiet,
-                    command=_command(), backend=backend)
+    if args.serial and args.executor not in (None, "serial"):
+        raise JointBenchError(f"--serial and --executor {args.executor} contradict each other")
+    executor = make_executor(args.executor or "process", args.workers, args.scheduler)
+    try:
+        run = run_study(args.study, parts=args.parts or None, out_root=_root(args), serial=args.serial,
+                        workers=args.workers, use_cache=not args.no_cache, progress=not args.quiet,
+                        command=_command(), backend=backend, executor=executor, overrides=args.set or (),
+                        budget_minutes=args.budget, confirm=args.yes)
+    finally:
+        if executor is not None:
+            executor.shutdown(wait=True)
     from benchmarks.tables import headline
 
     comp = run.comparison
@@ -145,6 +154,17 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--backend", metavar="NAME", default=None,
                    help="simulate every part on this backend (analytic, mujoco, ...); outputs in "
                         "results/<study>/backend-NAME/")
+    p.add_argument("--set", action="append", metavar="PART.KEY=VALUE",
+                   help="override one value of a part before the config is checked, e.g. table1.seeds=3 or "
+                        "matrix.grid.noise=[0.1] ('*.seeds=2': every part); repeatable")
+    p.add_argument("--executor", choices=("process", "serial", "dask"), default=None,
+                   help="where cases run: a process pool on this machine (default), this process, or a Dask "
+                        "cluster (a local one, or --scheduler's)")
+    p.add_argument("--scheduler", metavar="ADDRESS", default=None,
+                   help="with --executor dask: a running Dask scheduler, e.g. tcp://10.0.0.5:8786")
+    p.add_argument("--budget", type=float, metavar="MINUTES", default=None,
+                   help="refuse a comparison grid estimated to take longer (default: its config's budget)")
+    p.add_argument("--yes", action="store_true", help="run a grid even when it is estimated over its budget")
     p.set_defaults(func=_run)
     p = sub.add_parser("status", help="status of every study from results/*/comparison.csv (README tables)")
     p.add_argument("--write-readme", action="store_true",

@@ -18,6 +18,7 @@ from typing import Any, Mapping
 
 import yaml
 
+from benchmarks import overrides as _overrides
 from jointbench.errors import ConfigError
 
 REPO = Path(__file__).resolve().parents[1]
@@ -159,8 +160,10 @@ class Part:
     where: str
     report_section: str = "results"
     backend: str = "analytic"
+    figure: str = ""               # its figure maker (benchmarks.figures); '' = the one named like the protocol
+    grid: Any = None               # a comparison grid (benchmarks.grid.Grid): cases come from its axes
 
-    def grid(self) -> list[dict[str, Any]]:
+    def grid_combinations(self) -> list[dict[str, Any]]:
         """Every combination of the sweep (one empty dict without a sweep)."""
         keys = list(self.sweep)
         return [dict(zip(keys, combo)) for combo in itertools.product(*(self.sweep[k] for k in keys))]
@@ -180,7 +183,11 @@ class Study:
 
 
 _PART_KEYS = {"protocol": True, "description": True, "params": False, "experiment": False,
-              "estimators": False, "seeds": False, "sweep": False, "report_section": False, "backend": False}
+              "estimators": False, "seeds": False, "sweep": False, "report_section": False, "backend": False,
+              "figure": False, "grid": False, "scenarios": False, "variations": False, "perturbations": False,
+              "budget": False}
+#: keys only a part with a comparison grid takes (benchmarks/grid.py)
+GRID_KEYS = ("scenarios", "variations", "perturbations", "budget")
 REPORT_SECTIONS = ("results", "interpretation")
 _STUDY_KEYS = {"study": True, "title": True, "paper": True, "published": True, "readings": False,
                "not_reproduced": True, "method_swap": False, "parts": True}
@@ -250,8 +257,25 @@ def check_backend(name: Any, where: str) -> str:
     return name
 
 
-def load_part(name: str, data: Mapping, where: str, models_dir: Path) -> Part:
+def load_part(name: str, data: Mapping, where: str, models_dir: Path,
+              overrides: list | None = None) -> Part:
+    """One part, strictly; ``overrides`` (``--set``, :mod:`benchmarks.overrides`) are applied first."""
+    if overrides:
+        if not isinstance(data, Mapping):
+            raise ConfigError(f"{where}: expected a mapping")
+
+        def expand(path, value):   # a joint model given by name, so that its keys can be set
+            if path[-1] == "joint" and isinstance(value, str) and len(path) == 2:
+                return _resolve_joint({"joint": value}, f"{where}: {path[0]}", models_dir)["joint"]
+            return value
+
+        data = _overrides.apply(data, overrides, where, expand)
+        where += _overrides.describe(overrides)
     _check_keys(data, _PART_KEYS, where)
+    if "grid" not in data:
+        extra = [k for k in GRID_KEYS if k in data]
+        if extra:
+            raise ConfigError(f"{where}: key {extra[0]!r} belongs to a part with a 'grid' (a comparison grid)")
     experiment = data.get("experiment")
     if experiment is not None:
         if not isinstance(experiment, Mapping):
@@ -272,13 +296,23 @@ def load_part(name: str, data: Mapping, where: str, models_dir: Path) -> Part:
     if section not in REPORT_SECTIONS:
         raise ConfigError(f"{where}: key 'report_section': {section!r} not allowed; allowed: "
                           f"{', '.join(REPORT_SECTIONS)}")
-    return Part(name=name, protocol=str(data["protocol"]), description=str(data["description"]),
+    protocol = str(data["protocol"])
+    grid = None
+    if "grid" in data:
+        from benchmarks import grid as _grid
+
+        if sweep:
+            raise ConfigError(f"{where}: key 'sweep': a part with a 'grid' takes its values from the grid's axes")
+        grid = _grid.parse_grid(data, experiment, {k: dict(v or {}) for k, v in est.items()}, where,
+                                lambda m, w: _resolve_joint({"joint": m}, w, models_dir)["joint"])
+    return Part(name=name, protocol=protocol, description=str(data["description"]),
                 report_section=section,
                 backend=check_backend(data.get("backend", "analytic"), f"{where}: key 'backend'"),
                 params=dict(params), experiment=experiment,
                 estimators={k: dict(v or {}) for k, v in est.items()},
                 seeds=_seeds(data.get("seeds"), where),
-                sweep={k: tuple(v) for k, v in sweep.items()}, where=where)
+                sweep={k: tuple(v) for k, v in sweep.items()}, where=where,
+                figure=str(data.get("figure") or ""), grid=grid)
 
 
 def _conditions(value: Any, key: str, where: str, need_metric: bool) -> dict:
@@ -408,8 +442,11 @@ def _method_swap(value: Any, where: str, parts: Mapping[str, Part]) -> MethodSwa
     return MethodSwap(str(value["part"]), (est[0], est[1]))
 
 
-def load_study(path: str | Path, configs_dir: Path = CONFIGS) -> Study:
-    """Load ``configs/studies/<id>.yaml`` (or a path) with its published checks, strictly."""
+def load_study(path: str | Path, configs_dir: Path = CONFIGS, overrides=()) -> Study:
+    """Load ``configs/studies/<id>.yaml`` (or a path) with its published checks, strictly.
+
+    ``overrides``: ``--set PART.KEY=VALUE`` texts (:mod:`benchmarks.overrides`), applied to the parts'
+    YAML before the strict parse; errors name the override."""
     path = Path(path)
     if not path.suffix:
         path = configs_dir / "studies" / f"{path}.yaml"
@@ -419,7 +456,9 @@ def load_study(path: str | Path, configs_dir: Path = CONFIGS) -> Study:
     if not isinstance(parts_data, Mapping) or not parts_data:
         raise ConfigError(f"{path}: key 'parts': expected a non-empty mapping")
     models_dir = configs_dir / "models"
-    parts = {name: load_part(name, p, f"{path}: parts.{name}", models_dir) for name, p in parts_data.items()}
+    per_part = _overrides.for_parts(overrides, list(parts_data), str(path))
+    parts = {name: load_part(name, p, f"{path}: parts.{name}", models_dir, per_part[name])
+             for name, p in parts_data.items()}
     readings = []
     for i, r in enumerate(data.get("readings") or []):
         where = f"{path}: readings[{i}]"

@@ -7,19 +7,23 @@ JSON-serialisable and cached by a key of everything that can change their number
 from __future__ import annotations
 
 import concurrent.futures as cf
+import json
 import math
 import os
 import queue
 import sys
 from typing import Callable, Iterable
 
+from benchmarks import protocols
 from benchmarks.config import Part, Study
 from benchmarks.harness.cache import Cache
-from benchmarks.harness.case import Case, CaseResult, parse_inputs, run_case
-from benchmarks.harness.pool import InlineExecutor, WorkerPool
+from benchmarks.harness.case import Case, CaseResult, parse_inputs, run_case, run_group
+from benchmarks.harness.pool import InlineExecutor, WorkerPool, run_task
 from jointbench.errors import ConfigError
+from jointbench.schema import parse
 
-__all__ = ["Case", "CaseResult", "Cache", "RunInterrupted", "expand", "run_case", "run_cases"]
+__all__ = ["Case", "CaseResult", "Cache", "RunInterrupted", "expand", "expand_study", "group_cases", "run_case",
+           "run_cases"]
 
 #: most cases one run may expand to (a typo in a sweep or seed count must not exhaust the memory)
 MAX_CASES = 1_000_000
@@ -46,29 +50,81 @@ def _check_estimators(part: Part, experiment, ests: dict) -> None:
                               f"{reason}; remove it from the part or change the perturbation")
 
 
-def expand(study: Study, parts: Iterable[str] | None = None, backend: str | None = None) -> list[Case]:
-    """All cases of the selected parts, validated up front (config errors surface before any run).
+def expand_study(study: Study, parts: Iterable[str] | None = None,
+                 backend: str | None = None) -> tuple[list[Case], list[dict]]:
+    """All cases of the selected parts, validated up front (config errors surface before any run), and
+    the combinations of comparison grids that are skipped, with their reasons (:mod:`benchmarks.grid`).
     ``backend`` (e.g. ``jointbench run --backend mujoco``) replaces every part's own backend."""
+    from benchmarks.grid import expand_grid
+
     names = list(study.parts) if parts is None else list(dict.fromkeys(parts))
     unknown = [p for p in names if p not in study.parts]
     if unknown:
         raise ConfigError(f"{study.path}: unknown part {unknown[0]!r}; parts: {', '.join(study.parts)}")
-    total = sum(math.prod(len(v) for v in study.parts[n].sweep.values()) * len(study.parts[n].seeds)
+    total = sum((study.parts[n].grid.size() if study.parts[n].grid is not None else
+                 math.prod(len(v) for v in study.parts[n].sweep.values())) * len(study.parts[n].seeds)
                 for n in names)
     if total > MAX_CASES:
         raise ConfigError(f"{study.path}: the selected parts expand to {total} cases, more than the "
                           f"{MAX_CASES} a run may hold; lower the seeds or the sweeps")
-    cases = []
+    cases, skipped = [], []
     for name in names:
         part: Part = study.parts[name]
-        for combo in part.grid():
+        if part.grid is not None:
+            specs, skip = expand_grid(study.id, part, backend)
+            got = [Case(**spec) for spec in specs]
+            cases += got
+            skipped += [{"part": name, **s} for s in skip]
+            if got:
+                parse_inputs(got[0])       # the protocol's parameters, once per part
+            continue
+        for combo in part.grid_combinations():
             for seed in part.seeds:
                 cases.append(Case(study=study.id, part=name, protocol=part.protocol, params=dict(part.params),
                                   sweep=combo, experiment=part.experiment, estimators=dict(part.estimators),
                                   seed=seed, where=part.where, backend=backend or part.backend))
         _, _, exp, ests = parse_inputs(cases[-1])   # validate once per part
         _check_estimators(part, exp, ests)
-    return cases
+    return cases, skipped
+
+
+def expand(study: Study, parts: Iterable[str] | None = None, backend: str | None = None) -> list[Case]:
+    """All cases of the selected parts (:func:`expand_study` without the skipped grid combinations)."""
+    return expand_study(study, parts, backend)[0]
+
+
+#: the experiment keys that do not change a simulated response (sims.reuse.RESPONSE_FIELDS are the rest)
+_NOT_RESPONSE = ("sensors", "acquisition")
+
+
+def share_key(case: Case, _memo: dict | None = None):
+    """Cases with equal keys may share simulated responses and are scheduled together (None: alone).
+
+    The key is the protocol, the case's experiment without its sensors and acquisition, the backend, the
+    seed and what the protocol's ``share`` says of its parameters (:class:`benchmarks.protocols.Protocol`).
+    It only groups: which responses are equal is decided when they are simulated (:mod:`sims.reuse`)."""
+    proto = protocols.REGISTRY.get(case.protocol)
+    if proto.share is None or case.experiment is None:
+        return None
+    memo = {} if _memo is None else _memo
+    exp = memo.get(id(case.experiment))
+    if exp is None:
+        exp = json.dumps({k: v for k, v in case.experiment.items() if k not in _NOT_RESPONSE}, sort_keys=True,
+                         default=str)
+        memo[id(case.experiment)] = exp
+    params = parse(proto.Params, {**case.params, **case.sweep}, f"{case.where}: params")
+    return (case.protocol, exp, case.backend, case.seed, json.dumps(proto.share(params), sort_keys=True, default=str))
+
+
+def group_cases(cases: list[Case], indices: Iterable[int] | None = None) -> list[list[int]]:
+    """The indices of ``cases`` (or of ``indices`` among them) in groups of equal :func:`share_key`, each
+    group in case order, the groups in the order of their first case."""
+    groups: dict = {}
+    memo: dict = {}
+    for i in (range(len(cases)) if indices is None else indices):
+        key = share_key(cases[i], memo)
+        groups.setdefault(("alone", i) if key is None else key, []).append(i)
+    return list(groups.values())
 
 
 def _progress(total: int, enabled: bool):
@@ -79,11 +135,13 @@ def _progress(total: int, enabled: bool):
     return tqdm(total=total, unit="case", file=sys.stderr, dynamic_ncols=True)
 
 
-def _outcome(fut, case: Case) -> CaseResult:
+def _outcomes(fut, cases: list[Case]) -> list[CaseResult]:
+    """The results of a finished task (a group of cases); when the task itself failed (a worker killed by
+    the OS, a worker running other code), every case of it fails with that error."""
     try:
         return fut.result()
     except Exception as exc:  # noqa: BLE001 - e.g. a worker killed by the OS
-        return CaseResult(case, "failed", [], [], 0.0, error=f"{type(exc).__name__}: {exc}")
+        return [CaseResult(c, "failed", [], [], 0.0, error=f"{type(exc).__name__}: {exc}") for c in cases]
 
 
 def _stop(executor) -> None:
@@ -149,29 +207,37 @@ def run_cases(cases: list[Case], cache: Cache, workers: int | None = None, seria
                 bar.write(f"case {res.case.case_id} failed: {res.error}")
 
     workers = workers or os.cpu_count() or 1
+    tasks = group_cases(cases, todo)
     own = executor is None
     limits = None
-    if own and (serial or workers == 1 or len(todo) <= 1):
+    code = None
+    if own and (serial or workers == 1 or len(tasks) <= 1):
         from threadpoolctl import threadpool_limits
 
         executor, capacity = InlineExecutor(), 1
         limits = threadpool_limits(limits=1)     # as in the workers: same BLAS reductions, same numbers
     elif own:
-        executor = WorkerPool(min(workers, len(todo)))
-        capacity = 2 * min(workers, len(todo))
+        executor = WorkerPool(min(workers, len(tasks)))
+        capacity = 2 * min(workers, len(tasks))
     else:
         capacity = 2 * (getattr(executor, "_max_workers", None) or workers)
+    if not isinstance(executor, InlineExecutor):
+        from benchmarks.harness.fingerprint import code_hash
+
+        code = code_hash()
     done_q: queue.SimpleQueue = queue.SimpleQueue()
     inflight: dict = {}
-    pending = iter(todo)
+    pending = iter(tasks)
     try:
         while True:
             while len(inflight) < capacity:
-                i = next(pending, None)
-                if i is None:
+                group = next(pending, None)
+                if group is None:
                     break
-                fut = executor.submit(run_case, cases[i])
-                inflight[fut] = i
+                batch = [cases[i] for i in group]
+                fut = (executor.submit(run_group, batch) if code is None else
+                       executor.submit(run_task, batch, code))
+                inflight[fut] = group
                 fut.add_done_callback(done_q.put)
             if not inflight:
                 break
@@ -179,17 +245,20 @@ def run_cases(cases: list[Case], cache: Cache, workers: int | None = None, seria
                 fut = done_q.get(timeout=0.25)
             except queue.Empty:
                 continue
-            finish(inflight[fut], _outcome(fut, cases[inflight[fut]]))
-            del inflight[fut]
+            group = inflight.pop(fut)
+            for i, res in zip(group, _outcomes(fut, [cases[i] for i in group])):
+                finish(i, res)
     except KeyboardInterrupt as exc:
         _stop(executor)
         try:                  # keep every finished case: those not yet stored, those done meanwhile
             for i, res in list(results.items()):
                 if i not in stored and not res.cached:
                     cache.put(res)
-            for fut, i in list(inflight.items()):   # a result, not the error of a terminated worker
-                if fut.done() and not fut.cancelled() and fut.exception() is None and i not in results:
-                    finish(i, fut.result())
+            for fut, group in list(inflight.items()):   # a result, not the error of a terminated worker
+                if fut.done() and not fut.cancelled() and fut.exception() is None:
+                    for i, res in zip(group, fut.result()):
+                        if i not in results:
+                            finish(i, res)
         except KeyboardInterrupt:
             pass
         if bar is not None:

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
+import sys
 import time
 import traceback
 from pathlib import Path
@@ -23,8 +24,9 @@ from benchmarks.config import REPO, Study, load_study
 from benchmarks.harness import fingerprint, outputs
 from benchmarks.harness.cache import Cache, case_key
 from benchmarks.harness.history import History
-from benchmarks.runner import CaseResult, RunInterrupted, expand, run_cases
+from benchmarks.runner import CaseResult, RunInterrupted, expand, expand_study, group_cases, run_cases
 from benchmarks.tables import cases_frame, compare, curves_frame, swap_survival
+from jointbench.errors import ConfigError
 from jointbench.files import atomic_write, sweep_stale_temps, write_text
 
 HISTORY_FILE = "history.sqlite"
@@ -62,18 +64,30 @@ def config_hash(study: Study) -> str:
                             "readings": [dataclasses.asdict(r) for r in study.readings]}, 16)
 
 
+def figure_maker(part) -> str:
+    """The name of the part's figure maker: its ``figure`` key, else the maker registered under its
+    protocol's name ('' when there is none). An unknown ``figure`` is a one-line config error."""
+    if part.figure:
+        if part.figure not in figures.REGISTRY:
+            raise ConfigError(f"{part.where}: key 'figure': unknown figure maker {part.figure!r}; known: "
+                              f"{', '.join(figures.REGISTRY.names())}")
+        return part.figure
+    return part.protocol if part.protocol in figures.REGISTRY else ""
+
+
 def _part_reports(study, shown, results, rows, curves, folder) -> dict:
     out = {}
     for name in shown:
         part = study.parts[name]
-        if part.protocol not in figures.REGISTRY:
+        maker = figure_maker(part)
+        if not maker:
             out[name] = None
             continue
         if not any(r.status == "ok" and r.case.part == name for r in results):
             out[name] = "no case of this part succeeded (see Failed cases)"
             continue
         try:
-            out[name] = figures.REGISTRY.get(part.protocol)(
+            out[name] = figures.REGISTRY.get(maker)(
                 part, rows[rows["part"] == name], curves[curves["part"] == name] if len(curves) else curves,
                 folder, study.checks)
         except Exception as exc:  # noqa: BLE001 - a broken plot must not lose the tables
@@ -82,10 +96,43 @@ def _part_reports(study, shown, results, rows, curves, folder) -> dict:
     return out
 
 
+class OverBudget(ConfigError):
+    """A comparison grid estimated to take longer than its budget (run again with ``--yes``)."""
+
+
+def check_budget(study: Study, cases: list, skipped: list, cache: Cache, workers: int | None,
+                 budget_minutes: float | None, confirm: bool) -> None:
+    """Refuse, before running, a comparison grid estimated over its budget (the part's ``budget``, or
+    ``budget_minutes``), saying the case count and the estimate; ``confirm`` (``--yes``) goes on."""
+    from benchmarks.grid import estimate_seconds
+
+    for name in dict.fromkeys(c.part for c in cases):
+        part = study.parts[name]
+        if part.grid is None:
+            continue
+        mine = [c for c in cases if c.part == name]
+        todo = [c for c in mine if not (cache.enabled and cache.read and cache.path(case_key(c)).is_file())]
+        if not todo:
+            continue
+        seconds = estimate_seconds(todo, group_cases(todo))
+        n_workers = max(1, workers or os.cpu_count() or 1)
+        limit = budget_minutes if budget_minutes is not None else part.grid.budget_minutes
+        wall = seconds / min(n_workers, len(todo)) / 60
+        n_skip = sum(1 for s in skipped if s["part"] == name)
+        text = (f"{part.where}: {len(mine)} cases ({len(mine) - len(todo)} cached; {n_skip} combinations "
+                f"skipped), estimated {seconds / 60:.0f} CPU-minutes, about {wall:.0f} min on {n_workers} "
+                f"worker(s)")
+        if wall > limit and not confirm:
+            raise OverBudget(f"{text}: more than the {limit:g}-minute budget. Run with --yes to go on, or make "
+                             f"the grid smaller (e.g. --set {name}.params.realizations=3, fewer axis values)")
+        print(f"jointbench: {text}", file=sys.stderr)
+
+
 def run_study(ref: str | Path, parts: list[str] | None = None, out_root: Path | None = None,
               serial: bool = False, workers: int | None = None, use_cache: bool = True,
               progress: bool = True, command: str = "", kind: str = "run", nightly_id: int | None = None,
-              read_cache: bool = True, executor=None, backend: str | None = None) -> StudyRun:
+              read_cache: bool = True, executor=None, backend: str | None = None,
+              overrides=(), budget_minutes: float | None = None, confirm: bool = False) -> StudyRun:
     """Run study ``ref`` (an id under ``configs/studies`` or a path), write its outputs, record the run.
 
     With ``parts``, only those parts are run; the outputs still cover every other part whose cases
@@ -105,8 +152,10 @@ def run_study(ref: str | Path, parts: list[str] | None = None, out_root: Path | 
         Ctrl-C or SIGTERM: the finished cases are cached and recorded in the history (status
         ``interrupted``); ``run_id`` is set on the exception.
     """
-    study = load_study(ref)
-    cases = expand(study, parts, backend)
+    study = load_study(ref, overrides=overrides)
+    for part in study.parts.values():
+        figure_maker(part)
+    cases, skipped = expand_study(study, parts, backend)
     root = results_root(out_root)
     folder = backends.run_folder(outputs.study_folder(root, study.id, study.path), backend)
     cache_dir = root / CACHE_FOLDER
@@ -115,6 +164,7 @@ def run_study(ref: str | Path, parts: list[str] | None = None, out_root: Path | 
         sweep_stale_temps(f)
     sweep_stale_temps(cache_dir, recursive=True)
     cache = Cache(cache_dir, enabled=use_cache, read=read_cache)
+    check_budget(study, cases, skipped, cache, workers if not serial else 1, budget_minutes, confirm)
     history = History(root / HISTORY_FILE)
     run_parts = list(dict.fromkeys(c.part for c in cases))
     n_workers = 1 if serial else (workers or os.cpu_count() or 1)
@@ -159,6 +209,11 @@ def run_study(ref: str | Path, parts: list[str] | None = None, out_root: Path | 
                 from_cache.append(name)
     commit = fingerprint.git_commit()
     rows = cases_frame(results, commit)
+    if skipped:
+        from benchmarks.grid import skipped_rows
+
+        rows = pd.concat([rows, pd.DataFrame(skipped_rows(study.id, skipped)).assign(git_commit=commit)],
+                         ignore_index=True)
     curves = curves_frame(results)
     shown = [p for p in study.parts if p in run_parts or p in from_cache]
     comparison = compare(study.checks, rows, set(shown), commit)

@@ -37,8 +37,10 @@ class FSEWLSEstimate(ParametricEstimate):
         ``Phi^T Theta`` with the parameters at each sample.
     transient : float
         Seconds at each end affected by the filters and the EWLS start (:meth:`FSEWLS.transient`).
+    highpassed : ndarray, shape (2, n_records, n)
+        Angle and torque after the high-pass ``H`` (eq. 3; as measured when it is off), means kept.
 
-    :meth:`predict` and :meth:`frequency_response` give torque from angle (impedance), whichever
+    :attr:`valid` = :meth:`steady` (read by :func:`jointbench.ensemble.valid_mask`). :meth:`predict` and :meth:`frequency_response` give torque from angle (impedance), whichever
     signal the trial imposed.
 
     References
@@ -49,11 +51,14 @@ class FSEWLSEstimate(ParametricEstimate):
     filtered_torque: np.ndarray
     predicted_filtered_torque: np.ndarray
     transient: float
+    highpassed: np.ndarray | None = None
 
     def steady(self) -> np.ndarray:
         """Boolean mask of the samples at least :attr:`transient` seconds from both ends."""
         t = self.time
         return (t - t[0] >= self.transient) & (t[-1] - t >= self.transient)
+
+    valid = property(steady)
 
     def damping_ratio(self) -> np.ndarray:
         """``B / (2 sqrt(K I))`` on :attr:`time`; NaN where ``K I <= 0`` (possible in transients).
@@ -222,7 +227,7 @@ class FSEWLS(Estimator):
             est.fit_info = {**est.fit_info, "forgetting": f"{lam:g} 1/s chosen (auto: held-out prediction VAF "
                             f"{table[lam]:.2f} %; tried " + ", ".join(f"{k:g}" for k in table) + " 1/s)"}
             return est
-        Phi, y, R0, r0 = self._regression(trials)
+        Phi, y, R0, r0, highpassed = self._regression(trials)
         s, fs = self.settings, trials[0].fs
         try:
             Theta = ewls(Phi, y, 1.0 / fs, s.forgetting, R0, r0)
@@ -232,7 +237,7 @@ class FSEWLS(Estimator):
         est = FSEWLSEstimate(I=Theta[:, 0], B=Theta[:, 1], K=Theta[:, 2], fs=fs, time=trials[0].time,
                              estimator=self.name, filtered_torque=y,
                              predicted_filtered_torque=np.einsum("rni,ni->rn", Phi, Theta),
-                             transient=self.transient())
+                             transient=self.transient(), highpassed=highpassed)
         return est.with_intervals(lambda: self.bands(Phi, y, Theta, est.steady(), fs))   # on first use
 
     def holdout_delay(self, fs: float) -> int:
@@ -262,7 +267,7 @@ class FSEWLS(Estimator):
             raise InputError(f"{self.name}: forgetting = auto: the record ({trials[0].duration:.3g} s at {fs:g} Hz) is "
                              f"too short or too slowly sampled for every rate tried "
                              f"({', '.join(f'{v:g}' for v in self.FORGETTING_GRID)} 1/s)")
-        Phi, y, R0, r0 = grid[0][1]._regression(trials)
+        Phi, y, R0, r0, _ = grid[0][1]._regression(trials)
         tr = max(e.transient() for _, e in grid)
         t = trials[0].time
         keep = (t - t[0] >= tr) & (t[-1] - t >= tr)
@@ -270,15 +275,16 @@ class FSEWLS(Estimator):
                                  ewls)
         return max(table, key=table.get), table
 
-    def _regression(self, trials: list[Trial]) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """Checked records -> ``Phi``, ``y`` (eqs. 3-5) and the initial ``R0``, ``r0`` of the EWLS."""
+    def _regression(self, trials: list[Trial]) -> tuple[np.ndarray, ...]:
+        """Checked records -> ``Phi``, ``y`` (eqs. 3-5), the initial ``R0``, ``r0`` of the EWLS and the
+        high-passed angle and torque (eq. 3)."""
         self._check(trials)
         s, fs = self.settings, trials[0].fs
         x = np.stack([[t.angle for t in trials], [t.torque for t in trials]])
         size = np.abs(x[0]).max(axis=-1)
         if s.highpass_cutoff is not None:
             x = highpass(x, fs, s.highpass_cutoff, s.highpass_order, s.highpass_ripple)
-        theta, tau = x - x.mean(axis=-1, keepdims=True)
+        highpassed, (theta, tau) = x, x - x.mean(axis=-1, keepdims=True)
         Phi, y = svf(theta, tau, fs, self.pole(), s.svf_order, s.svf_causal, s.svf_form)
         R0, r0 = ewls_start(Phi, y, fs, s.init_window)
         scale = np.sqrt(np.diag(R0))
@@ -287,4 +293,4 @@ class FSEWLS(Estimator):
             raise InputError(f"{self.name}: trial '{trials[0].name}': the filtered angle cannot separate I, "
                              f"B and K in the first init_window = {s.init_window:g} s (constant angle or "
                              f"no perturbation?)")
-        return Phi, y, R0, r0
+        return Phi, y, R0, r0, highpassed

@@ -5,6 +5,7 @@ import numpy as np
 from scipy import signal as sps
 
 import dataclasses
+import functools
 from typing import Callable
 
 from jointbench.errors import InputError
@@ -39,8 +40,15 @@ def decimate(x: np.ndarray, q: int, cutoff: float = 0.8) -> np.ndarray:
     x = np.asarray(x, float)
     if q == 1:
         return x.copy()
+    return sps.resample_poly(x, 1, q, window=_taps(int(q), float(cutoff)), padtype="line")
+
+
+@functools.lru_cache(maxsize=32)
+def _taps(q: int, cutoff: float) -> np.ndarray:
+    """The anti-alias FIR of :func:`decimate`, designed once per factor and cutoff (read-only)."""
     taps = sps.firwin(20 * q + 1, cutoff / q)
-    return sps.resample_poly(x, 1, q, window=taps, padtype="line")
+    taps.flags.writeable = False
+    return taps
 
 
 def resample_trial(trial: Trial, fs_new: float, cutoff: float = 0.8) -> Trial:

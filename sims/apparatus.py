@@ -69,9 +69,10 @@ class Coupling:
             return one, Z
         if not angle_is_drive:
             return Z, one
-        c = np.array([self.g_d, self.g])
         r = np.array([0.0, self.b_a, self.k_a])
-        num = np.stack([np.convolve(c, z) for z in Z])
+        num = np.zeros((len(Z), Z.shape[1] + 1))      # (g_d s + g) Z, row by row (np.convolve's sums)
+        num[:, :-1] = self.g_d * Z
+        num[:, 1:] += self.g * Z
         return num, Z + r
 
 

@@ -135,11 +135,12 @@ _RECORDERS: list[list] = []
 
 
 class SimulationLog(list):
-    """Entries ``(backend, seconds)``, one per :func:`sims.simulate` call inside :func:`record_simulations`."""
+    """Entries ``(backend, seconds, reused)``, one per :func:`sims.simulate` call inside
+    :func:`record_simulations`; ``reused`` is True when the response came from :mod:`sims.reuse`."""
 
     @property
     def seconds(self) -> float:
-        return float(sum(s for _, s in self))
+        return float(sum(e[1] for e in self))
 
 
 class record_simulations:
@@ -159,6 +160,6 @@ class record_simulations:
         _RECORDERS.remove(self.log)
 
 
-def _record(backend: str, seconds: float) -> None:
+def _record(backend: str, seconds: float, reused: bool = False) -> None:
     for log in _RECORDERS:
-        log.append((backend, seconds))
+        log.append((backend, seconds, bool(reused)))

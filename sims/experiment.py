@@ -27,6 +27,7 @@ from jointbench.signal import decimate, decimate_fft
 from jointbench.types import Trial, Truth
 from sims import BACKENDS, JOINTS, PERTURBATIONS
 from sims import backend as _backend
+from sims import reuse as _reuse
 from sims.apparatus import APPARATUS_KINDS, Apparatus, PositionServo
 from sims.backend import Response  # noqa: F401 - re-exported (backends import it from here too)
 from sims.gravity import Gravity
@@ -438,43 +439,57 @@ def simulate(experiment: Experiment, seed: int | np.random.SeedSequence, backend
     t_start = time.perf_counter()
 
     fs, n = exp.fs_sim, exp.n_sim
-    drive = exp.perturbation.generate(n, fs, rng["perturbation"])
-    tv = exp.voluntary.generate(n, fs, rng["voluntary"])
-    x0 = (0.0, 0.0)
-    if exp.voluntary.moving:
-        t = np.arange(n) / fs
-        pos, vel, acc = exp.voluntary.movement(t)
-        I, B, K = exp.joint.coefficients_at(t)
-        c = exp.apparatus.coupling(exp.joint)
-        tv = tv + I * acc + (B + c.b_a) * vel + (K + c.k_a) * pos
-        x0 = (float(pos[0]), float(vel[0]))
-    if exp.gravity is not None:   # the subject holds the intended trajectory against gravity
-        tv = tv - exp.gravity.torque(exp.voluntary.movement(np.arange(n) / fs)[0])
-    resp = runner.respond(exp, drive, tv, x0)
 
-    if resp.angle_measured is not None:
-        angle_true = resp.angle_measured
-    else:
-        angle_true = drive if exp.apparatus.angle_is_drive else resp.angle
-    angle, angle_clean = _measure(exp.sensors.angle, exp.sensors.angle.filtered(angle_true, fs),
-                                  rng["angle_noise"], exp.acquire, fs)
-    # one pass of the torque sensor's filter over the measured, impedance and voluntary torques
-    torques = exp.sensors.torque.filtered(np.column_stack([resp.torque_measured, resp.torque_impedance, tv]), fs)
-    torque, _ = _measure(exp.sensors.torque, torques[:, 0], rng["torque_noise"], exp.acquire, fs)
-    active = exp.voluntary.active or exp.gravity is not None
-    truth_torques = exp.acquire(torques[:, 1:] if active else torques[:, 1])
-    signals = {
-        "angle": angle_clean,
-        "torque": np.ascontiguousarray(truth_torques[:, 0]) if active else truth_torques,
-        "command": exp.acquire(drive),
-        "voluntary": np.ascontiguousarray(truth_torques[:, 1]) if active else np.zeros(len(angle)),
-    }
-    if exp.voluntary.moving:
-        signals["movement"] = exp.acquire(exp.voluntary.movement(np.arange(n) / fs)[0])
-    if resp.extra:
-        names = list(resp.extra)
-        acquired = exp.acquire(np.column_stack([resp.extra[k] for k in names]))
-        signals.update({k: np.ascontiguousarray(acquired[:, i]) for i, k in enumerate(names)})
-    _backend._record(getattr(runner, "name", "") or type(runner).__name__, time.perf_counter() - t_start)
-    return Trial.from_arrays(angle, torque, exp.fs, imposed=exp.apparatus.imposed, truth=_truth(exp, signals),
-                             name=name)
+    def respond():   # the half that sensors, noise and acquisition do not change (sims.reuse)
+        drive = exp.perturbation.generate(n, fs, rng["perturbation"])
+        tv = exp.voluntary.generate(n, fs, rng["voluntary"])
+        x0 = (0.0, 0.0)
+        if exp.voluntary.moving:
+            t = np.arange(n) / fs
+            pos, vel, acc = exp.voluntary.movement(t)
+            I, B, K = exp.joint.coefficients_at(t)
+            c = exp.apparatus.coupling(exp.joint)
+            tv = tv + I * acc + (B + c.b_a) * vel + (K + c.k_a) * pos
+            x0 = (float(pos[0]), float(vel[0]))
+        if exp.gravity is not None:   # the subject holds the intended trajectory against gravity
+            tv = tv - exp.gravity.torque(exp.voluntary.movement(np.arange(n) / fs)[0])
+        return drive, tv, runner.respond(exp, drive, tv, x0)
+
+    by_name = backend is None or isinstance(backend, str)    # a backend object has no name to key on
+    key = _reuse.response_key(exp, seed, realization, exp.backend) if by_name else None
+
+    def acquire() -> Trial:   # sensors, noise, acquisition and the truth, on the (maybe reused) response
+        (drive, tv, resp), reused = _reuse.lookup(key, respond)
+
+        if resp.angle_measured is not None:
+            angle_true = resp.angle_measured
+        else:
+            angle_true = drive if exp.apparatus.angle_is_drive else resp.angle
+        angle, angle_clean = _measure(exp.sensors.angle, exp.sensors.angle.filtered(angle_true, fs),
+                                      rng["angle_noise"], exp.acquire, fs)
+        # one pass of the torque sensor's filter over the measured, impedance and voluntary torques
+        torques = exp.sensors.torque.filtered(np.column_stack([resp.torque_measured, resp.torque_impedance, tv]),
+                                              fs)
+        torque, _ = _measure(exp.sensors.torque, torques[:, 0], rng["torque_noise"], exp.acquire, fs)
+        active = exp.voluntary.active or exp.gravity is not None
+        truth_torques = exp.acquire(torques[:, 1:] if active else torques[:, 1])
+        signals = {
+            "angle": angle_clean,
+            "torque": np.ascontiguousarray(truth_torques[:, 0]) if active else truth_torques,
+            "command": exp.acquire(drive),
+            "voluntary": np.ascontiguousarray(truth_torques[:, 1]) if active else np.zeros(len(angle)),
+        }
+        if exp.voluntary.moving:
+            signals["movement"] = exp.acquire(exp.voluntary.movement(np.arange(n) / fs)[0])
+        if resp.extra:
+            names = list(resp.extra)
+            acquired = exp.acquire(np.column_stack([resp.extra[k] for k in names]))
+            signals.update({k: np.ascontiguousarray(acquired[:, i]) for i, k in enumerate(names)})
+        return Trial.from_arrays(angle, torque, exp.fs, imposed=exp.apparatus.imposed, truth=_truth(exp, signals),
+                                 name=name), reused
+
+    (trial, reused), whole = _reuse.lookup_trial(_reuse.trial_key(key, exp, replicate, name), acquire)
+    _backend._record(getattr(runner, "name", "") or type(runner).__name__, time.perf_counter() - t_start,
+                     reused or whole)
+    return trial
+

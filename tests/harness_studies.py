@@ -112,3 +112,23 @@ def cache_entries(out: Path) -> list[Path]:
 
 def temporaries(root: Path) -> list[Path]:
     return sorted(p for p in root.rglob("*.tmp"))
+
+
+def tiny_grid_part(estimators: list[str] | None = None, realizations: int = 3, **grid) -> dict:
+    """A small comparison grid part (protocol compare): a time-varying elbow on a position servo, square or
+    sine stiffness, two noise levels; about 0.1 s a case."""
+    return {"protocol": "compare", "description": "tiny comparison grid",
+            "params": {"realizations": realizations, "ensemble_size": 2, "discard": "1 s", "spread_draws": 20},
+            "grid": {"estimator": estimators or ["ibk_spectral", "kbr", "sds"], "scenario": ["elbow"],
+                     "variation": ["square"], "noise": [0, 0.05], **grid},
+            "scenarios": {"elbow": {
+                "experiment": {"joint": {"model": "time_varying", "I": 0.01, "B": 0.5, "K": 50},
+                               "perturbation": {"kind": "filtered_noise", "cutoff": "20 Hz", "order": 2,
+                                                "rms": "0.02 rad"},
+                               "apparatus": {"kind": "position_servo", "stiffness": "30000 N.m/rad"},
+                               "fs_sim": "2 kHz", "duration": "8 s", "acquisition": {"fs": "200 Hz"}},
+                "stiffness": {"mean": 50, "amplitude": 10, "period": "4 s"}}},
+            "variations": {"square": {"shape": "square"}, "sine": {"shape": "sine"}},
+            "estimators": {"ibk_spectral": {"fmin": "0 Hz", "fmax": "20 Hz", "segment": "2 s", "overlap": 0.5},
+                           "sds": {"window": "0.5 s", "lag_before": "20 ms", "lag_after": "20 ms"},
+                           "ensemble_irf": {"lag_before": "10 ms", "lag_after": "10 ms", "pool": "0.05 s"}}}

@@ -506,7 +506,7 @@ def test_exact_derivative_control_leaves_only_the_ewls():
         p = parse(X.TrackParams, {"condition": "posture", "f_v": f, "regressors": "exact"}, "test")
         trial = sims.simulate(X.case_experiment(exp0, p), 0)
         fit = X.exact_fit(X.case_estimator(est0, p), trial)
-        keep = X.scored_window(trial.n, trial.fs, 4.0, est0.transient())
+        keep = X.scored_window(trial.n, trial.fs, 4.0)
         assert X.vaf(fit.y[keep], fit.yhat[keep]) > 99             # exact regressors: only the lag is left
         scores[f] = X._scores(fit, trial.truth, keep, 1 / trial.fs)["vafv_K"]
     assert scores[0.25] > 95 and scores[1.5] < scores[0.25]          # what is left: the forgetting lag

@@ -15,6 +15,7 @@ from benchmarks.config import CONFIGS, load_study
 from benchmarks.metrics import rmse, vafm, vafv
 from benchmarks.protocols import xu1998 as X
 from benchmarks.study import run_study
+from jointbench.ensemble import valid_mask
 from jointbench.errors import ConfigError
 from jointbench.schema import parse
 from jointbench.types import Truth
@@ -61,8 +62,10 @@ def test_config_parses_with_parts_checks_and_readings(study):
 def test_scored_window_is_40_s_and_whole_periods(study, elbow):
     exp, est = elbow
     assert exp.n == 48000 and exp.fs == 1000.0
-    keep = X.scored_window(exp.n, exp.fs, _params().discard, est.transient())
+    keep = X.scored_window(exp.n, exp.fs, _params().discard)
     assert keep.sum() == 40000 and est.transient() < 4.0
+    fit = est.fit(sims.simulate(exp, 0))         # the estimate's own valid samples lie inside the window
+    assert np.array_equal(X.scored_window(exp.n, exp.fs, _params().discard, valid_mask(fit)), keep)
     for f in study.parts["fig2"].sweep["f_v"] + (0.25, 0.5):
         assert abs(40 * f - round(40 * f)) < 1e-9, f   # a whole number of periods of K
 

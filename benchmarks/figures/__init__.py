@@ -1,5 +1,7 @@
-"""Figure and table makers for the report, one per protocol (registered by protocol name).
+"""Figure and table makers for the report, registered by name.
 
+A study part names its maker with its ``figure`` key (default: the maker registered under the part's
+protocol name), so one protocol can feed several figures (xu1998's parts all run ``xu1998.track``).
 A maker is ``fn(part, rows, curves, folder, checks) -> PartReport``: it reads the tidy rows and curves
 of one study part (never recomputes anything), may show the study's published values (``checks``, from
 the published-values file: never copied into a maker) and writes PNG files into ``folder``.
@@ -24,8 +26,9 @@ class PartReport:
 REGISTRY: Registry[Callable] = Registry("figure maker")
 
 
-def register(protocol: str):
-    return REGISTRY.register(protocol)
+def register(name: str):
+    """Register a figure maker under ``name`` (what a part's ``figure`` key names)."""
+    return REGISTRY.register(name)
 
 
 def new_figure(*args, **kw):

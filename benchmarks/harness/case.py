@@ -9,6 +9,7 @@ tables, figures, reports): everything it imports is hashed into the key.
 """
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import time
 import traceback
@@ -18,6 +19,7 @@ import estimators
 import sims
 from benchmarks import protocols
 from jointbench.schema import parse
+from sims import reuse
 from sims.backend import record_simulations
 
 
@@ -41,6 +43,7 @@ class Case:
 
     @property
     def case_id(self) -> str:
+        """``part-key=value...-seedN`` (the sweep or grid values in order)."""
         sw = "".join(f"-{k}={v}" for k, v in self.sweep.items())
         return f"{self.part}{sw}-seed{self.seed}"
 
@@ -61,7 +64,7 @@ class CaseResult:
     error: str = ""
     detail: str = ""               # traceback of a failure (for the log, not the table)
     cached: bool = False           # served from the cache rather than computed in this run
-    sim_times: list = dataclasses.field(default_factory=list)   # [backend, seconds] per simulated trial
+    sim_times: list = dataclasses.field(default_factory=list)   # [backend, seconds, reused] per simulated trial
 
     def to_json(self) -> dict:
         d = dataclasses.asdict(self)
@@ -88,25 +91,41 @@ def parse_inputs(case: Case):
 
 
 def run_case(case: Case) -> CaseResult:
-    """Run one case; never raises: a failure is returned as ``status='failed'`` with its error."""
+    """Run one case; never raises: a failure is returned as ``status='failed'`` with its error.
+
+    Trials of the case that share a response (an estimation and a validation trial, a record with and
+    without noise) simulate it once (:mod:`sims.reuse`), inside the group's block when one is open."""
     t0 = time.perf_counter()
     try:
         proto, params, exp, ests = parse_inputs(case)
         ctx = protocols.Context(part=case.part, seed=case.seed, params=params, experiment=exp,
                                 estimators=ests)
-        with record_simulations() as log:
+        with record_simulations() as log, (contextlib.nullcontext() if reuse.active() else reuse.reuse_responses()):
             proto.fn(ctx)
         return CaseResult(case, "ok", ctx.rows, ctx.curves, time.perf_counter() - t0,
-                          sim_times=[[b, round(t, 6)] for b, t in log])
+                          sim_times=[[b, round(t, 6), int(r)] for b, t, r in log])
     except Exception as exc:  # noqa: BLE001 - a failing case must not stop the others
         return CaseResult(case, "failed", [], [], time.perf_counter() - t0,
                           error=f"{type(exc).__name__}: {exc}", detail=traceback.format_exc())
 
 
+def run_group(cases: list[Case]) -> list[CaseResult]:
+    """Cases scheduled together (one task of an executor): each response they share is simulated once
+    (one :func:`sims.reuse.reuse_responses` block around them all); every number is what
+    :func:`run_case` gives for each case alone (tests/test_reuse.py)."""
+    with reuse.reuse_responses():
+        return [run_case(c) for c in cases]
+
+
+_ONE_THREAD: list = []
+
+
 def one_blas_thread() -> None:
     """One BLAS thread per process (the pool already uses every core; nested BLAS threads would
     oversubscribe them, which slowed a 0.16 s KBR fit to seconds on 2 cores). Serial runs use one
-    thread too, so that serial and parallel runs give bit-identical numbers."""
+    thread too, so that serial and parallel runs give bit-identical numbers. Set once per process."""
+    if _ONE_THREAD:
+        return
     from threadpoolctl import threadpool_limits
 
-    threadpool_limits(limits=1)
+    _ONE_THREAD.append(threadpool_limits(limits=1))

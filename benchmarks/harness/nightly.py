@@ -24,7 +24,8 @@ from benchmarks.harness.compare import Rules, RunDiff, Threshold
 from jointbench.errors import ConfigError
 
 DEFAULT_CONFIG = CONFIGS / "nightly.yaml"
-_KEYS = {"studies": True, "use_cache": False, "thresholds": True, "timing": False, "key_checks": False}
+_KEYS = {"studies": True, "exclude": False, "use_cache": False, "thresholds": True, "timing": False,
+         "key_checks": False}
 _TIMING_KEYS = {"grow_factor": False, "min_seconds": False, "regression": False}
 _THRESHOLD_KEYS = {"metric": True, "abs": False, "rel": False}
 
@@ -51,8 +52,11 @@ def load_config(path: Path = DEFAULT_CONFIG, configs_dir: Path = CONFIGS) -> Nig
     data = _load_yaml(path)
     _check_keys(data, _KEYS, str(path))
     studies = data["studies"]
+    exclude = data.get("exclude") or []
+    if not isinstance(exclude, list) or not all(isinstance(s, str) for s in exclude):
+        raise ConfigError(f"{path}: key 'exclude': expected a list of study ids (left out of 'all')")
     if studies == "all":
-        studies = sorted(p.stem for p in (configs_dir / "studies").glob("*.yaml"))
+        studies = sorted(p.stem for p in (configs_dir / "studies").glob("*.yaml") if p.stem not in exclude)
     if not isinstance(studies, list) or not studies or not all(isinstance(s, str) and s for s in studies):
         raise ConfigError(f"{path}: key 'studies': expected 'all' or a non-empty list of study ids or paths")
     if len(set(studies)) != len(studies):

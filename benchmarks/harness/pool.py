@@ -11,6 +11,11 @@ futures with ``add_done_callback``, ``shutdown``); a pool that can be stopped at
 - a worker ignores SIGINT: Ctrl-C in a terminal reaches the whole process group, and the parent alone
   decides what to do (keep the finished cases, terminate the workers, return within 2 s);
 - a worker uses one BLAS thread (:func:`benchmarks.harness.case.one_blas_thread`).
+
+A task is a group of cases (:func:`run_task`): cases that share a simulated response run together in one
+worker (:func:`benchmarks.harness.case.run_group`). :func:`make_executor` builds the executor a run asks
+for: ``process`` (this module's pool, the default), ``serial`` or ``dask``
+(:mod:`benchmarks.harness.dask_executor`, a Dask cluster: a local one or the scheduler at an address).
 """
 from __future__ import annotations
 
@@ -23,7 +28,11 @@ import sys
 import threading
 import time
 
-from benchmarks.harness.case import one_blas_thread
+from benchmarks.harness.case import one_blas_thread, run_group
+from jointbench.errors import ConfigError
+
+#: the executors :func:`make_executor` builds (``jointbench run --executor``)
+EXECUTORS = ("process", "serial", "dask")
 
 PR_SET_PDEATHSIG = 1
 WATCHDOG_PERIOD_S = 0.5
@@ -93,3 +102,35 @@ class InlineExecutor(cf.Executor):
                 raise
             fut.set_exception(exc)
         return fut
+
+
+def run_task(cases: list, code_hash: str | None = None) -> list:
+    """What a worker runs: one group of cases (:func:`~benchmarks.harness.case.run_group`) with one BLAS
+    thread. ``code_hash`` is the parent's: a worker that runs other code (a remote Dask worker on another
+    checkout) refuses, instead of computing numbers of other code that would be cached under this code's
+    keys."""
+    one_blas_thread()
+    if code_hash is not None:
+        from benchmarks.harness.fingerprint import code_hash as here
+
+        if here() != code_hash:
+            raise RuntimeError(f"worker {os.uname().nodename}:{os.getpid()} runs other code (code hash "
+                               f"{here()}, the run's {code_hash}): install the same checkout on every worker")
+    return run_group(cases)
+
+
+def make_executor(kind: str, workers: int | None = None, scheduler: str | None = None):
+    """The executor ``kind`` of :data:`EXECUTORS` (None for ``process``: the runner makes its own pool,
+    sized to the work). ``scheduler`` (dask only): the address of a running Dask scheduler
+    (``tcp://host:8786``); without it a local Dask cluster of ``workers`` processes is started."""
+    if kind not in EXECUTORS:
+        raise ConfigError(f"--executor: unknown executor {kind!r}; known: {', '.join(EXECUTORS)}")
+    if scheduler is not None and kind != "dask":
+        raise ConfigError(f"--scheduler applies to --executor dask, not {kind!r}")
+    if kind == "serial":
+        return InlineExecutor()
+    if kind == "dask":
+        from benchmarks.harness.dask_executor import DaskExecutor
+
+        return DaskExecutor(scheduler=scheduler, workers=workers)
+    return None

@@ -17,19 +17,27 @@ from jointbench.registry import Registry, import_submodules
 
 @dataclasses.dataclass(frozen=True)
 class Protocol:
+    """``fn(ctx)`` computes one case; ``share(params)``, when given, names what of the parameters decides
+    the simulated response: cases of one experiment, seed and backend whose ``share`` values are equal
+    are scheduled together so that each response is simulated once (:mod:`sims.reuse`). It only groups;
+    which responses really are equal is decided by the simulator, so a coarse ``share`` costs time, never
+    a number."""
+
     name: str
     fn: Callable[["Context"], None]
     Params: type
+    share: Callable[[Any], Any] | None = None
 
 
 REGISTRY: Registry[Protocol] = Registry("protocol")
 
 
-def register(name: str, params: type, *, tags: tuple[str, ...] = ()):
-    """Register ``fn(ctx)`` as protocol ``name`` with parameter dataclass ``params``."""
+def register(name: str, params: type, *, tags: tuple[str, ...] = (), share: Callable[[Any], Any] | None = None):
+    """Register ``fn(ctx)`` as protocol ``name`` with parameter dataclass ``params`` (and ``share``, see
+    :class:`Protocol`)."""
 
     def deco(fn):
-        REGISTRY.register(name, tags=tags)(Protocol(name, fn, params))
+        REGISTRY.register(name, tags=tags)(Protocol(name, fn, params, share))
         return fn
 
     return deco

@@ -28,6 +28,7 @@ import sims
 from benchmarks.protocols import Context, register
 from benchmarks.protocols.xu1998 import scored_window
 from estimators.ibk_spectral import weighted_ibk_fit
+from jointbench.ensemble import valid_mask
 from jointbench.schema import param
 from sims.voluntary import Voluntary
 
@@ -207,7 +208,7 @@ def gravity(ctx: Context) -> None:
     est = ctx.estimators[p.estimator]
     with_g, without = sims.simulate(exp_g, ctx.seed), sims.simulate(exp_0, ctx.seed)
     fit_g, fit_0 = est.fit(with_g), est.fit(without)
-    keep = scored_window(with_g.n, with_g.fs, p.discard, est.transient())
+    keep = scored_window(with_g.n, with_g.fs, p.discard, valid_mask(fit_g))
     K_true = np.broadcast_to(np.asarray(with_g.truth.K, float), keep.shape)
     K_g = np.asarray(with_g.truth.signals["gravity_stiffness"])
     kg, k0 = float(np.mean(fit_g.K[keep])), float(np.mean(fit_0.K[keep]))

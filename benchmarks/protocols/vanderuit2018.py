@@ -23,6 +23,7 @@ import estimators
 import sims
 from benchmarks.metrics import rmse, vaf
 from benchmarks.protocols import Context, register
+from benchmarks.scoring import frozen_stiffness
 from jointbench.errors import ConfigError
 from jointbench.schema import param
 from sims.profile import parse_profile
@@ -179,7 +180,7 @@ def _case_estimators(ctx: Context, p: Table1Params) -> dict:
     return out
 
 
-@register("vanderuit2018.table1", Table1Params)
+@register("vanderuit2018.table1", Table1Params, share=lambda p: p.variations[p.variation])
 def table1(ctx: Context) -> None:
     """Table I, Figs. 3-4: VAF_self, VAF_optim, VAF_val and RMSE_k of each estimator for one case.
 
@@ -218,7 +219,7 @@ def table1(ctx: Context) -> None:
 
     lines = np.asarray(exp.perturbation.lines, float)
     f1 = float(lines[0])
-    H1 = np.abs(truth.frozen_response(np.array([f1]), t, t)[:, 0])
+    H1 = frozen_stiffness(est_trial, f1)
     k_true = truth.at("K", t, t)
     steps = step_times(t, k_true, p.score, p.step_half)
     paper_t = t - p.score[0]      # the paper's time axis: 0 at the start of the scored interval
@@ -241,7 +242,7 @@ def table1(ctx: Context) -> None:
     for name, estimator in ests.items():
         est = estimator.fit(est_trial)
         yhat = est.predict(est_trial.input)
-        yhat_v = est.predict(val_trial.input)
+        yhat_v = yhat      # the validation trial's input is the estimation trial's (checked above)
         for tag, m in (("", v), ("_window", np.ones_like(s))):
             ctx.metric("vaf_self" + tag, vaf(y[m], yhat[m]), name, **lab)
             ctx.metric("vaf_optim" + tag, vaf(y0[m], yhat[m]), name, **lab)

@@ -30,6 +30,7 @@ import numpy as np
 
 from benchmarks.metrics import vaf
 from benchmarks.protocols import Context, register
+from benchmarks.scoring import frozen_stiffness
 from jointbench.ensemble import Ensemble, valid_mask
 from jointbench.errors import InputError
 from jointbench.estimate_tv import TVIRFEstimate
@@ -86,10 +87,9 @@ def true_stiffness(trial: Trial, line_hz: float | None) -> dict[str, np.ndarray]
     """The trial's true frozen stiffness at its samples: ``static`` (the gain at 0 Hz, what an IRF's sum
     estimates) and ``line`` (``|H(j 2 pi f_1, t)|`` at the lowest excited line, the paper's stiffness of
     KBR and skirt; the static gain when there is no line)."""
-    tr, t = trial.truth, trial.time
-    static = np.abs(tr.frozen_response(np.array([0.0]), t, t)[:, 0])
-    line = static if line_hz is None else np.abs(tr.frozen_response(np.array([line_hz]), t, t)[:, 0])
-    return {"static": static, "line": line, "k": tr.at("K", t, t)}
+    static = frozen_stiffness(trial)
+    line = static if line_hz is None else frozen_stiffness(trial, line_hz)
+    return {"static": static, "line": line, "k": trial.truth.at("K", trial.time, trial.time)}
 
 
 def mean_sd(values) -> tuple[float, float]:
@@ -165,6 +165,7 @@ class _Case:
         self.time = self.trials[0].time
         self.scored = (self.time >= p.score[0] - 1e-9) & (self.time <= p.score[1] + 1e-9)
         self.measured = {}     # (rate, trial) -> band-limited measured torque
+        self.predictions = {}  # (estimate, input) -> its prediction
 
     def data(self, name: str, idx: list[int]):
         """The trials ``idx`` at the estimator's rate: one trial, or an ensemble of several."""
@@ -174,11 +175,19 @@ class _Case:
         return Ensemble(tuple(src[i] for i in idx), name=f"{self.subject.label} trials "
                                                          f"{','.join(str(i + 1) for i in idx)}")
 
+    def prediction(self, est, u: np.ndarray) -> np.ndarray:
+        """``est.predict(u)``, computed once per estimate and input (the trials of a subject share the
+        multisine: same_input)."""
+        key = (id(est), np.asarray(u, float).tobytes())
+        if key not in self.predictions or self.predictions[key][0] is not est:
+            self.predictions[key] = (est, np.asarray(est.predict(u), float))
+        return self.predictions[key][1]
+
     def vafs(self, name: str, est, j: int) -> dict[str, float]:
         """VAF (%) of the prediction of trial ``j`` (high-passed, scored interval), and in the common band."""
         low = name in self.p.low_rate_estimators
         tr = (self.low if low else self.trials)[j]
-        yhat = np.asarray(est.predict(tr.input), float)
+        yhat = self.prediction(est, tr.input)
         m = (tr.time >= self.p.score[0] - 1e-9) & (tr.time <= self.p.score[1] + 1e-9)
         out = {}
         for tag, high in (("", None), ("_common", self.p.common_band)):

@@ -26,6 +26,7 @@ import numpy as np
 import sims
 from benchmarks.metrics import rmse, vaf, vafm, vafv
 from benchmarks.protocols import Context, register
+from jointbench.ensemble import valid_mask
 from jointbench.schema import param, parse
 from sims.apparatus import TorqueDrive
 from sims.profile import Sine, Square
@@ -173,7 +174,7 @@ class _Frozen:
         return tuple(np.interp(t, self.t, v) for v in (self.I, self.B, self.K))
 
 
-def output_vafs(est, fit, trial, keep: np.ndarray) -> dict[str, float]:
+def output_vafs(fit, trial, keep: np.ndarray) -> dict[str, float]:
     """VAF (%) of the three candidate 'output predictions' on the scored samples.
 
     - ``filtered_torque``: ``y = L H tau`` against ``Phi^T Theta_hat`` (eq. 5: the regression's own output);
@@ -182,13 +183,7 @@ def output_vafs(est, fit, trial, keep: np.ndarray) -> dict[str, float]:
     - ``angle``: ``theta~ = H theta`` against the response of the estimated time-varying model to ``H tau``
       (the torque-driven system's own output), started from the measured state at the window's start.
     """
-    s = est.settings
-    theta, tau = trial.angle, trial.torque
-    if s.highpass_cutoff is not None:
-        from estimators.fsewls import highpass
-
-        theta, tau = highpass(np.stack([theta, tau]), trial.fs, s.highpass_cutoff, s.highpass_order,
-                              s.highpass_ripple)
+    theta, tau = fit.highpassed[0, 0], fit.highpassed[1, 0]   # what the estimate fitted: H theta, H tau
     out = {"filtered_torque": vaf(fit.filtered_torque[0, keep], fit.predicted_filtered_torque[0, keep])}
     dt = 1.0 / trial.fs
     d1 = np.gradient(theta, dt, edge_order=2)
@@ -269,18 +264,27 @@ def _scores(fit, truth, keep: np.ndarray, dt: float) -> dict[str, float]:
     return out
 
 
-def scored_window(n: int, fs: float, discard: float, transient: float) -> np.ndarray:
-    """Mask of the samples at least ``discard`` s (and at least the estimator's transient) from both ends."""
-    m = int(round(max(discard, transient) * fs))
-    if 2 * m >= n - 1:
-        raise ValueError(f"discard: {max(discard, transient):g} s at each end leaves nothing of "
-                         f"{n / fs:g} s")
+def scored_window(n: int, fs: float, discard: float, valid: np.ndarray | None = None) -> np.ndarray:
+    """Mask of the samples at least ``discard`` s from both ends where the estimate is ``valid``
+    (:func:`jointbench.ensemble.valid_mask`: past the estimator's own transients)."""
+    m = int(round(discard * fs))
     keep = np.zeros(n, bool)
     keep[m:n - m] = True
+    if valid is not None:
+        keep &= valid
+    if keep.sum() < 2:
+        raise ValueError(f"discard: {discard:g} s at each end and the estimate's transients leave nothing of "
+                         f"{n / fs:g} s")
     return keep
 
 
-@register("xu1998.fig2", TrackParams)
+def response_params(p: TrackParams) -> tuple:
+    """What of a case's parameters changes the simulated response (sensors and noise do not)."""
+    p = resolve_variant(p)
+    return (p.condition, p.f_v, p.shape, p.zeta, p.movement_amplitude)
+
+
+@register("xu1998.track", TrackParams, share=response_params)
 def track(ctx: Context) -> None:
     """Simulate, fit FSEWLS, score I(t), B(t), K(t) and the output prediction (Xu & Hollerbach 1998).
 
@@ -300,14 +304,14 @@ def track(ctx: Context) -> None:
     if p.measured_voluntary and exp.voluntary.active:
         trial = trial.replace(torque=trial.torque + np.asarray(trial.truth.signals["voluntary"]))
     fit = est.fit(trial) if p.regressors == "filtered" else exact_fit(est, trial)
-    keep = scored_window(trial.n, trial.fs, p.discard, est.transient())
+    keep = scored_window(trial.n, trial.fs, p.discard, valid_mask(fit) if p.regressors == "filtered" else None)
     dt = 1.0 / trial.fs
     labels = {"condition": p.condition}
     if p.f_v is not None:
         labels["f_v"] = p.f_v
     scores = _scores(fit, trial.truth, keep, dt)
     if p.regressors == "filtered":
-        outs = output_vafs(est, fit, trial, keep)
+        outs = output_vafs(fit, trial, keep)
         scores["vaf_output"] = outs[p.output]
         scores.update({f"vaf_output_{k}": v for k, v in outs.items()})
     else:   # the exact regression's own output: tau against Phi^T Theta_hat
@@ -319,7 +323,7 @@ def track(ctx: Context) -> None:
             clean = clean.replace(torque=clean.torque + np.asarray(clean.truth.signals["voluntary"]))
         fit0 = est.fit(clean)
         s0 = _scores(fit0, trial.truth, keep, dt)
-        o0 = output_vafs(est, fit0, clean, keep)
+        o0 = output_vafs(fit0, clean, keep)
         s0["vaf_output"] = o0[p.output]
         for k in ("vafm_K", "vafv_K", "vafm_B", "vafv_B", "vafm_I", "vafv_I", "vaf_output"):
             scores[f"drop_{k}"] = s0[k] - scores[k]
@@ -339,7 +343,3 @@ def track(ctx: Context) -> None:
             ctx.curve(name, t[sel], np.broadcast_to(np.asarray(getattr(trial.truth, name), float),
                                                     keep.shape)[sel], series="truth", **labels)
 
-
-# The same protocol under the name of each figure, so that each part gets its own figure maker.
-for _name in ("xu1998.fig3", "xu1998.traces", "xu1998.calibration", "xu1998.readings"):
-    register(_name, TrackParams)(track)

@@ -28,7 +28,7 @@ from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[2]
 STORAGE = REPO / ".benchmarks"
-STUDIES = ("westwick2012", "xu1998", "vanderuit2018_table1")     # make reproduce
+STUDIES = ("westwick2012", "xu1998", "vanderuit2018_table1", "vanderuit2018_table2")     # make reproduce
 SLOWDOWN = 20   # percent: a benchmark whose median is this much slower than the stored run fails
 
 
@@ -72,6 +72,14 @@ def _commit() -> str:
         return "unknown"
 
 
+def _cpu_seconds() -> float:
+    """User + system CPU seconds of this process and its finished children (the pool's workers)."""
+    import resource
+
+    me, kids = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+    return me.ru_utime + me.ru_stime + kids.ru_utime + kids.ru_stime
+
+
 def studies() -> int:
     """Run every study of ``make reproduce`` without cache into a temporary folder; record the wall times."""
     from benchmarks.study import run_study
@@ -82,20 +90,25 @@ def studies() -> int:
         with open(log, newline="") as fh:
             for row in csv.DictReader(fh):
                 previous[row["study"]] = row
-    fields = ["date", "commit", "study", "cases", "wall_s", "cpus", "load_before", "load_after"]
+    fields = ["date", "commit", "study", "cases", "wall_s", "cpu_s", "cpus", "load_before", "load_after"]
+    if log.is_file() and open(log).readline().strip().split(",") != fields:
+        log.rename(log.with_suffix(".old.csv"))     # an older layout: kept beside, a new file begins
+        previous = {}
     rows, rc = [], 0
     with tempfile.TemporaryDirectory(prefix="jointbench-bench-") as tmp:
         for study in STUDIES:
             load0 = os.getloadavg()[0]
+            cpu0 = _cpu_seconds()
             t0 = time.perf_counter()
             run = run_study(study, out_root=Path(tmp), use_cache=False, progress=False,
                             command=f"make bench ({study})")
             wall = time.perf_counter() - t0
+            cpu = _cpu_seconds() - cpu0
             if run.failed:
                 print(f"{study}: {len(run.failed)} case(s) failed", file=sys.stderr)
                 rc = 1
             rows.append({"date": datetime.datetime.now().isoformat(timespec="seconds"), "commit": _commit(),
-                         "study": study, "cases": len(run.results), "wall_s": f"{wall:.1f}",
+                         "study": study, "cases": len(run.results), "wall_s": f"{wall:.1f}", "cpu_s": f"{cpu:.1f}",
                          "cpus": os.cpu_count(), "load_before": f"{load0:.2f}",
                          "load_after": f"{os.getloadavg()[0]:.2f}"})
     STORAGE.mkdir(exist_ok=True)
@@ -106,13 +119,15 @@ def studies() -> int:
             w.writeheader()
         w.writerows(rows)
     print(f"\nstudy wall times (no cache; appended to {log.relative_to(REPO)}):")
-    print(f"{'study':24s} {'cases':>6s} {'wall s':>8s} {'previous':>9s} {'ratio':>6s}  load 1 min (before/after)")
+    print(f"{'study':24s} {'cases':>6s} {'wall s':>8s} {'CPU s':>8s} {'previous':>9s} {'ratio':>6s}  "
+          f"load 1 min (before/after)")
     for r in rows:
         prev = previous.get(r["study"])
         ratio = f"{float(r['wall_s']) / float(prev['wall_s']):.2f}" if prev else "-"
-        print(f"{r['study']:24s} {r['cases']:>6} {r['wall_s']:>8s} {prev['wall_s'] if prev else '-':>9s} "
-              f"{ratio:>6s}  {r['load_before']}/{r['load_after']}")
-    print(f"total {sum(float(r['wall_s']) for r in rows):.1f} s on {os.cpu_count()} cores")
+        print(f"{r['study']:24s} {r['cases']:>6} {r['wall_s']:>8s} {r['cpu_s']:>8s} "
+              f"{prev['wall_s'] if prev else '-':>9s} {ratio:>6s}  {r['load_before']}/{r['load_after']}")
+    print(f"total {sum(float(r['wall_s']) for r in rows):.1f} s wall, {sum(float(r['cpu_s']) for r in rows):.1f} "
+          f"CPU-s on {os.cpu_count()} cores")
     return rc
 
 
