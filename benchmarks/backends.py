@@ -53,20 +53,29 @@ def _cases(path: Path) -> pd.DataFrame:
 
 
 def timing(cases: pd.DataFrame) -> dict:
-    """Backends of the simulated parts, trials, and the median simulation time per trial (s).
+    """Backends of the simulated parts, and per backend the trials, the responses computed and the
+    simulation seconds.
 
-    One value per case (its simulation time over its trials); cases that simulate nothing are left
-    out; cached cases keep the time of the run that computed them.
+    A trial whose noise-free response was served by :mod:`sims.reuse` (another noise draw, rate or
+    scorer of the same response) costs only its sensors and acquisition, so a median over trials would
+    say little; the table gives the total simulation time per backend and its mean per computed
+    response (``n_responses``; cases written before it was recorded count every trial). Cases that
+    simulate nothing are left out; cached cases keep the times of the run that computed them.
     """
     need = {"case_id", "backend", "sim_time_s", "n_trials", "part"}
     if cases.empty or not need <= set(cases.columns):
-        return {"backends": {}, "trials": 0, "per_trial_s": float("nan")}
+        return {"backends": {}, "rows": []}
     per_case = cases.drop_duplicates("case_id")
     per_case = per_case[per_case["n_trials"] > 0]
     by_backend = {b: sorted(g["part"].unique()) for b, g in per_case.groupby("backend")}
-    per_trial = (per_case["sim_time_s"] / per_case["n_trials"]).to_numpy(float)
-    return {"backends": by_backend, "trials": int(per_case["n_trials"].sum()),
-            "per_trial_s": float(np.median(per_trial)) if len(per_trial) else float("nan"),
+    responses = (per_case["n_responses"].fillna(per_case["n_trials"]) if "n_responses" in per_case
+                 else per_case["n_trials"])
+    rows = []
+    for b, g in per_case.assign(responses=responses).groupby("backend"):
+        total, n = float(g["sim_time_s"].sum()), int(g["responses"].sum())
+        rows.append({"backend": b, "trials": int(g["n_trials"].sum()), "responses": n, "total_s": total,
+                     "per_response_s": total / n if n else float("nan")})
+    return {"backends": by_backend, "rows": rows,
             "commit": str(per_case["git_commit"].iloc[0]) if "git_commit" in per_case and len(per_case) else ""}
 
 
@@ -89,15 +98,17 @@ def sections(study, comparison: pd.DataFrame, meta: dict) -> list[Section]:
     rows = []
     for label, path in found.items():
         info = infos[label]
-        parts = "; ".join(f"{b}: {', '.join(p)}" for b, p in info["backends"].items())
-        rows.append({"run": ("this report" if label == this else f"`{path.relative_to(path.parents[1])}`"),
-                     "backend by part": parts, "trials": info["trials"],
-                     "simulation time per trial (median, s)": info["per_trial_s"],
-                     "commit": info.get("commit", "")})
+        for r in info["rows"]:
+            rows.append({"run": ("this report" if label == this else f"`{path.relative_to(path.parents[1])}`"),
+                         "backend": r["backend"], "parts": ", ".join(info["backends"][r["backend"]]),
+                         "trials": r["trials"], "responses computed": r["responses"],
+                         "simulation time (s)": r["total_s"], "per computed response (mean, s)": r["per_response_s"],
+                         "commit": info.get("commit", "")})
     sec = Section("Simulation backends", anchor="backends", body=[
-        Paragraph("Which backend simulated each part's trials, and the median time of one simulated trial (the "
-                  "whole simulation: inputs, physics, sensors, acquisition; cached cases keep the time of the run "
-                  "that computed them)."), page_table("", pd.DataFrame(rows))])
+        Paragraph("Which backend simulated each part's trials, how many noise-free responses it computed (trials "
+                  "that differ only in their noise draw, rate or scoring share one: sims/reuse.py), and the "
+                  "simulation time (inputs, physics, sensors, acquisition) in all and per computed response. "
+                  "Cached cases keep the times of the run that computed them."), page_table("", pd.DataFrame(rows))])
     others = {label: path for label, path in found.items() if label != this}
     if comparison.empty or not others:
         return [sec]

@@ -84,9 +84,14 @@ def block(results: Path | None = None) -> str:
     lines += ["Headline = reproduction checks (an independent published value, judged). Beside it: conditional "
               "(passes only under a reading chosen by its outcome), calibrated (a free parameter was chosen to "
               "match: not counted as a pass), sanity (arithmetic or self-consistency).", "",
-              markdown(overview(comps))]
+              markdown(overview({k: c for k, c in comps.items() if not c.empty}))]
     for study, comp in comps.items():
-        lines += [f"#### `{study}`: {headline(comp)}", "", markdown(groups(comp))]
+        if not comp.empty:
+            lines += [f"#### `{study}`: {headline(comp)}", "", markdown(groups(comp))]
+    free = [s for s, c in comps.items() if c.empty]
+    if free:
+        lines += ["Studies with no published value to check (comparison studies; their reports hold the "
+                  "results): " + ", ".join(f"[`{s}`](results/{s}/report.md)" for s in free) + "."]
     return "\n".join(lines).rstrip() + "\n"
 
 

@@ -180,5 +180,20 @@ def test_apparatus_study_smoke(tmp_path):
     off = rows[rows["metric"] == "gravity_offset"].set_index("posture_deg")["value"]
     assert off[0] > 2.5 and off[180] < -2.5      # m g l = 2.75 N·m/rad
     text = (run.folder / "report.md").read_text()
-    assert "mujoco: gravity, servo" in text
+    assert "| this report | mujoco | gravity, servo |" in text
     check_golden("apparatus", run.comparison)      # every check's status in this smoke run is pinned
+
+
+def test_simulation_timing_counts_computed_responses_per_backend():
+    """Trials served a shared response are counted as trials, not as computed responses (hand-checkable)."""
+    from benchmarks.backends import timing
+
+    cases = pd.DataFrame({"case_id": ["a", "a", "b", "c", "d"], "backend": ["analytic", "analytic", "analytic", "mujoco", "x"],
+                          "part": ["p", "p", "q", "p", "p"], "sim_time_s": [0.3, 0.3, 0.1, 2.0, 0.0],
+                          "n_trials": [4, 4, 2, 5, 0], "n_responses": [1, 1, 2, 4, 0], "git_commit": ["abc"] * 5})
+    t = timing(cases)
+    assert t["backends"] == {"analytic": ["p", "q"], "mujoco": ["p"]}          # "d" simulated nothing
+    rows = {r["backend"]: r for r in t["rows"]}
+    assert rows["analytic"]["trials"] == 6 and rows["analytic"]["responses"] == 3
+    assert rows["analytic"]["per_response_s"] == pytest.approx(0.4 / 3)
+    assert rows["mujoco"]["per_response_s"] == pytest.approx(0.5) and t["commit"] == "abc"

@@ -295,6 +295,9 @@ def test_status_writes_between_markers(tmp_path):
     pd.DataFrame({"check": ["A1-x", "A1-y", "B2-z"], "status": ["pass", "miss", "pass"],
                   "evidence": ["reproduction", "reproduction", "sanity"],
                   "commit": ["abc1234"] * 3}).to_csv(res / "comparison.csv", index=False)
+    grid = tmp_path / "results" / "grid1"                    # a comparison study: no published value
+    grid.mkdir()
+    pd.DataFrame(columns=["check", "status", "evidence", "commit"]).to_csv(grid / "comparison.csv", index=False)
     readme = tmp_path / "README.md"
     readme.write_text(f"intro\n{status.BEGIN}\nold text\n{status.END}\noutro\n")
     path, changed = status.write_readme(tmp_path / "results", readme)
@@ -302,6 +305,8 @@ def test_status_writes_between_markers(tmp_path):
     assert changed and text.startswith("intro\n") and text.endswith("outro\n") and "old text" not in text
     assert "#### `s1`: reproduction 1 of 2 pass; beside them: sanity 1 of 1" in text
     assert "| A1 | reproduction | 1 of 2 | A1-y |" in text and "| abc1234 |" in text
+    assert "`grid1`" not in text.split("Studies with no published value")[0]
+    assert "(comparison studies; their reports hold the results): [`grid1`](results/grid1/report.md)." in text
     assert status.write_readme(tmp_path / "results", readme) == (path, False)     # idempotent
     readme.write_text("no markers\n")
     with pytest.raises(ConfigError, match="status:begin"):

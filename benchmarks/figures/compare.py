@@ -214,7 +214,10 @@ def compare_figures(part, rows, curves, folder, checks) -> PartReport:
                 "a square wave, averaged over the steps. k is the static gain of the true frozen impedance; "
                 "scored between the part's discarded ends, where the estimate is valid in every realization. "
                 "Spread: min to max over realizations (per-realization metrics) or the basic bootstrap 90 % "
-                "interval over realizations (the others).")
+                "interval over realizations (the others). The RMS bias of a resampled set of realizations "
+                "carries more of their noise than that of all R, so its bootstrap values sit above the "
+                "estimate; the basic interval reflects them about it and can therefore lie below the value "
+                "itself: read it as how much of the bias is noise.")
     if not sc.empty:
         rep.tables.append(("Best method per scenario (value, spread)", best_table(sc)))
         f = heat_map(sc, rows, folder, f"{part.name}_heatmap.png")

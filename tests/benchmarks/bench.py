@@ -13,6 +13,8 @@
    committed results are not touched), their wall times appended to ``.benchmarks/study_times.csv``
    with the commit, the number of cases and the load average, and printed beside the previous time.
    Recorded, not judged: the machine may be shared; compare times taken on an idle machine.
+3. ``results/benchmarks.md`` (committed; the README points to it), generated from the JSON report and
+   the study times of this run (:mod:`tests.benchmarks.summary`): no benchmark figure is typed by hand.
 """
 from __future__ import annotations
 
@@ -36,8 +38,10 @@ def _stored() -> set[Path]:
     return set(STORAGE.glob("*/[0-9][0-9][0-9][0-9]_*.json"))
 
 
-def micro(compare: bool) -> int:
-    """Run the pytest benchmarks; compare with the latest stored run (if any and ``compare``); store on success."""
+def micro(compare: bool) -> tuple[int, tuple[str, str]]:
+    """Run the pytest benchmarks; compare with the latest stored run (if any and ``compare``); store on
+    success. Returns the exit status and the 1-minute load average before and after."""
+    load0 = f"{os.getloadavg()[0]:.2f}"
     before = _stored()
     (REPO / "results").mkdir(exist_ok=True)
     args = [sys.executable, "-m", "pytest", "-q", "tests/benchmarks", "--benchmark-enable",
@@ -60,7 +64,7 @@ def micro(compare: bool) -> int:
     else:
         for p in new:
             print(f"stored as the new reference: {p.relative_to(REPO)}")
-    return rc
+    return rc, (load0, f"{os.getloadavg()[0]:.2f}")
 
 
 def _commit() -> str:
@@ -80,7 +84,7 @@ def _cpu_seconds() -> float:
     return me.ru_utime + me.ru_stime + kids.ru_utime + kids.ru_stime
 
 
-def studies() -> int:
+def studies() -> tuple[int, list[dict]]:
     """Run every study of ``make reproduce`` without cache into a temporary folder; record the wall times."""
     from benchmarks.study import run_study
 
@@ -128,7 +132,21 @@ def studies() -> int:
               f"{prev['wall_s'] if prev else '-':>9s} {ratio:>6s}  {r['load_before']}/{r['load_after']}")
     print(f"total {sum(float(r['wall_s']) for r in rows):.1f} s wall, {sum(float(r['cpu_s']) for r in rows):.1f} "
           f"CPU-s on {os.cpu_count()} cores")
-    return rc
+    return rc, rows
+
+
+def write_summary(study_rows: list[dict], load: tuple[str, str] | None) -> None:
+    """``results/benchmarks.md`` from ``results/benchmarks.json`` and this run's study rows."""
+    import json
+
+    from tests.benchmarks.summary import render
+
+    src = REPO / "results" / "benchmarks.json"
+    if not src.is_file():
+        return
+    out = REPO / "results" / "benchmarks.md"
+    out.write_text(render(json.loads(src.read_text()), study_rows, load))
+    print(f"wrote {out.relative_to(REPO)}")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -138,11 +156,14 @@ def main(argv: list[str] | None = None) -> int:
     mode.add_argument("--studies-only", action="store_true", help="only the study wall times")
     mode.add_argument("--no-studies", action="store_true", help="only the pytest benchmarks")
     a = ap.parse_args(argv)
-    rc = 0
+    rc, rows, load = 0, [], None
     if not a.studies_only:
-        rc = micro(compare=not a.save_only)
+        rc, load = micro(compare=not a.save_only)
     if not (a.no_studies or a.save_only):
-        rc = studies() or rc
+        rc_studies, rows = studies()
+        rc = rc or rc_studies
+    if not a.studies_only and (rows or a.no_studies or a.save_only):
+        write_summary(rows, load)             # the micro-benchmarks of this run, with its studies if run
     return rc
 
 
