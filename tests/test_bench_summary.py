@@ -34,3 +34,14 @@ def test_ratio_to_the_groups_baseline_and_the_recorded_figures():
 def test_every_benchmark_module_parses():
     names = first_sentences()
     assert "test_bench_fsewls_45s" in names and "test_bench_sds" in names
+
+
+def test_with_two_baselines_each_benchmark_takes_the_one_named_like_it():
+    report = {**REPORT, "benchmarks": [_bench("test_bench_mujoco_backend", "m", 0.2),
+                                       _bench("test_bench_analytic_backend_baseline", "m", 0.01),
+                                       _bench("test_bench_mujoco_whole_trial", "m", 0.3),
+                                       _bench("test_bench_analytic_whole_trial_baseline", "m", 0.02)]}
+    rows = {line.split("|")[2].split(":")[0].strip(): line.split("|")[7].strip()     # label: name[: docstring]
+            for line in render(report).splitlines() if line.startswith("| m ")}
+    assert rows["`test_bench_mujoco_backend`"] == "20" and rows["`test_bench_mujoco_whole_trial`"] == "15"
+    assert rows["`test_bench_analytic_backend_baseline`"] == "baseline"
