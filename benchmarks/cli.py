@@ -184,9 +184,9 @@ def build_parser() -> argparse.ArgumentParser:
     cli_history.add_parsers(sub, positive_int)
     p = sub.add_parser("list", help="list studies, estimators and protocols")
     p.set_defaults(func=_list)
-    from benchmarks import cli_estimate
+    from benchmarks.recordings.cli import add_parser as add_estimate_parser
 
-    cli_estimate.add_parser(sub)
+    add_estimate_parser(sub)
     return parser
 
 

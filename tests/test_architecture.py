@@ -12,15 +12,27 @@ FORBIDDEN = {
 }
 
 
-def imported_top_levels(path: Path) -> set[str]:
+def imported_modules(path: Path) -> set[str]:
+    """Every module ``path`` imports, in full (``from a.b import c`` gives ``a.b`` and ``a.b.c``: c may be
+    a module); relative imports resolved against the file's package."""
     tree = ast.parse(path.read_text(), str(path))
+    package = ".".join(path.relative_to(REPO).with_suffix("").parts[:-1])
     out = set()
     for node in ast.walk(tree):
         if isinstance(node, ast.Import):
-            out |= {a.name.split(".")[0] for a in node.names}
-        elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
-            out.add(node.module.split(".")[0])
+            out |= {a.name for a in node.names}
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                parent = package.rsplit(".", node.level - 1)[0] if node.level > 1 else package
+                base = f"{parent}.{base}" if base else parent
+            out.add(base)
+            out |= {f"{base}.{a.name}" for a in node.names}
     return out
+
+
+def imported_top_levels(path: Path) -> set[str]:
+    return {m.split(".")[0] for m in imported_modules(path) if m}
 
 
 @pytest.mark.parametrize("package", sorted(FORBIDDEN))
@@ -30,6 +42,26 @@ def test_layering(package):
         hit = imported_top_levels(f) & FORBIDDEN[package]
         if hit:
             bad.append(f"{f.relative_to(REPO)} imports {sorted(hit)}")
+    assert not bad, "\n".join(bad)
+
+
+def test_recordings_need_only_the_core():
+    """benchmarks/recordings (``jointbench estimate``) imports jointbench and estimators, nothing else of the
+    project: not the rest of benchmarks (harness, protocols, figures, config), not sims."""
+    room = REPO / "benchmarks" / "recordings"
+    files = sorted(room.rglob("*.py"))
+    assert files, room
+    inside = ("benchmarks", "benchmarks.recordings")  # the package itself and this room
+
+    def outside(m: str) -> bool:
+        top = m.split(".")[0]
+        return top == "sims" or (top == "benchmarks" and m not in inside and not m.startswith(inside[1] + "."))
+
+    bad = []
+    for f in files:
+        hit = sorted(filter(outside, imported_modules(f)))
+        if hit:
+            bad.append(f"{f.relative_to(REPO)} imports {hit}")
     assert not bad, "\n".join(bad)
 
 

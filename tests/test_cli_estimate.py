@@ -1,4 +1,4 @@
-"""End-to-end tests of ``jointbench estimate`` (benchmarks.cli_estimate) on synthetic and real records."""
+"""End-to-end tests of ``jointbench estimate`` (benchmarks.recordings.cli) on synthetic and real records."""
 import argparse
 import dataclasses
 import re
@@ -12,7 +12,7 @@ from scipy import signal as sps
 
 import estimators
 from tests.multisine_data import multisine_impedance_trial
-from benchmarks import cli_estimate
+from benchmarks.recordings import cli as cli_estimate
 from estimators import Estimator
 from jointbench.ensemble import Ensemble
 from jointbench.errors import JointBenchError

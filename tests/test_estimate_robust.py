@@ -196,7 +196,7 @@ def save_mat73(path: Path, **variables) -> Path:
 
 
 def test_matlab_v73_file(tmp_path, ankle):
-    from benchmarks import io as bio
+    from benchmarks.recordings import io as bio
 
     p = save_mat73(tmp_path / "r.mat", time=ankle.time, angle=ankle.angle, torque=ankle.torque)
     t = bio.read_trial(p)

@@ -1,4 +1,4 @@
-"""Reading recordings (benchmarks.io): round trips through CSV, NPZ and .mat, and every input error."""
+"""Reading recordings (benchmarks.recordings.io): round trips through CSV, NPZ and .mat, and every input error."""
 import re
 from pathlib import Path
 
@@ -7,7 +7,7 @@ import pandas as pd
 import pytest
 from scipy import io as sio
 
-from benchmarks import io
+from benchmarks.recordings import io
 from jointbench.errors import InputError
 from jointbench.types import Trial
 

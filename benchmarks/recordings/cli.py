@@ -6,8 +6,8 @@
                         [--set key=value ...] [--decimate Q] [--window START:END] [--array NAME]
                         [--fs HZ] [--torque-sign {1,-1}] [--plot FIG.png] [--list]
 
-Reads the records (:mod:`benchmarks.io`), optionally negates the torque, decimates and crops them,
-fits them together with the estimator, and only then, when every step that can fail has passed,
+Reads the records (:mod:`benchmarks.recordings.io`), optionally negates the torque, decimates and crops
+them, fits them together with the estimator, and only then, when every step that can fail has passed,
 writes ``OUT.csv`` (:meth:`~jointbench.estimate.Estimate.to_frame`), ``OUT_irf.csv`` or
 ``OUT_frf.csv`` (the response, when the estimate has one), ``OUT_prediction.csv`` (what each VAF is
 computed on) and the figure, and prints a summary. User errors raise
@@ -26,13 +26,13 @@ import os
 from pathlib import Path
 from typing import TYPE_CHECKING, Sequence
 
-from benchmarks.records import (check_information, check_magnitudes, check_memory, crop_gated, crop_window,
-                                decimate_trial, gate_hint, parse_window)
+from benchmarks.recordings.checks import (check_information, check_magnitudes, check_memory, crop_gated,
+                                          crop_window, decimate_trial, gate_hint, parse_window)
 from jointbench.errors import ConfigError, InputError
 from jointbench.files import atomic_write
 
 if TYPE_CHECKING:  # pragma: no cover
-    from benchmarks.io import Source
+    from benchmarks.recordings.io import Source
     from jointbench.estimate import Estimate
 
 PLOT_SUFFIXES = (".png", ".pdf", ".svg")
@@ -118,13 +118,13 @@ def run(args: argparse.Namespace) -> int:
     window = parse_window(args.window) if args.window else None
     estimator = make_estimator(args.estimator, args.settings)
 
-    from benchmarks import io
+    from benchmarks.recordings import io
 
     sources = [io.parse_source(s, args.array) for s in args.input]
     out = Path(args.output)
     plot = Path(args.plot) if args.plot else None
     _check_outputs(out, plot, sources)
-    from benchmarks import io_ensemble
+    from benchmarks.recordings import io_ensemble
     from jointbench.ensemble import Ensemble
 
     ensemble = args.ensemble or (len(sources) > 1 and "ensemble" in estimator.accepts
@@ -202,7 +202,7 @@ def compute(estimator, raw: list, *, torque_sign: int = 1, decimate: int = 1,
     predictions = [prediction_of(est, t, k) for k, t in enumerate(trials)]
     figure = None
     if plot is not None:
-        from benchmarks.plots_estimate import plot_estimate
+        from benchmarks.recordings.plots import plot_estimate
 
         buf = _io.BytesIO()
         plot_estimate(est, buf, trials=trials, fmt=plot.suffix[1:].lower())

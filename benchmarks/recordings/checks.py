@@ -157,7 +157,7 @@ def check_memory(estimator, trials: list) -> None:
     if plan is None:
         return
     need = plan(trials)
-    from benchmarks.io import available_memory
+    from benchmarks.recordings.io import available_memory
 
     budget = MEMORY_FRACTION * available_memory()
     if need <= budget:

@@ -2,9 +2,10 @@
 
 Two layouts (see ``docs/estimate.md``, *Ensembles*): one NPZ/.mat file whose ``angle`` and ``torque``
 are 2-D, samples × realizations, with a scalar ``fs`` or a 1-D ``time``; or several records of equal
-length and rate (read by :func:`benchmarks.io.read_trials`) taken as realizations. Every problem raises
-:class:`~jointbench.errors.InputError` with a message naming the file. Kept beside :mod:`benchmarks.io`
-(whose readers and checks it reuses) so that the single-record reader stays small.
+length and rate (read by :func:`benchmarks.recordings.io.read_trials`) taken as realizations. Every
+problem raises :class:`~jointbench.errors.InputError` with a message naming the file. Kept beside
+:mod:`benchmarks.recordings.io` (whose readers and checks it reuses) so that the single-record reader
+stays small.
 """
 from __future__ import annotations
 
@@ -13,8 +14,8 @@ from typing import Sequence
 
 import numpy as np
 
-from benchmarks.io import (Source, _file_fs, _numeric, _read_mat, _read_npz, _shape, _time_base,
-                           _what_is_there, read_trials)
+from benchmarks.recordings.io import (Source, _file_fs, _numeric, _read_mat, _read_npz, _shape, _time_base,
+                                      _what_is_there, read_trials)
 from jointbench.ensemble import Ensemble
 from jointbench.errors import InputError
 
