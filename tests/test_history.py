@@ -1,6 +1,7 @@
 """Run history (SQLite), the verified case cache and its key, ``jointbench history/diff/cache``."""
 from __future__ import annotations
 
+import dataclasses
 import json
 import re
 import shutil
@@ -47,6 +48,27 @@ def test_edited_or_damaged_entry_is_refused(tmp_path):
     assert c.get(cases[0]) is None and "checksum" in c.problems[0]
     p.write_text(p.read_text()[:100])
     assert c.get(cases[0]) is None and "unreadable" in c.problems[1]
+
+
+def test_canonical_text_survives_a_json_round_trip():
+    obj = {"variance_ratio": {5: 0.11, 10: 0.034}, "snr": float("inf"), "t": (1, 2), "p": Path("x")}
+    back = json.loads(json.dumps(obj, default=str))
+    assert fingerprint.canonical(obj) == fingerprint.canonical(back)
+    assert fingerprint.sha(obj) == fingerprint.sha(back)
+
+
+def test_a_case_with_number_keys_is_served_from_the_cache(tmp_path):
+    """vanderuit2018_table1's params map SNR levels (numbers) to variance ratios: its entries must verify
+    (they did not, and every run recomputed its 240 cases)."""
+    from benchmarks.harness.case import CaseResult
+
+    case = expand(load_study(tiny_study(tmp_path / "cfg", seeds=1)))[0]
+    case = dataclasses.replace(case, params={"levels": {5: 0.11, 10: 0.034}})
+    rows = [{"estimator": "e", "metric": "K", "value": 1.0}]
+    Cache(tmp_path / "cache").put(CaseResult(case, "ok", rows, [], 0.1))
+    again = Cache(tmp_path / "cache", warn=lambda m: None)
+    got = again.get(case)
+    assert got is not None and got.rows == rows and again.rejected == 0, again.problems
 
 
 def test_key_has_no_paths_but_everything_a_protocol_sees(tmp_path):

@@ -143,8 +143,14 @@ def environment() -> dict:
 
 
 def canonical(obj) -> str:
-    """A stable JSON text of ``obj`` (sorted keys; non-JSON values by ``str``)."""
-    return json.dumps(obj, sort_keys=True, separators=(",", ":"), default=str, allow_nan=True)
+    """A stable JSON text of ``obj`` (sorted keys; non-JSON values by ``str``).
+
+    The same text for ``obj`` and for ``obj`` read back from its JSON: the object goes through JSON once
+    before the keys are sorted, so a mapping with number keys (``{5: .., 10: ..}``, sorted 5 < 10) and its
+    stored copy (``{"5": .., "10": ..}``, sorted "10" < "5") give one text. Without it a cache entry's
+    material never hashed to its key again and such cases were always recomputed."""
+    plain = json.loads(json.dumps(obj, default=str, allow_nan=True))
+    return json.dumps(plain, sort_keys=True, separators=(",", ":"), allow_nan=True)
 
 
 def sha(obj, n: int = 32) -> str:
