@@ -45,3 +45,15 @@ def test_with_two_baselines_each_benchmark_takes_the_one_named_like_it():
             for line in render(report).splitlines() if line.startswith("| m ")}
     assert rows["`test_bench_mujoco_backend`"] == "20" and rows["`test_bench_mujoco_whole_trial`"] == "15"
     assert rows["`test_bench_analytic_backend_baseline`"] == "baseline"
+
+
+def test_the_comparison_with_the_stored_run_names_what_is_beyond_the_limit():
+    reference = {**REPORT, "commit_info": {"id": "0123456789"},
+                 "benchmarks": [_bench("test_bench_fast", "g", 0.020), _bench("test_bench_slow_baseline", "g", 0.1),
+                                _bench("test_bench_alone", "h", 2.5)]}
+    md = render(REPORT, reference=reference, limit=20)
+    assert "1 of 3 medians more than 20 % slower than the stored run of commit `0123456`" in md
+    assert "| `test_bench_fast` | 20 ms | 25 ms | +25 % | **slower** |" in md        # 0.025 / 0.020
+    assert "| `test_bench_slow_baseline` | 100 ms | 100 ms | +0 % |  |" in md
+    calm = render(REPORT, reference=REPORT)
+    assert "no median more than 20 % slower than the stored run of commit `abcdef0` (3 compared)" in calm

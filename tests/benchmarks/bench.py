@@ -38,11 +38,13 @@ def _stored() -> set[Path]:
     return set(STORAGE.glob("*/[0-9][0-9][0-9][0-9]_*.json"))
 
 
-def micro(compare: bool) -> tuple[int, tuple[str, str]]:
+def micro(compare: bool) -> tuple[int, tuple[str, str], Path | None]:
     """Run the pytest benchmarks; compare with the latest stored run (if any and ``compare``); store on
-    success. Returns the exit status and the 1-minute load average before and after."""
+    success. Returns the exit status, the 1-minute load average before and after, and the stored run
+    compared with (None when there was none)."""
     load0 = f"{os.getloadavg()[0]:.2f}"
     before = _stored()
+    latest = None
     (REPO / "results").mkdir(exist_ok=True)
     args = [sys.executable, "-m", "pytest", "-q", "tests/benchmarks", "--benchmark-enable",
             f"--benchmark-storage=file://{STORAGE}", "--benchmark-autosave",
@@ -64,7 +66,7 @@ def micro(compare: bool) -> tuple[int, tuple[str, str]]:
     else:
         for p in new:
             print(f"stored as the new reference: {p.relative_to(REPO)}")
-    return rc, (load0, f"{os.getloadavg()[0]:.2f}")
+    return rc, (load0, f"{os.getloadavg()[0]:.2f}"), latest
 
 
 def _commit() -> str:
@@ -135,8 +137,9 @@ def studies() -> tuple[int, list[dict]]:
     return rc, rows
 
 
-def write_summary(study_rows: list[dict], load: tuple[str, str] | None) -> None:
-    """``results/benchmarks.md`` from ``results/benchmarks.json`` and this run's study rows."""
+def write_summary(study_rows: list[dict], load: tuple[str, str] | None, reference: Path | None = None) -> None:
+    """``results/benchmarks.md`` from ``results/benchmarks.json``, this run's study rows and the stored
+    run it was compared with."""
     import json
 
     from tests.benchmarks.summary import render
@@ -145,7 +148,8 @@ def write_summary(study_rows: list[dict], load: tuple[str, str] | None) -> None:
     if not src.is_file():
         return
     out = REPO / "results" / "benchmarks.md"
-    out.write_text(render(json.loads(src.read_text()), study_rows, load))
+    ref = json.loads(reference.read_text()) if reference is not None and reference.is_file() else None
+    out.write_text(render(json.loads(src.read_text()), study_rows, load, ref, SLOWDOWN))
     print(f"wrote {out.relative_to(REPO)}")
 
 
@@ -156,14 +160,14 @@ def main(argv: list[str] | None = None) -> int:
     mode.add_argument("--studies-only", action="store_true", help="only the study wall times")
     mode.add_argument("--no-studies", action="store_true", help="only the pytest benchmarks")
     a = ap.parse_args(argv)
-    rc, rows, load = 0, [], None
+    rc, rows, load, reference = 0, [], None, None
     if not a.studies_only:
-        rc, load = micro(compare=not a.save_only)
+        rc, load, reference = micro(compare=not a.save_only)
     if not (a.no_studies or a.save_only):
         rc_studies, rows = studies()
         rc = rc or rc_studies
     if not a.studies_only and (rows or a.no_studies or a.save_only):
-        write_summary(rows, load)             # the micro-benchmarks of this run, with its studies if run
+        write_summary(rows, load, reference)             # the micro-benchmarks of this run, with its studies if run
     return rc
 
 

@@ -46,7 +46,31 @@ def _baseline(b: dict, members: list[dict]) -> dict | None:
     return max(base, key=lambda m: len(words & set(m["name"].split("_"))))
 
 
-def render(report: dict, studies: list[dict] | None = None, load: tuple[str, str] | None = None) -> str:
+def comparison(report: dict, reference: dict, limit: float = 20.0) -> list[str]:
+    """Markdown lines: every benchmark's median now against ``reference`` (the stored run it was compared
+    with), the change in percent, and whether it is beyond ``limit`` (what fails ``make bench``). The
+    baselines are listed too: code that did not change moving as much says the machine did."""
+    then = {b["name"]: b["stats"]["median"] for b in reference.get("benchmarks", [])}
+    ref = reference.get("commit_info", {}).get("id", "unknown")[:7]
+    rows, flagged = [], []
+    for b in report.get("benchmarks", []):
+        if b["name"] not in then:
+            continue
+        change = 100 * (b["stats"]["median"] / then[b["name"]] - 1)
+        if change > limit:
+            flagged.append(b["name"])
+        rows.append(f"| `{b['name']}` | {_ms(then[b['name']])} | {_ms(b['stats']['median'])} | {change:+.0f} % | "
+                    f"{'**slower**' if change > limit else ''} |")
+    verdict = (f"{len(flagged)} of {len(rows)} medians more than {limit:g} % slower than the stored run of commit "
+               f"`{ref}` (the run fails `make bench` and is not stored): "
+               + ", ".join(f"`{n}`" for n in flagged) if flagged else
+               f"no median more than {limit:g} % slower than the stored run of commit `{ref}` ({len(rows)} compared)")
+    return ["", f"Against the stored run: {verdict}.", "",
+            "| benchmark | median then | now | change | beyond the limit |", "|---|---|---|---|---|", *rows]
+
+
+def render(report: dict, studies: list[dict] | None = None, load: tuple[str, str] | None = None,
+           reference: dict | None = None, limit: float = 20.0) -> str:
     """Markdown of a pytest-benchmark JSON ``report`` (and the study rows of the same run).
 
     Parameters
@@ -57,6 +81,8 @@ def render(report: dict, studies: list[dict] | None = None, load: tuple[str, str
         Rows of ``.benchmarks/study_times.csv`` (study, cases, wall_s, cpu_s, load_before, load_after).
     load : (str, str), optional
         The 1-minute load average before and after the micro-benchmarks.
+    reference : dict, optional
+        The stored run this one was compared with (:func:`comparison`), beyond ``limit`` percent.
     """
     docs = first_sentences()
     commit = report.get("commit_info", {})
@@ -88,6 +114,8 @@ def render(report: dict, studies: list[dict] | None = None, load: tuple[str, str
             lines.append(f"| {group} | {label} | {_ms(s['median'])} | {_ms(s['iqr'])} | {_ms(s['min'])} | "
                          f"{s['rounds']} | {ratio or ('baseline' if _is_baseline(b['name']) else '')} | "
                          f"{f'{inter:g}x faster' if inter is not None else ''} | {other} |")
+    if reference is not None:
+        lines += comparison(report, reference, limit)
     if studies:
         lines += ["", "Whole studies of `make reproduce`, run one after the other from scratch (no cache) in "
                   "the same `make bench` (2 workers each):", "",
