@@ -42,6 +42,20 @@ def tiny_study(folder: Path, study: str = "tiny", seeds: int = 4, duration: str 
     return path
 
 
+def study_copy(folder: Path, study: str, edit=None, name: str | None = None) -> Path:
+    """A copy of the shipped config ``configs/studies/<study>.yaml`` in ``folder`` (as ``name``, default
+    ``<study>.yaml``), its published-values path made absolute, edited in place by ``edit(dict)``."""
+    configs = REPO / "configs"
+    data = yaml.safe_load((configs / "studies" / f"{study}.yaml").read_text())
+    data["published"] = str(configs / "published" / Path(data["published"]).name)
+    if edit is not None:
+        edit(data)
+    folder.mkdir(parents=True, exist_ok=True)
+    path = folder / (name or f"{study}.yaml")
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    return path
+
+
 def cli_env() -> dict:
     env = dict(os.environ)
     env["PYTHONUNBUFFERED"] = "1"

@@ -7,27 +7,18 @@ from pathlib import Path
 
 import pandas as pd
 import pytest
-import yaml
 
 from benchmarks import backends, cli
-from benchmarks.config import CONFIGS, load_study
+from benchmarks.config import load_study
 from benchmarks.harness.cache import case_key
 from benchmarks.runner import expand
 from benchmarks.study import run_study
 from jointbench.errors import ConfigError
 from tests.golden import check_golden
 from tests.test_harness import write_study
+from tests.harness_studies import study_copy
 
 pytest.importorskip("mujoco")
-
-
-def study_copy(tmp: Path, study: str, edit) -> Path:
-    d = yaml.safe_load((CONFIGS / "studies" / f"{study}.yaml").read_text())
-    d["published"] = str(CONFIGS / "published" / Path(d["published"]).name)
-    edit(d)
-    p = tmp / f"{study}.yaml"
-    p.write_text(yaml.safe_dump(d, sort_keys=False))
-    return p
 
 
 # ------------------------------------------------------------------------------------- config and CLI

@@ -1,7 +1,6 @@
 """Config strictness, the runner (failures, determinism, cache) and the comparison table."""
 from __future__ import annotations
 
-import copy
 from pathlib import Path
 
 import numpy as np
@@ -11,22 +10,18 @@ import yaml
 
 from benchmarks import protocols
 from benchmarks.config import CONFIGS, Check, load_study
-from benchmarks.runner import Cache, expand, run_case, run_cases
+from benchmarks.runner import Cache, expand, run_cases
 from benchmarks.study import run_study
 from benchmarks.tables import compare
 from jointbench.errors import ConfigError
+from tests.harness_studies import study_copy
 
 STUDY = CONFIGS / "studies" / "westwick2012.yaml"
 
 
 def write_study(tmp_path: Path, edit) -> Path:
     """A copy of the Westwick study config, edited by ``edit(dict)``, with absolute published path."""
-    data = yaml.safe_load(STUDY.read_text())
-    data["published"] = str(CONFIGS / "published" / "westwick2012.yaml")
-    edit(data)
-    p = tmp_path / "study.yaml"
-    p.write_text(yaml.safe_dump(data, sort_keys=False))
-    return p
+    return study_copy(tmp_path, "westwick2012", edit, name="study.yaml")
 
 
 def test_study_config_loads_and_names_every_part():

@@ -6,13 +6,13 @@ import dataclasses
 
 import numpy as np
 import pytest
-import yaml
 
 import sims
-from benchmarks.config import CONFIGS, load_study
+from benchmarks.config import load_study
 from benchmarks.harness.case import run_case, run_group
 from benchmarks.runner import expand, group_cases
 from sims.reuse import reuse_responses
+from tests.harness_studies import study_copy
 
 
 def _same_trial(a, b) -> None:
@@ -72,11 +72,7 @@ def _rows(results) -> list:
 
 
 def _small(study: str, part: str, tmp_path, change) -> list:
-    d = yaml.safe_load((CONFIGS / "studies" / f"{study}.yaml").read_text())
-    d["published"] = str(CONFIGS / "published" / f"{study}.yaml")
-    change(d["parts"][part])
-    path = tmp_path / f"{study}.yaml"
-    path.write_text(yaml.safe_dump(d, sort_keys=False))
+    path = study_copy(tmp_path, study, lambda d: change(d["parts"][part]))
     return expand(load_study(path), [part])
 
 

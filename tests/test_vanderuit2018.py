@@ -6,7 +6,6 @@ import math
 import numpy as np
 import pandas as pd
 import pytest
-import yaml
 
 import sims
 from benchmarks.config import CONFIGS, load_study
@@ -19,6 +18,7 @@ from benchmarks.study import run_study
 from jointbench.errors import ConfigError
 from jointbench.schema import parse
 from tests.golden import check_golden
+from tests.harness_studies import study_copy
 
 STUDY = CONFIGS / "studies" / "vanderuit2018_table1.yaml"
 
@@ -148,14 +148,11 @@ def smoke(tmp_path_factory):
     """Both estimators, 2 variations x 2 noise levels, one seed (the skirt needs the full 40 s window:
     its lowest line must lie more than N_p/2 bins above 0)."""
     tmp = tmp_path_factory.mktemp("vdr2018")
-    d = yaml.safe_load(STUDY.read_text())
-    d["published"] = str(CONFIGS / "published" / "vanderuit2018_table1.yaml")
-    part = d["parts"]["table1"]
-    part["seeds"] = 1
-    part["sweep"] = {"variation": ["sine20", "square10"], "snr_db": [10, math.inf]}
-    del d["parts"]["table1_snr_standard"], d["parts"]["table1_kbr_refined"]
-    path = tmp / "study.yaml"
-    path.write_text(yaml.safe_dump(d, sort_keys=False))
+
+    def edit(d):
+        d["parts"]["table1"].update(seeds=1, sweep={"variation": ["sine20", "square10"], "snr_db": [10, math.inf]})
+        del d["parts"]["table1_snr_standard"], d["parts"]["table1_kbr_refined"]
+    path = study_copy(tmp, "vanderuit2018_table1", edit, name="study.yaml")
     return run_study(path, out_root=tmp / "results", serial=True, progress=False)
 
 

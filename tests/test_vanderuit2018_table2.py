@@ -15,6 +15,7 @@ from jointbench.errors import ConfigError
 from jointbench.schema import parse
 from jointbench.types import Trial
 from tests.golden import check_golden
+from tests.harness_studies import study_copy
 
 STUDY = CONFIGS / "studies" / "vanderuit2018_table2.yaml"
 
@@ -87,14 +88,13 @@ def test_to_rate_keeps_lines_and_duration():
 def smoke(tmp_path_factory):
     """Subject 1, three trials (ensembles of two), one seed, every part."""
     tmp = tmp_path_factory.mktemp("vdr2018t2")
-    d = yaml.safe_load(STUDY.read_text())
-    d["published"] = str(CONFIGS / "published" / "vanderuit2018_table2.yaml")
-    for part in d["parts"].values():
-        part["seeds"] = 1
-        part["sweep"] = {"subject": [1]}
-        part["params"]["subjects"]["trials"] = 3
-    path = tmp / "study.yaml"
-    path.write_text(yaml.safe_dump(d, sort_keys=False))
+
+    def edit(d):
+        for part in d["parts"].values():
+            part["seeds"] = 1
+            part["sweep"] = {"subject": [1]}
+            part["params"]["subjects"]["trials"] = 3
+    path = study_copy(tmp, "vanderuit2018_table2", edit, name="study.yaml")
     return run_study(path, out_root=tmp / "results", serial=True, progress=False)
 
 

@@ -7,7 +7,6 @@ import dataclasses
 import numpy as np
 import pandas as pd
 import pytest
-import yaml
 
 import estimators
 import sims
@@ -20,6 +19,7 @@ from jointbench.errors import ConfigError
 from jointbench.schema import parse
 from jointbench.types import Truth
 from tests.golden import check_golden
+from tests.harness_studies import study_copy
 
 STUDY = CONFIGS / "studies" / "xu1998.yaml"
 
@@ -137,18 +137,18 @@ def test_scores_use_the_metrics_of_eq_8():
 def smoke(tmp_path_factory):
     """Every part on a tiny subset: 1 seed, 14 s records (5 s scored), reduced sweeps."""
     tmp = tmp_path_factory.mktemp("xu1998")
-    d = yaml.safe_load(STUDY.read_text())
-    d["published"] = str(CONFIGS / "published" / "xu1998.yaml")
-    for part in d["parts"].values():
-        part["seeds"] = 1
-        part["experiment"] = {**part["experiment"], "duration": "14 s"}
-    d["parts"]["fig2"]["sweep"] = {"condition": ["posture", "movement"], "f_v": [0.5, 1.5]}
-    d["parts"]["fig3"]["sweep"] = {"nsr": [0, 0.2]}
-    d["parts"]["fig3_angle_noise"]["sweep"] = {"nsr": [0.2]}
-    d["parts"]["traces"]["sweep"] = {"shape": ["sine", "square"], "condition": ["posture"]}
-    d["parts"]["readings"]["sweep"] = {"variant": ["chosen", "causal_L"], "condition": ["movement"], "f_v": [0.5]}
-    path = tmp / "study.yaml"
-    path.write_text(yaml.safe_dump(d, sort_keys=False))
+
+    def edit(d):
+        for part in d["parts"].values():
+            part["seeds"] = 1
+            part["experiment"] = {**part["experiment"], "duration": "14 s"}
+        d["parts"]["fig2"]["sweep"] = {"condition": ["posture", "movement"], "f_v": [0.5, 1.5]}
+        d["parts"]["fig3"]["sweep"] = {"nsr": [0, 0.2]}
+        d["parts"]["fig3_angle_noise"]["sweep"] = {"nsr": [0.2]}
+        d["parts"]["traces"]["sweep"] = {"shape": ["sine", "square"], "condition": ["posture"]}
+        d["parts"]["readings"]["sweep"] = {"variant": ["chosen", "causal_L"], "condition": ["movement"],
+                                           "f_v": [0.5]}
+    path = study_copy(tmp, "xu1998", edit, name="study.yaml")
     return run_study(path, out_root=tmp / "results", serial=True, progress=False)
 
 
