@@ -1,5 +1,6 @@
 """The harness: configs, runner, metrics, tables, comparison with published values, reports, CLI.
 
-It imports ``jointbench``, ``sims`` and ``estimators``; nothing imports it but the CLI and tests.
+Installed as ``jointbench.benchmarks``. It imports the core, ``jointbench.sims`` and ``jointbench.estimators``;
+nothing imports it but the CLI and tests.
 ``recordings/`` (the ``jointbench estimate`` path) needs only ``jointbench`` and ``estimators``.
 """

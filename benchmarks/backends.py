@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from benchmarks.harness.pages import Paragraph, Section, table as page_table
+from jointbench.benchmarks.harness.pages import Paragraph, Section, table as page_table
 
 PREFIX = "backend-"
 

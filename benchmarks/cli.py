@@ -55,15 +55,15 @@ def _command() -> str:
 
 
 def _root(args) -> Path:
-    from benchmarks.study import results_root
+    from jointbench.benchmarks.study import results_root
 
     return results_root(Path(args.out) if getattr(args, "out", None) else None)
 
 
 def _run(args) -> int:
-    from benchmarks.config import check_backend
-    from benchmarks.harness.pool import make_executor
-    from benchmarks.study import run_study
+    from jointbench.benchmarks.config import check_backend
+    from jointbench.benchmarks.harness.pool import make_executor
+    from jointbench.benchmarks.study import run_study
 
     backend = check_backend(args.backend, "option --backend") if args.backend else None
     if args.serial and args.executor not in (None, "serial"):
@@ -77,7 +77,7 @@ def _run(args) -> int:
     finally:
         if executor is not None:
             executor.shutdown(wait=True)
-    from benchmarks.tables import headline
+    from jointbench.benchmarks.tables import headline
 
     comp = run.comparison
     n_pass = int((comp["status"] == "pass").sum()) if len(comp) else 0
@@ -96,7 +96,7 @@ def _run(args) -> int:
 def _status(args) -> int:
     from pathlib import Path
 
-    from benchmarks import status
+    from jointbench.benchmarks import status
 
     results = Path(args.results) if args.results else None
     if args.write_readme:
@@ -109,9 +109,9 @@ def _status(args) -> int:
 
 
 def _list(args) -> int:
-    import estimators
-    from benchmarks import protocols
-    from benchmarks.config import CONFIGS
+    from jointbench import estimators
+    from jointbench.benchmarks import protocols
+    from jointbench.benchmarks.config import CONFIGS
 
     print("studies:   " + ", ".join(sorted(p.stem for p in (CONFIGS / "studies").glob("*.yaml"))))
     print("estimators: " + ", ".join(estimators.REGISTRY.names()))
@@ -120,8 +120,8 @@ def _list(args) -> int:
 
 
 def _nightly(args) -> int:
-    from benchmarks.harness.nightly import DEFAULT_CONFIG, load_config
-    from benchmarks.nightly import run_nightly
+    from jointbench.benchmarks.harness.nightly import DEFAULT_CONFIG, load_config
+    from jointbench.benchmarks.nightly import run_nightly
 
     config = load_config(Path(args.config) if args.config else DEFAULT_CONFIG)
     if args.studies:
@@ -138,7 +138,7 @@ def _nightly(args) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from benchmarks import cli_history
+    from jointbench.benchmarks import cli_history
 
     parser = OneLineParser(prog="jointbench", description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="command", required=True, parser_class=OneLineParser)
@@ -184,7 +184,7 @@ def build_parser() -> argparse.ArgumentParser:
     cli_history.add_parsers(sub, positive_int)
     p = sub.add_parser("list", help="list studies, estimators and protocols")
     p.set_defaults(func=_list)
-    from benchmarks.recordings.cli import add_parser as add_estimate_parser
+    from jointbench.benchmarks.recordings.cli import add_parser as add_estimate_parser
 
     add_estimate_parser(sub)
     return parser

@@ -11,8 +11,8 @@ if TYPE_CHECKING:  # pragma: no cover - pandas is imported where a table is made
 
 
 def _history(args):
-    from benchmarks.harness.history import History
-    from benchmarks.study import HISTORY_FILE, results_root
+    from jointbench.benchmarks.harness.history import History
+    from jointbench.benchmarks.study import HISTORY_FILE, results_root
 
     return History(results_root(Path(args.out) if args.out else None) / HISTORY_FILE, create=False)
 
@@ -79,8 +79,8 @@ def _show_run(h, run_id: int) -> int:
 def _diff(args) -> int:
     import pandas as pd
 
-    from benchmarks.harness.compare import by_evidence, compare_runs
-    from benchmarks.harness.nightly import DEFAULT_CONFIG, load_config
+    from jointbench.benchmarks.harness.compare import by_evidence, compare_runs
+    from jointbench.benchmarks.harness.nightly import DEFAULT_CONFIG, load_config
 
     rules = load_config(Path(args.config) if args.config else DEFAULT_CONFIG).rules
     with _history(args) as h:
@@ -117,8 +117,8 @@ def _diff(args) -> int:
 
 
 def _cache(args) -> int:
-    from benchmarks.harness import cache as cache_mod
-    from benchmarks.study import CACHE_FOLDER, results_root
+    from jointbench.benchmarks.harness import cache as cache_mod
+    from jointbench.benchmarks.study import CACHE_FOLDER, results_root
 
     folder = results_root(Path(args.out) if args.out else None) / CACHE_FOLDER
     entries = list(cache_mod.entries(folder))

@@ -18,7 +18,7 @@ from typing import Any, Mapping
 
 import yaml
 
-from benchmarks import overrides as _overrides
+from jointbench.benchmarks import overrides as _overrides
 from jointbench.errors import ConfigError
 
 REPO = Path(__file__).resolve().parents[1]
@@ -249,7 +249,7 @@ def _seeds(value: Any, where: str) -> tuple[int, ...]:
 def check_backend(name: Any, where: str) -> str:
     """A simulation backend name of :data:`sims.BACKENDS` (``analytic``, ``mujoco``, ...), or a one-line
     error naming ``where`` (the part, or the command line)."""
-    from sims import BACKENDS
+    from jointbench.sims import BACKENDS
 
     if not isinstance(name, str) or name not in BACKENDS:
         raise ConfigError(f"{where}: unknown simulation backend {name!r}; known: "
@@ -299,7 +299,7 @@ def load_part(name: str, data: Mapping, where: str, models_dir: Path,
     protocol = str(data["protocol"])
     grid = None
     if "grid" in data:
-        from benchmarks import grid as _grid
+        from jointbench.benchmarks import grid as _grid
 
         if sweep:
             raise ConfigError(f"{where}: key 'sweep': a part with a 'grid' takes its values from the grid's axes")

@@ -43,8 +43,8 @@ import json
 import math
 from typing import Any, Callable, Mapping
 
-import estimators
-import sims
+from jointbench import estimators
+from jointbench import sims
 from jointbench.errors import ConfigError
 from jointbench.schema import param, parse
 

@@ -9,12 +9,12 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from benchmarks.harness import outputs
-from benchmarks.harness.compare import compare_runs
-from benchmarks.harness.history import History
-from benchmarks.harness.nightly import NightlyConfig, NightlyResult, StudyOutcome
-from benchmarks.harness.nightly_pages import write_pages
-from benchmarks.study import HISTORY_FILE, run_study
+from jointbench.benchmarks.harness import outputs
+from jointbench.benchmarks.harness.compare import compare_runs
+from jointbench.benchmarks.harness.history import History
+from jointbench.benchmarks.harness.nightly import NightlyConfig, NightlyResult, StudyOutcome
+from jointbench.benchmarks.harness.nightly_pages import write_pages
+from jointbench.benchmarks.study import HISTORY_FILE, run_study
 from jointbench.errors import JointBenchError
 from jointbench.files import sweep_stale_temps
 

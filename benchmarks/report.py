@@ -14,11 +14,11 @@ from pathlib import Path
 
 import pandas as pd
 
-from benchmarks import backends
-from benchmarks.config import EVIDENCE, Study
-from benchmarks.harness.pages import (Code, Figure, Items, Page, Paragraph, Section, paragraphs, table, to_html,
+from jointbench.benchmarks import backends
+from jointbench.benchmarks.config import EVIDENCE, Study
+from jointbench.benchmarks.harness.pages import (Code, Figure, Items, Page, Paragraph, Section, paragraphs, table, to_html,
                                       to_markdown)
-from benchmarks.tables import DIRTY_BANNER, evidence_counts, headline
+from jointbench.benchmarks.tables import DIRTY_BANNER, evidence_counts, headline
 from jointbench.files import write_text
 
 #: what each kind of evidence means, as the report says it

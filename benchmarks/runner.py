@@ -14,11 +14,11 @@ import queue
 import sys
 from typing import Callable, Iterable
 
-from benchmarks import protocols
-from benchmarks.config import Part, Study
-from benchmarks.harness.cache import Cache
-from benchmarks.harness.case import Case, CaseResult, parse_inputs, run_case, run_group
-from benchmarks.harness.pool import InlineExecutor, WorkerPool, run_task
+from jointbench.benchmarks import protocols
+from jointbench.benchmarks.config import Part, Study
+from jointbench.benchmarks.harness.cache import Cache
+from jointbench.benchmarks.harness.case import Case, CaseResult, parse_inputs, run_case, run_group
+from jointbench.benchmarks.harness.pool import InlineExecutor, WorkerPool, run_task
 from jointbench.errors import ConfigError
 from jointbench.schema import parse
 
@@ -55,7 +55,7 @@ def expand_study(study: Study, parts: Iterable[str] | None = None,
     """All cases of the selected parts, validated up front (config errors surface before any run), and
     the combinations of comparison grids that are skipped, with their reasons (:mod:`benchmarks.grid`).
     ``backend`` (e.g. ``jointbench run --backend mujoco``) replaces every part's own backend."""
-    from benchmarks.grid import expand_grid
+    from jointbench.benchmarks.grid import expand_grid
 
     names = list(study.parts) if parts is None else list(dict.fromkeys(parts))
     unknown = [p for p in names if p not in study.parts]
@@ -222,7 +222,7 @@ def run_cases(cases: list[Case], cache: Cache, workers: int | None = None, seria
     else:
         capacity = 2 * (getattr(executor, "_max_workers", None) or workers)
     if not isinstance(executor, InlineExecutor):
-        from benchmarks.harness.fingerprint import code_hash
+        from jointbench.benchmarks.harness.fingerprint import code_hash
 
         code = code_hash()
     done_q: queue.SimpleQueue = queue.SimpleQueue()

@@ -10,9 +10,9 @@ from pathlib import Path
 
 import pandas as pd
 
-from benchmarks.config import EVIDENCE, REPO
-from benchmarks.harness.pages import markdown_table as markdown
-from benchmarks.tables import evidence_counts, headline
+from jointbench.benchmarks.config import EVIDENCE, REPO
+from jointbench.benchmarks.harness.pages import markdown_table as markdown
+from jointbench.benchmarks.tables import evidence_counts, headline
 from jointbench.errors import ConfigError
 
 BEGIN = "<!-- status:begin -->"

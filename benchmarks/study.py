@@ -19,13 +19,13 @@ from pathlib import Path
 
 import pandas as pd
 
-from benchmarks import backends, figures, report
-from benchmarks.config import REPO, Study, load_study
-from benchmarks.harness import fingerprint, outputs
-from benchmarks.harness.cache import Cache, case_key
-from benchmarks.harness.history import History
-from benchmarks.runner import CaseResult, RunInterrupted, expand, expand_study, group_cases, run_cases
-from benchmarks.tables import cases_frame, compare, curves_frame, swap_survival
+from jointbench.benchmarks import backends, figures, report
+from jointbench.benchmarks.config import REPO, Study, load_study
+from jointbench.benchmarks.harness import fingerprint, outputs
+from jointbench.benchmarks.harness.cache import Cache, case_key
+from jointbench.benchmarks.harness.history import History
+from jointbench.benchmarks.runner import CaseResult, RunInterrupted, expand, expand_study, group_cases, run_cases
+from jointbench.benchmarks.tables import cases_frame, compare, curves_frame, swap_survival
 from jointbench.errors import ConfigError
 from jointbench.files import atomic_write, sweep_stale_temps, write_text
 
@@ -104,7 +104,7 @@ def check_budget(study: Study, cases: list, skipped: list, cache: Cache, workers
                  budget_minutes: float | None, confirm: bool) -> None:
     """Refuse, before running, a comparison grid estimated over its budget (the part's ``budget``, or
     ``budget_minutes``), saying the case count and the estimate; ``confirm`` (``--yes``) goes on."""
-    from benchmarks.grid import estimate_seconds
+    from jointbench.benchmarks.grid import estimate_seconds
 
     for name in dict.fromkeys(c.part for c in cases):
         part = study.parts[name]
@@ -210,7 +210,7 @@ def run_study(ref: str | Path, parts: list[str] | None = None, out_root: Path | 
     commit = fingerprint.git_commit()
     rows = cases_frame(results, commit)
     if skipped:
-        from benchmarks.grid import skipped_rows
+        from jointbench.benchmarks.grid import skipped_rows
 
         rows = pd.concat([rows, pd.DataFrame(skipped_rows(study.id, skipped)).assign(git_commit=commit)],
                          ignore_index=True)

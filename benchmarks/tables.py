@@ -6,7 +6,7 @@ from typing import Mapping
 import numpy as np
 import pandas as pd
 
-from benchmarks.config import Check
+from jointbench.benchmarks.config import Check
 
 ROW_FRONT = ["study", "part", "case_id", "seed", "estimator", "metric", "value", "status", "error",
              "wall_time_s", "git_commit"]
@@ -216,7 +216,7 @@ def evidence_counts(comparison: pd.DataFrame) -> dict[str, tuple[int, int]]:
     The headline of a report or of the README is ``reproduction`` alone; the others go beside it.
     A comparison written before the evidence column existed counts under ``unrecorded``.
     """
-    from benchmarks.config import EVIDENCE
+    from jointbench.benchmarks.config import EVIDENCE
 
     if comparison.empty:
         return {}

@@ -16,8 +16,8 @@ from pathlib import Path
 
 import pandas as pd
 
-from benchmarks.cli import main
-from benchmarks.tables import markdown
+from jointbench.benchmarks.cli import main
+from jointbench.benchmarks.tables import markdown
 
 RECORDS = ["z_pf", "z_pf2", "z_df", "z_df2", "z_df3"]
 COMMON = ["--decimate", "10", "--torque-sign", "-1"]          # REKLAB: 100 Hz, torque sign flipped

@@ -3,7 +3,8 @@
 Every estimator is a class with a ``Settings`` dataclass (parsed strictly by
 :func:`jointbench.schema.parse`) and a ``fit(trials) -> Estimate`` method. An estimator sees only
 :class:`~jointbench.types.Trial` objects, never how they were made: this package imports
-``jointbench`` only, never ``sims`` or ``benchmarks``.
+the core of ``jointbench`` only, never ``jointbench.sims`` or ``jointbench.benchmarks``. Installed as
+``jointbench.estimators`` (the repository's ``estimators/`` folder).
 """
 from __future__ import annotations
 

@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.linalg
 
-from estimators._kbr_solve import System, _stack
+from jointbench.estimators._kbr_solve import System, _stack
 
 
 def posterior(system: System, weights: np.ndarray) -> tuple[float, np.ndarray]:

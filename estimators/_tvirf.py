@@ -22,7 +22,7 @@ import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 from threadpoolctl import ThreadpoolController
 
-from estimators import Estimator
+from jointbench.estimators import Estimator
 from jointbench.ensemble import Ensemble
 from jointbench.errors import InputError
 from jointbench.schema import param

@@ -11,9 +11,9 @@ from typing import ClassVar, Literal
 import numpy as np
 import pandas as pd
 
-from estimators import Estimator, register
-from estimators._ewls_band import forgetting_table, pointwise_bands
-from estimators._fsewls_kernels import (  # noqa: F401 - the kernels are public here too
+from jointbench.estimators import Estimator, register
+from jointbench.estimators._ewls_band import forgetting_table, pointwise_bands
+from jointbench.estimators._fsewls_kernels import (  # noqa: F401 - the kernels are public here too
     _IU, highpass, _highpass_sos, highpass_time_constant, svf_pole, _odd_fast_len, svf,
     rk4_coefficients, _products, _forcing, _unpack, _solve_spd3, ewls, ewls_start, ewls_regression,
     _ewls_riccati_rk4)

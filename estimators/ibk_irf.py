@@ -7,8 +7,8 @@ from typing import Literal
 import numpy as np
 import scipy.linalg
 
-from estimators import Estimator, register
-from estimators._twosided import LEVEL, Edges, LagSettings, fit_irf, irf_intervals, lag_samples, t_quantile
+from jointbench.estimators import Estimator, register
+from jointbench.estimators._twosided import LEVEL, Edges, LagSettings, fit_irf, irf_intervals, lag_samples, t_quantile
 from jointbench import differentiators as dd
 from jointbench.errors import InputError
 from jointbench.estimate import IRFEstimate, Intervals, ParametricEstimate

@@ -7,8 +7,8 @@ import numpy as np
 import scipy.linalg
 from scipy import stats
 
-from estimators import Estimator, register
-from estimators.spectral import LEVEL, WelchSettings, frf_estimate, segment_spectra
+from jointbench.estimators import Estimator, register
+from jointbench.estimators.spectral import LEVEL, WelchSettings, frf_estimate, segment_spectra
 from jointbench.errors import InputError
 from jointbench.estimate import Intervals, ParametricEstimate
 from jointbench.schema import param

@@ -3,8 +3,8 @@ from __future__ import annotations
 
 import dataclasses
 
-from estimators import Estimator, register
-from estimators._twosided import LagSettings, estimate_irf
+from jointbench.estimators import Estimator, register
+from jointbench.estimators._twosided import LagSettings, estimate_irf
 from jointbench.estimate import IRFEstimate
 from jointbench.types import Trial
 

@@ -8,8 +8,8 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-from estimators import Estimator, _kbr_posterior as kp, _kbr_solve as ks, register
-from estimators._multisine_lines import multisine_bins
+from jointbench.estimators import Estimator, _kbr_posterior as kp, _kbr_solve as ks, register
+from jointbench.estimators._multisine_lines import multisine_bins
 from jointbench.errors import InputError
 from jointbench.estimate import Estimate, Intervals, Prediction
 from jointbench.schema import param

@@ -6,8 +6,8 @@ from typing import Literal
 
 import numpy as np
 
-from estimators import register
-from estimators._tvirf import EnsembleEstimator, TVLagSettings, fill_invalid, lag_samples, lagged, mdl_solve
+from jointbench.estimators import register
+from jointbench.estimators._tvirf import EnsembleEstimator, TVLagSettings, fill_invalid, lag_samples, lagged, mdl_solve
 from jointbench.ensemble import Ensemble
 from jointbench.errors import InputError
 from jointbench.estimate_tv import TVIRFEstimate

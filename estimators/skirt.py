@@ -26,8 +26,8 @@ from typing import ClassVar, Literal
 import numpy as np
 import pandas as pd
 
-from estimators import Estimator, register
-from estimators._multisine_lines import multisine_bins
+from jointbench.estimators import Estimator, register
+from jointbench.estimators._multisine_lines import multisine_bins
 from jointbench.errors import InputError
 from jointbench.estimate import Estimate, Intervals, Prediction
 from jointbench.schema import param

@@ -7,7 +7,7 @@ from typing import Literal
 import numpy as np
 from scipy import signal as sps
 
-from estimators import Estimator, register
+from jointbench.estimators import Estimator, register
 from jointbench.errors import InputError
 from jointbench.estimate import FRFEstimate, Intervals
 from jointbench.schema import param

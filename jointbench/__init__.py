@@ -1,6 +1,8 @@
 """JointBench core: the small set of shared data types at the bottom of the dependency graph.
 
-``sims``, ``estimators`` and ``benchmarks`` all import from here; this package imports none of them.
+One installed namespace: the repository's folders ``sims/``, ``estimators/`` and ``benchmarks/`` are the
+sub-packages ``jointbench.sims``, ``jointbench.estimators`` and ``jointbench.benchmarks`` (pyproject.toml's
+package-dir). They all import from the core modules here; the core imports none of them.
 """
 from jointbench.errors import ConfigError, InputError, JointBenchError
 from jointbench.types import Trial, Truth

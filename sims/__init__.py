@@ -1,11 +1,11 @@
 """Simulators: descriptions of experiments (joint models, perturbations, apparatus, sensors) kept
 apart from the backends that integrate them. One file per joint model, perturbation or backend,
-registered by decorator. This package imports ``jointbench`` only, never ``estimators`` or
-``benchmarks``.
+registered by decorator. Installed as ``jointbench.sims`` (the repository's ``sims/`` folder); it imports
+the core of ``jointbench`` only, never ``jointbench.estimators`` or ``jointbench.benchmarks``.
 
 Importing it loads every submodule (so that the registries are complete) but no physics engine: the
 ``mujoco`` backend registers itself and imports ``mujoco`` and ``dm_control`` only when it first builds
-a model, so ``import sims`` neither needs nor loads them (tests/test_backend_mujoco.py checks it).
+a model, so ``import jointbench.sims`` neither needs nor loads them (tests/test_backend_mujoco.py checks it).
 """
 from __future__ import annotations
 
@@ -19,6 +19,6 @@ PROFILES = Registry("time-variation profile")
 # `simulate` and `Experiment` are defined in sims/experiment.py and re-exported here.
 import_submodules(__name__, __path__)
 
-from sims.experiment import Experiment, simulate  # noqa: E402
+from jointbench.sims.experiment import Experiment, simulate  # noqa: E402
 
 __all__ = ["BACKENDS", "Experiment", "JOINTS", "PERTURBATIONS", "PROFILES", "simulate"]

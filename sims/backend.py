@@ -26,7 +26,7 @@ from typing import Any, ClassVar, Mapping
 import numpy as np
 
 from jointbench.errors import ConfigError
-from sims import BACKENDS
+from jointbench.sims import BACKENDS
 
 
 @dataclasses.dataclass(frozen=True)

@@ -23,8 +23,8 @@ import scipy.linalg
 from scipy import signal as sps
 
 from jointbench.errors import ConfigError
-from sims import BACKENDS
-from sims.backend import Backend, Response, lti_applies
+from jointbench.sims import BACKENDS
+from jointbench.sims.backend import Backend, Response, lti_applies
 
 
 def closed_loop(joint, apparatus) -> tuple[np.ndarray, np.ndarray]:

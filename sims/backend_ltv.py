@@ -24,9 +24,9 @@ import math
 
 import numpy as np
 
-from sims import BACKENDS
-from sims.apparatus import derivative  # noqa: F401 - re-exported: the drive's derivative, shared with lti
-from sims.backend import Backend, Response
+from jointbench.sims import BACKENDS
+from jointbench.sims.apparatus import derivative  # noqa: F401 - re-exported: the drive's derivative, shared with lti
+from jointbench.sims.backend import Backend, Response
 
 _TAYLOR_TERMS = 12  # at |A tau| <= 0.25 the next term is below 1e-16
 BLOCK = 32          # steps per block of affine_recursion (16 ... 64 were about equally fast at 1e5 steps)

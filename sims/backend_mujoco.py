@@ -4,7 +4,7 @@ The models (:mod:`sims.backend_mujoco_models`) are generated with ``dm_control.m
 ``mujoco.MjModel.from_xml_string`` from its ``to_xml_string()``. One trial is one call of
 ``mujoco.rollout.rollout`` with the whole control sequence (K(t), B(t), the drive input and the
 voluntary torque, one row per step), so the 100 000-odd steps of a trial run in C without a Python
-loop. ``mujoco`` and ``dm_control`` are imported when the backend is first used, never by ``import sims``.
+loop. ``mujoco`` and ``dm_control`` are imported when the backend is first used, never by ``import jointbench.sims``.
 
 Why compile the XML with mujoco rather than use ``dm_control.mjcf.Physics``: dm_control's ``Physics``
 wraps every field of ``MjModel`` by name and breaks whenever MuJoCo renames one (with mujoco 4.0.0 and
@@ -57,10 +57,10 @@ from typing import ClassVar
 import numpy as np
 
 from jointbench.errors import ConfigError
-from sims import BACKENDS
-from sims.apparatus import derivative
-from sims.backend import Backend, Response
-from sims.backend_mujoco_models import CONTROLS, HandleServo, build, mjcf_module
+from jointbench.sims import BACKENDS
+from jointbench.sims.apparatus import derivative
+from jointbench.sims.backend import Backend, Response
+from jointbench.sims.backend_mujoco_models import CONTROLS, HandleServo, build, mjcf_module
 
 _LOG = logging.getLogger(__name__)
 _CACHE: dict = {}          # structural key -> (MjModel, xml)

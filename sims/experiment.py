@@ -25,14 +25,14 @@ from jointbench.errors import ConfigError
 from jointbench.schema import param, parse
 from jointbench.signal import decimate, decimate_fft
 from jointbench.types import Trial, Truth
-from sims import BACKENDS, JOINTS, PERTURBATIONS
-from sims import backend as _backend
-from sims import reuse as _reuse
-from sims.apparatus import APPARATUS_KINDS, Apparatus, PositionServo
-from sims.backend import Response  # noqa: F401 - re-exported (backends import it from here too)
-from sims.gravity import Gravity
-from sims.sensors import Sensor, Sensors
-from sims.voluntary import Voluntary
+from jointbench.sims import BACKENDS, JOINTS, PERTURBATIONS
+from jointbench.sims import backend as _backend
+from jointbench.sims import reuse as _reuse
+from jointbench.sims.apparatus import APPARATUS_KINDS, Apparatus, PositionServo
+from jointbench.sims.backend import Response  # noqa: F401 - re-exported (backends import it from here too)
+from jointbench.sims.gravity import Gravity
+from jointbench.sims.sensors import Sensor, Sensors
+from jointbench.sims.voluntary import Voluntary
 
 #: the keys of an experiment block, in the order they are listed in messages
 EXPERIMENT_KEYS = ("joint", "apparatus", "perturbation", "voluntary", "sensors", "fs_sim", "duration",

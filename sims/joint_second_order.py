@@ -13,7 +13,7 @@ import numpy as np
 
 from jointbench.errors import ConfigError
 from jointbench.schema import param
-from sims import JOINTS
+from jointbench.sims import JOINTS
 
 
 @JOINTS.register("second_order", tags=("lti",))

@@ -14,8 +14,8 @@ import numpy as np
 
 from jointbench.errors import ConfigError
 from jointbench.schema import param
-from sims import JOINTS
-from sims.profile import parse_profile
+from jointbench.sims import JOINTS
+from jointbench.sims.profile import parse_profile
 
 
 def _checked_profiles(obj: Any, names: tuple[str, ...]) -> None:

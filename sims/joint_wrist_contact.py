@@ -15,8 +15,8 @@ import numpy as np
 
 from jointbench.errors import ConfigError
 from jointbench.schema import param
-from sims import JOINTS
-from sims.joint_time_varying import _checked_profiles, _positive
+from jointbench.sims import JOINTS
+from jointbench.sims.joint_time_varying import _checked_profiles, _positive
 
 
 @JOINTS.register("wrist_contact", tags=("ltv", "contact"))

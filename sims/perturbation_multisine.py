@@ -8,7 +8,7 @@ import numpy as np
 
 from jointbench.errors import ConfigError
 from jointbench.schema import param
-from sims import PERTURBATIONS
+from jointbench.sims import PERTURBATIONS
 
 
 @PERTURBATIONS.register("multisine")

@@ -9,7 +9,7 @@ from scipy import signal as sps
 
 from jointbench.errors import ConfigError
 from jointbench.schema import param
-from sims import PERTURBATIONS
+from jointbench.sims import PERTURBATIONS
 
 
 @PERTURBATIONS.register("pralds")

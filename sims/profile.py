@@ -26,7 +26,7 @@ import numpy as np
 
 from jointbench.errors import ConfigError
 from jointbench.schema import param, parse
-from sims import PROFILES
+from jointbench.sims import PROFILES
 
 
 def _period(frequency: float | None, period: float | None, where: str) -> float:

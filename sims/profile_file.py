@@ -17,8 +17,8 @@ import numpy as np
 
 from jointbench.errors import ConfigError
 from jointbench.schema import param
-from sims import PROFILES
-from sims.profile import interpolate
+from jointbench.sims import PROFILES
+from jointbench.sims.profile import interpolate
 
 
 @PROFILES.register("file")

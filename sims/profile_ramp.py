@@ -12,7 +12,7 @@ import numpy as np
 
 from jointbench.errors import ConfigError
 from jointbench.schema import param
-from sims import PROFILES
+from jointbench.sims import PROFILES
 
 
 @PROFILES.register("ramp")

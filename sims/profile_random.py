@@ -13,7 +13,7 @@ import numpy as np
 
 from jointbench.errors import ConfigError
 from jointbench.schema import param
-from sims import PROFILES
+from jointbench.sims import PROFILES
 
 _MAX_LINES = 20_000
 _GRID_PER_LINE = 32      # grid points per line over one period when searching the extremes

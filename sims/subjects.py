@@ -32,8 +32,8 @@ import numpy as np
 from jointbench.errors import ConfigError
 from jointbench.schema import param
 from jointbench.types import Trial
-from sims.experiment import Experiment, simulate
-from sims.profile import Piecewise
+from jointbench.sims.experiment import Experiment, simulate
+from jointbench.sims.profile import Piecewise
 
 
 @dataclasses.dataclass(frozen=True)

@@ -8,7 +8,7 @@ from scipy import signal as sps
 
 from jointbench.errors import ConfigError
 from jointbench.schema import param
-from sims.perturbation_filtered_noise import scale_to_rms
+from jointbench.sims.perturbation_filtered_noise import scale_to_rms
 
 
 @dataclasses.dataclass(frozen=True)

@@ -23,10 +23,10 @@ import numpy as np
 import pytest
 from threadpoolctl import threadpool_limits
 
-from benchmarks.cli import main
+from jointbench.benchmarks.cli import main
 from jointbench.types import Trial
-from sims import simulate
-from sims.experiment import Experiment
+from jointbench.sims import simulate
+from jointbench.sims.experiment import Experiment
 
 LTI_TRUTH = {"I": 0.01, "B": 0.8, "K": 140.0}
 

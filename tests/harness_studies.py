@@ -64,7 +64,7 @@ def cli_env() -> dict:
 
 def cli(*args, timeout: float = 300, **kw) -> subprocess.CompletedProcess:
     """``jointbench ARGS`` in a fresh process."""
-    return subprocess.run([sys.executable, "-m", "benchmarks", *map(str, args)], cwd=REPO, capture_output=True,
+    return subprocess.run([sys.executable, "-m", "jointbench.benchmarks", *map(str, args)], cwd=REPO, capture_output=True,
                           text=True, timeout=timeout, env=cli_env(), **kw)
 
 
@@ -72,7 +72,7 @@ def start(*args, log: Path, prefix: list[str] | None = None) -> subprocess.Popen
     """``jointbench ARGS`` in the background, in its own session (its own process group, as a
     terminal's foreground job), stdout and stderr to ``log``."""
     f = open(log, "w")
-    return subprocess.Popen([*(prefix or []), sys.executable, "-m", "benchmarks", *map(str, args)], cwd=REPO,
+    return subprocess.Popen([*(prefix or []), sys.executable, "-m", "jointbench.benchmarks", *map(str, args)], cwd=REPO,
                             stdout=f, stderr=subprocess.STDOUT, env=cli_env(), start_new_session=True)
 
 

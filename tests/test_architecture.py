@@ -1,22 +1,54 @@
-"""Dependencies flow one way: jointbench <- {sims, estimators} <- benchmarks (CLI on top)."""
+"""Dependencies flow one way: jointbench <- {sims, estimators} <- benchmarks (CLI on top).
+
+The repository's folders ``jointbench/``, ``sims/``, ``estimators/`` and ``benchmarks/`` are one installed
+namespace: ``jointbench``, ``jointbench.sims``, ``jointbench.estimators``, ``jointbench.benchmarks``
+(pyproject.toml's package-dir). Here each folder is a *room*: ``core`` (jointbench/), ``sims``,
+``estimators`` and ``benchmarks``.
+"""
 import ast
+import re
+import tomllib
 from pathlib import Path
 
 import pytest
 
 REPO = Path(__file__).resolve().parents[1]
+#: room -> installed package
+PACKAGE_OF = {"core": "jointbench", "sims": "jointbench.sims", "estimators": "jointbench.estimators",
+              "benchmarks": "jointbench.benchmarks"}
+FOLDER_OF = {"core": "jointbench", "sims": "sims", "estimators": "estimators", "benchmarks": "benchmarks"}
 FORBIDDEN = {
-    "jointbench": {"sims", "estimators", "benchmarks"},
+    "core": {"sims", "estimators", "benchmarks"},
     "sims": {"estimators", "benchmarks"},
     "estimators": {"sims", "benchmarks"},
 }
+CODE = sorted(FOLDER_OF.values()) + ["tests", "docs", "examples", "configs"]
+
+
+def room_of(module: str) -> str | None:
+    """The room a module name belongs to (None: not the project's)."""
+    parts = module.split(".")
+    if parts[0] != "jointbench":
+        return None
+    if len(parts) > 1 and parts[1] in ("sims", "estimators", "benchmarks"):
+        return parts[1]
+    return "core"
+
+
+def _package_of_file(path: Path) -> str:
+    """The installed package a file under one of the code folders belongs to."""
+    rel = path.relative_to(REPO).with_suffix("").parts
+    room = next((r for r, f in FOLDER_OF.items() if f == rel[0]), None)
+    if room is None:
+        return ".".join(rel[:-1])
+    return ".".join([PACKAGE_OF[room], *rel[1:-1]])
 
 
 def imported_modules(path: Path) -> set[str]:
     """Every module ``path`` imports, in full (``from a.b import c`` gives ``a.b`` and ``a.b.c``: c may be
     a module); relative imports resolved against the file's package."""
     tree = ast.parse(path.read_text(), str(path))
-    package = ".".join(path.relative_to(REPO).with_suffix("").parts[:-1])
+    package = _package_of_file(path)
     out = set()
     for node in ast.walk(tree):
         if isinstance(node, ast.Import):
@@ -31,15 +63,15 @@ def imported_modules(path: Path) -> set[str]:
     return out
 
 
-def imported_top_levels(path: Path) -> set[str]:
-    return {m.split(".")[0] for m in imported_modules(path) if m}
+def imported_rooms(path: Path) -> set[str]:
+    return {r for m in imported_modules(path) if m and (r := room_of(m)) is not None}
 
 
-@pytest.mark.parametrize("package", sorted(FORBIDDEN))
-def test_layering(package):
+@pytest.mark.parametrize("room", sorted(FORBIDDEN))
+def test_layering(room):
     bad = []
-    for f in sorted((REPO / package).rglob("*.py")):
-        hit = imported_top_levels(f) & FORBIDDEN[package]
+    for f in sorted((REPO / FOLDER_OF[room]).rglob("*.py")):
+        hit = imported_rooms(f) & FORBIDDEN[room]
         if hit:
             bad.append(f"{f.relative_to(REPO)} imports {sorted(hit)}")
     assert not bad, "\n".join(bad)
@@ -51,11 +83,11 @@ def test_recordings_need_only_the_core():
     room = REPO / "benchmarks" / "recordings"
     files = sorted(room.rglob("*.py"))
     assert files, room
-    inside = ("benchmarks", "benchmarks.recordings")  # the package itself and this room
+    inside = ("jointbench.benchmarks", "jointbench.benchmarks.recordings")  # the package itself and this room
 
     def outside(m: str) -> bool:
-        top = m.split(".")[0]
-        return top == "sims" or (top == "benchmarks" and m not in inside and not m.startswith(inside[1] + "."))
+        room = room_of(m)
+        return room == "sims" or (room == "benchmarks" and m not in inside and not m.startswith(inside[1] + "."))
 
     bad = []
     for f in files:
@@ -67,13 +99,13 @@ def test_recordings_need_only_the_core():
 
 def test_runtime_never_reads_shared():
     """../shared exists only beside developers' checkouts: code outside tests must not refer to it."""
-    for pkg in ("jointbench", "sims", "estimators", "benchmarks"):
+    for pkg in FOLDER_OF.values():
         for f in (REPO / pkg).rglob("*.py"):
             assert "shared/data" not in f.read_text(), f"{f} refers to ../shared"
 
 
 def test_modules_stay_small():
-    big = [f"{f.relative_to(REPO)}: {n}" for pkg in ("jointbench", "sims", "estimators", "benchmarks")
+    big = [f"{f.relative_to(REPO)}: {n}" for pkg in FOLDER_OF.values()
            for f in (REPO / pkg).rglob("*.py") if (n := len(f.read_text().splitlines())) > 500]
     assert not big, big
 
@@ -81,10 +113,47 @@ def test_modules_stay_small():
 def test_estimator_index_matches_the_registry():
     """The registry knows the estimators from their source (``jointbench estimate --list`` imports none
     of them); importing every module must register exactly those names, tags and summaries."""
-    import estimators
+    from jointbench import estimators
 
     known = {n: (estimators.REGISTRY.tags(n), estimators.REGISTRY.summary(n)) for n in estimators.REGISTRY.names()}
     estimators.import_all()
     loaded = {n: (estimators.REGISTRY._tags[n], (estimators.REGISTRY._items[n].__doc__ or "").strip().splitlines()[0])
               for n in estimators.REGISTRY._items}
     assert known == loaded
+
+
+BARE = re.compile(r"^\s*(?:import|from)\s+(sims|estimators|benchmarks)\b", re.M)
+
+
+def test_no_bare_top_level_imports():
+    """One installed namespace: ``import sims`` (or estimators, benchmarks) works only from the checkout's
+    own folder and would load a second copy of every module beside ``jointbench.sims``; every import
+    names ``jointbench.``."""
+    bad = []
+    for folder in CODE:
+        for f in sorted((REPO / folder).rglob("*.py")):
+            bad += [f"{f.relative_to(REPO)}: {m.group(0).strip()}" for m in BARE.finditer(f.read_text())]
+    assert not bad, "\n".join(bad)
+
+
+def test_a_bare_import_is_caught():
+    """The check above is not vacuous: it flags the import forms the move rewrote."""
+    for line in ("import sims", "from estimators import make", "    import benchmarks.study as s",
+                 "from sims.profile import X"):
+        assert BARE.search(line), line
+    for line in ("from jointbench import sims", "import jointbench.sims as sims", "x = 'benchmarks'"):
+        assert not BARE.search(line), line
+
+
+def test_the_wheel_installs_one_top_level_package():
+    """pyproject.toml installs every package under ``jointbench`` and maps each code folder into it."""
+    cfg = tomllib.loads((REPO / "pyproject.toml").read_text())["tool"]["setuptools"]
+    assert all(p == "jointbench" or p.startswith("jointbench.") for p in cfg["packages"]), cfg["packages"]
+    dirs = cfg["package-dir"]
+    for room, folder in FOLDER_OF.items():
+        assert dirs[PACKAGE_OF[room]] == folder
+    # every sub-package of a code folder is listed (a new folder would otherwise be left out of the wheel)
+    for room, folder in FOLDER_OF.items():
+        for init in (REPO / folder).rglob("__init__.py"):
+            sub = ".".join([PACKAGE_OF[room], *init.parent.relative_to(REPO / folder).parts])
+            assert sub in cfg["packages"], f"{init.parent} is not installed: add {sub!r} to pyproject's packages"

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from jointbench.errors import ConfigError
-from sims import Experiment, simulate
+from jointbench.sims import Experiment, simulate
 from tests.test_sims import SPEC as SERVO_SPEC   # Westwick & Perreault's experiment (Sec. IV)
 
 mujoco = pytest.importorskip("mujoco")
@@ -62,7 +62,7 @@ def both(spec: dict, seed: int = 0):
 
 # ------------------------------------------------------------------------------ the library choice
 def test_import_sims_loads_no_physics_engine():
-    code = ("import sys, sims, benchmarks.runner, benchmarks.cli; "
+    code = ("import sys, jointbench.sims as sims, jointbench.benchmarks.runner, jointbench.benchmarks.cli; "
             "assert 'mujoco' in sims.BACKENDS; "
             "print(sorted(m for m in ('mujoco', 'dm_control') if m in sys.modules))")
     out = subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True, text=True, check=True)
@@ -72,7 +72,7 @@ def test_import_sims_loads_no_physics_engine():
 def test_models_are_built_with_mjcf_and_compiled_by_mujoco():
     """The choice (sims/backend_mujoco.py): dm_control.mjcf writes the XML, mujoco compiles it; nothing
     uses dm_control's Physics, which breaks whenever MuJoCo renames a model field."""
-    from sims.backend_mujoco import compiled
+    from jointbench.sims.backend_mujoco import compiled
 
     for spec in (SERVO_SPEC, XU, WRIST):
         e = Experiment.from_mapping(spec)
@@ -94,7 +94,7 @@ def test_mujoco_version_supports_what_the_backend_uses():
 
 # ------------------------------------------------------------------------ the models match their config
 def test_servo_and_limb_parameters_come_from_the_config():
-    from sims.backend_mujoco import compiled
+    from jointbench.sims.backend_mujoco import compiled
 
     e = Experiment.from_mapping(SERVO_SPEC)
     m, _ = compiled(e)
@@ -109,7 +109,7 @@ def test_servo_and_limb_parameters_come_from_the_config():
 
 
 def test_wrist_contact_is_a_tendon_with_the_contact_parameters():
-    from sims.backend_mujoco import compiled
+    from jointbench.sims.backend_mujoco import compiled
 
     e = Experiment.from_mapping(WRIST)
     m, _ = compiled(e)
@@ -205,7 +205,7 @@ def test_gravity_torque_is_m_g_l_sin_and_the_posture_is_held(posture):
     """The engine's gravity on the forearm equals -m g l sin(posture + theta) along the trajectory (the
     backend's truth signal is computed independently of the engine), and the subject's compensation
     keeps the operating point at theta = 0."""
-    from sims.backend_mujoco import MujocoBackend
+    from jointbench.sims.backend_mujoco import MujocoBackend
 
     e = gravity_experiment(posture)
     n = e.n_sim
@@ -267,7 +267,7 @@ def test_unstable_step_is_refused_before_the_run_with_the_largest_stable_step():
 def test_divergence_during_the_run_fails_loudly_never_zeros():
     """If an unstable model reaches the engine anyway, MuJoCo resets it to zero with only a warning: the
     backend reads data.warning after the trial and raises, naming the largest stable step."""
-    from sims.backend_mujoco import MujocoBackend, SimulationDiverged
+    from jointbench.sims.backend_mujoco import MujocoBackend, SimulationDiverged
 
     e = Experiment.from_mapping(SERVO_SPEC, "where", backend="mujoco")
     bad = object.__new__(Experiment)       # skip validation: the check would refuse it

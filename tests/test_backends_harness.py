@@ -8,11 +8,11 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from benchmarks import backends, cli
-from benchmarks.config import load_study
-from benchmarks.harness.cache import case_key
-from benchmarks.runner import expand
-from benchmarks.study import run_study
+from jointbench.benchmarks import backends, cli
+from jointbench.benchmarks.config import load_study
+from jointbench.benchmarks.harness.cache import case_key
+from jointbench.benchmarks.runner import expand
+from jointbench.benchmarks.study import run_study
 from jointbench.errors import ConfigError
 from tests.golden import check_golden
 from tests.test_harness import write_study
@@ -138,7 +138,7 @@ def test_the_study_report_shows_mujoco_beside_every_check(mujoco_runs):
 
 
 def test_cli_backend_option_writes_the_backend_folder(tmp_path, monkeypatch, capsys):
-    import benchmarks.study as study_mod
+    import jointbench.benchmarks.study as study_mod
 
     seen = {}
 
@@ -177,7 +177,7 @@ def test_apparatus_study_smoke(tmp_path):
 
 def test_simulation_timing_counts_computed_responses_per_backend():
     """Trials served a shared response are counted as trials, not as computed responses (hand-checkable)."""
-    from benchmarks.backends import timing
+    from jointbench.benchmarks.backends import timing
 
     cases = pd.DataFrame({"case_id": ["a", "a", "b", "c", "d"], "backend": ["analytic", "analytic", "analytic", "mujoco", "x"],
                           "part": ["p", "p", "q", "p", "p"], "sim_time_s": [0.3, 0.3, 0.1, 2.0, 0.0],

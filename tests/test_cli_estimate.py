@@ -10,10 +10,10 @@ import pandas as pd
 import pytest
 from scipy import signal as sps
 
-import estimators
+from jointbench import estimators
 from tests.multisine_data import multisine_impedance_trial
-from benchmarks.recordings import cli as cli_estimate
-from estimators import Estimator
+from jointbench.benchmarks.recordings import cli as cli_estimate
+from jointbench.estimators import Estimator
 from jointbench.ensemble import Ensemble
 from jointbench.errors import JointBenchError
 from jointbench.estimate import FRFEstimate, IRFEstimate, ParametricEstimate

@@ -4,7 +4,7 @@ import pandas as pd
 import pytest
 from scipy import io as sio
 
-from benchmarks.recordings import io_ensemble as io
+from jointbench.benchmarks.recordings import io_ensemble as io
 from jointbench.ensemble import Ensemble
 from jointbench.errors import InputError
 from jointbench.estimate_tv import TVIRFEstimate

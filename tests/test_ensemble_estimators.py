@@ -2,9 +2,9 @@
 import numpy as np
 import pytest
 
-import estimators
-from estimators._tvirf import mdl_solve
-from estimators.guarin import GuarinEstimate, time_basis
+from jointbench import estimators
+from jointbench.estimators._tvirf import mdl_solve
+from jointbench.estimators.guarin import GuarinEstimate, time_basis
 from jointbench.ensemble import Ensemble, data_kind, valid_mask
 from jointbench.errors import InputError
 from jointbench.estimate import IRFEstimate

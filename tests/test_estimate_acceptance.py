@@ -17,7 +17,7 @@ import pandas as pd
 import pytest
 from scipy import signal as sps
 
-import estimators
+from jointbench import estimators
 from tests.estimate_data import (LTI_TRUTH, gated_wrist, lti_ankle, one_blas_thread,  # noqa: F401 (autouse)
                                   run, save, tv_elbow)
 

@@ -6,8 +6,8 @@ import pytest
 from scipy import linalg as sla
 from scipy import signal as sps
 
-import estimators
-from estimators import REGISTRY
+from jointbench import estimators
+from jointbench.estimators import REGISTRY
 from jointbench.differentiators import impedance_irf
 from jointbench.ensemble import Ensemble
 from jointbench.errors import ConfigError, InputError
@@ -222,7 +222,7 @@ def test_irf_ls_exact_without_margins(edges):
 
 
 def test_irf_ls_handles_many_blocks(monkeypatch):
-    import estimators._twosided as ts
+    import jointbench.estimators._twosided as ts
 
     h, tr = random_irf_data(seed=4, n=3000, m1=4, m2=6, margin=0)
     monkeypatch.setattr(ts, "_BLOCK_VALUES", 200)  # 18-row QR blocks

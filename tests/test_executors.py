@@ -5,7 +5,7 @@ from __future__ import annotations
 import pandas as pd
 import pytest
 
-from benchmarks.study import run_study
+from jointbench.benchmarks.study import run_study
 from tests.harness_studies import tiny_grid_part, tiny_study
 
 #: columns and metrics that are timings (they differ from run to run); everything else must be identical
@@ -38,9 +38,9 @@ def test_process_pool_rows_equal_serial(study, serial, tmp_path):
 
 def test_local_dask_cluster_rows_equal_serial(study, serial, tmp_path):
     pytest.importorskip("dask.distributed")
-    from benchmarks.harness.dask_executor import DaskExecutor
-    from benchmarks.harness.fingerprint import code_hash
-    from benchmarks.harness.pool import run_task
+    from jointbench.benchmarks.harness.dask_executor import DaskExecutor
+    from jointbench.benchmarks.harness.fingerprint import code_hash
+    from jointbench.benchmarks.harness.pool import run_task
 
     ex = DaskExecutor(workers=2)
     try:
@@ -60,7 +60,7 @@ def test_local_dask_cluster_rows_equal_serial(study, serial, tmp_path):
 
 
 def test_a_worker_with_other_code_refuses(study):
-    from benchmarks.harness.pool import run_task
+    from jointbench.benchmarks.harness.pool import run_task
 
     with pytest.raises(RuntimeError, match="runs other code"):
         run_task([], code_hash="0" * 16)

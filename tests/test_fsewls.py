@@ -12,9 +12,9 @@ import math
 import numpy as np
 import pytest
 
-import estimators
-from benchmarks.metrics import vafv
-from estimators.fsewls import (FSEWLS, FSEWLSEstimate, _IU, _ewls_riccati_rk4, _forcing, _solve_spd3, _unpack,
+from jointbench import estimators
+from jointbench.benchmarks.metrics import vafv
+from jointbench.estimators.fsewls import (FSEWLS, FSEWLSEstimate, _IU, _ewls_riccati_rk4, _forcing, _solve_spd3, _unpack,
                                ewls, highpass, highpass_time_constant, rk4_coefficients, svf, svf_pole)
 from jointbench.errors import ConfigError, InputError
 from jointbench.types import Trial
@@ -323,7 +323,7 @@ def test_settings_are_frozen_and_documented():
 def test_svf_lowpass_form_drops_the_differentiator():
     """svf_form='lowpass': L = a^n/(s+a)^n, so L theta of a constant is the constant (the printed form
     s^(n-2) a^n/(s+a)^n has a zero at s = 0 and removes it)."""
-    from estimators.fsewls import svf
+    from jointbench.estimators.fsewls import svf
     fs, n = 1000.0, 20000
     theta = np.full(n, 0.3)
     mid = slice(n // 4, 3 * n // 4)

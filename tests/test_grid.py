@@ -6,10 +6,10 @@ import pandas as pd
 import pytest
 import yaml
 
-from benchmarks.config import CONFIGS, load_study
-from benchmarks.grid import stiffness_profile, Stiffness
-from benchmarks.runner import expand_study
-from benchmarks.study import OverBudget, run_study
+from jointbench.benchmarks.config import CONFIGS, load_study
+from jointbench.benchmarks.grid import stiffness_profile, Stiffness
+from jointbench.benchmarks.runner import expand_study
+from jointbench.benchmarks.study import OverBudget, run_study
 from jointbench.errors import ConfigError
 from tests.harness_studies import cli, tiny_grid_part, tiny_study
 
@@ -159,7 +159,7 @@ def test_set_on_a_grid_axis(tmp_path):
 def test_bad_set_is_one_line_naming_the_path(override, words):
     with pytest.raises(ConfigError) as exc:
         load_study("vanderuit2018_table1", overrides=[override])
-        from benchmarks.runner import expand
+        from jointbench.benchmarks.runner import expand
 
         expand(load_study("vanderuit2018_table1", overrides=[override]))
     assert words in str(exc.value) and "\n" not in str(exc.value), str(exc.value)

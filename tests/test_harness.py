@@ -8,11 +8,11 @@ import pandas as pd
 import pytest
 import yaml
 
-from benchmarks import protocols
-from benchmarks.config import CONFIGS, Check, load_study
-from benchmarks.runner import Cache, expand, run_cases
-from benchmarks.study import run_study
-from benchmarks.tables import compare
+from jointbench.benchmarks import protocols
+from jointbench.benchmarks.config import CONFIGS, Check, load_study
+from jointbench.benchmarks.runner import Cache, expand, run_cases
+from jointbench.benchmarks.study import run_study
+from jointbench.benchmarks.tables import compare
 from jointbench.errors import ConfigError
 from tests.harness_studies import study_copy
 
@@ -92,7 +92,7 @@ def test_same_seed_same_numbers_serial_and_parallel(tmp_path):
 
 
 def test_cache_serves_finished_cases(tmp_path, monkeypatch):
-    from benchmarks.harness import fingerprint
+    from jointbench.benchmarks.harness import fingerprint
 
     cases = expand(load_study("westwick2012"), ["fig4"])
     cache = Cache(tmp_path)
@@ -159,7 +159,7 @@ def test_trend_and_difference_checks():
 ])
 def test_bad_check_kinds(tmp_path, check, message):
     import yaml
-    from benchmarks.config import load_checks
+    from jointbench.benchmarks.config import load_checks
     c = {"id": "x", "part": "p", "description": "d", "source": "s", "published": 1,
          "select": {"metric": "m"}, "evidence": "reproduction", "tolerance_reason": "why", **check}
     if check.get("kind") == "value":
@@ -191,8 +191,8 @@ def test_partial_run_keeps_other_parts_from_cache(tmp_path):
 
 def test_report_section_puts_a_part_under_interpretation():
     import dataclasses as dc
-    from benchmarks import report
-    from benchmarks.figures import PartReport
+    from jointbench.benchmarks import report
+    from jointbench.benchmarks.figures import PartReport
     s = load_study("westwick2012")
     parts = dict(s.parts)
     parts["fig2"] = dc.replace(parts["fig2"], report_section="interpretation")
@@ -215,7 +215,7 @@ def test_bad_report_section(tmp_path):
 # ---------------------------------------------------------------- issue 11: one clear line, exit 2
 def one_line_error(capsys, argv: list[str]) -> str:
     """Run the CLI in-process; it must exit 2 with exactly one line on stderr (no traceback)."""
-    from benchmarks.cli import main
+    from jointbench.benchmarks.cli import main
 
     try:
         code = main([str(a) for a in argv])
@@ -252,7 +252,7 @@ def test_duplicate_part_name_blames_the_study_file(tmp_path, capsys):
 
 
 def test_yaml_merge_keys_may_override(tmp_path):
-    from benchmarks.config import _load_yaml
+    from jointbench.benchmarks.config import _load_yaml
 
     p = tmp_path / "m.yaml"
     p.write_text("base: &b {x: 1, y: 2}\nderived:\n  <<: *b\n  x: 3\n")

@@ -12,12 +12,12 @@ import textwrap
 from pathlib import Path
 
 
-from benchmarks.config import load_study
-from benchmarks.harness import fingerprint
-from benchmarks.harness.cache import Cache, case_key
-from benchmarks.harness.history import History
-from benchmarks.runner import expand, run_cases
-from benchmarks.study import run_study
+from jointbench.benchmarks.config import load_study
+from jointbench.benchmarks.harness import fingerprint
+from jointbench.benchmarks.harness.cache import Cache, case_key
+from jointbench.benchmarks.harness.history import History
+from jointbench.benchmarks.runner import expand, run_cases
+from jointbench.benchmarks.study import run_study
 from tests.harness_studies import REPO, tiny_study
 
 
@@ -60,7 +60,7 @@ def test_canonical_text_survives_a_json_round_trip():
 def test_a_case_with_number_keys_is_served_from_the_cache(tmp_path):
     """vanderuit2018_table1's params map SNR levels (numbers) to variance ratios: its entries must verify
     (they did not, and every run recomputed its 240 cases)."""
-    from benchmarks.harness.case import CaseResult
+    from jointbench.benchmarks.harness.case import CaseResult
 
     case = expand(load_study(tiny_study(tmp_path / "cfg", seeds=1)))[0]
     case = dataclasses.replace(case, params={"levels": {5: 0.11, 10: 0.034}})
@@ -106,7 +106,7 @@ def test_every_module_a_case_loads_is_hashed(tmp_path):
     case = expand(load_study(tiny_study(tmp_path, seeds=1)))[0]
     code = textwrap.dedent("""
         import json, sys
-        from benchmarks.harness.case import Case, run_case
+        from jointbench.benchmarks.harness.case import Case, run_case
         res = run_case(Case(**json.loads(sys.argv[1])))
         assert res.status == "ok", res.error
         print(json.dumps(sorted(m.__file__ for m in list(sys.modules.values()) if getattr(m, "__file__", None))))
@@ -127,8 +127,8 @@ def test_history_records_runs_and_a_crash_mid_write_leaves_no_half_run(tmp_path)
     run = run_study(study, out_root=out, serial=True, progress=False)
     code = textwrap.dedent(f"""
         import os
-        from benchmarks.harness.history import History
-        from benchmarks.study import run_study
+        from jointbench.benchmarks.harness.history import History
+        from jointbench.benchmarks.study import run_study
         h = History.finish_run
         def crash(self, run_id, status, results, *a, **k):
             real = self.db.executemany
@@ -160,7 +160,7 @@ def test_history_records_runs_and_a_crash_mid_write_leaves_no_half_run(tmp_path)
 
 
 def test_history_and_diff_commands(tmp_path, capsys, monkeypatch):
-    from benchmarks.cli import main
+    from jointbench.benchmarks.cli import main
 
     study = tiny_study(tmp_path / "cfg", seeds=2)
     out = tmp_path / "out"
@@ -186,7 +186,7 @@ def test_history_and_diff_commands(tmp_path, capsys, monkeypatch):
 
 
 def test_cache_prune_keeps_what_recent_runs_used(tmp_path, capsys, monkeypatch):
-    from benchmarks.cli import main
+    from jointbench.benchmarks.cli import main
 
     study = tiny_study(tmp_path / "cfg", seeds=2)
     out = tmp_path / "out"
@@ -201,7 +201,7 @@ def test_cache_prune_keeps_what_recent_runs_used(tmp_path, capsys, monkeypatch):
 
 
 def test_unknown_history_is_one_line(tmp_path, capsys):
-    from benchmarks.cli import main
+    from jointbench.benchmarks.cli import main
 
     assert main(["history", "--out", str(tmp_path)]) == 2
     assert "no run history yet" in capsys.readouterr().err
@@ -232,8 +232,8 @@ def test_regenerated_reports_do_not_make_a_run_dirty(tmp_path, monkeypatch):
 def test_a_version_1_history_gains_the_evidence_of_each_check(tmp_path):
     """Histories written before checks recorded their kind of evidence are upgraded in place: old
     runs keep their checks (evidence NULL, shown as 'unrecorded'), new runs record it."""
-    from benchmarks.harness.compare import compare_runs
-    from benchmarks.harness.history import SCHEMA
+    from jointbench.benchmarks.harness.compare import compare_runs
+    from jointbench.benchmarks.harness.history import SCHEMA
 
     path = tmp_path / "history.sqlite"
     v1 = SCHEMA.replace("note TEXT, evidence TEXT, PRIMARY KEY", "note TEXT, PRIMARY KEY")

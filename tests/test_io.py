@@ -7,7 +7,7 @@ import pandas as pd
 import pytest
 from scipy import io as sio
 
-from benchmarks.recordings import io
+from jointbench.benchmarks.recordings import io
 from jointbench.errors import InputError
 from jointbench.types import Trial
 

@@ -10,9 +10,9 @@ import dataclasses
 import numpy as np
 import pytest
 
-import estimators
-from estimators import _kbr_solve as ks
-from estimators.kbr import KBR, KBREstimate
+from jointbench import estimators
+from jointbench.estimators import _kbr_solve as ks
+from jointbench.estimators.kbr import KBR, KBREstimate
 from jointbench.errors import ConfigError, InputError
 from jointbench.types import Trial
 

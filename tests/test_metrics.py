@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from benchmarks.metrics import relative_error, rmse, vaf, vafm, vafv
+from jointbench.benchmarks.metrics import relative_error, rmse, vaf, vafm, vafv
 
 
 def test_vaf_hand_values():

@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from benchmarks.metrics import (bias, random_error, rise_time, step_rise_time, steps, stiffness_vaf,
+from jointbench.benchmarks.metrics import (bias, random_error, rise_time, step_rise_time, steps, stiffness_vaf,
                                 total_error)
 
 

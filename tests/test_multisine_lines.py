@@ -3,8 +3,8 @@ skirt and KBR both use it: same lines found, same inputs refused, whichever esti
 import numpy as np
 import pytest
 
-import estimators
-from estimators._multisine_lines import MAX_LEAKAGE, excited_bins, multisine_bins
+from jointbench import estimators
+from jointbench.estimators._multisine_lines import MAX_LEAKAGE, excited_bins, multisine_bins
 from jointbench.errors import InputError
 from jointbench.types import Trial
 from tests.test_skirt import FS, LINES, N, T, lti_trial

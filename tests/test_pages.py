@@ -9,12 +9,12 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from benchmarks import report
-from benchmarks.config import load_study
-from benchmarks.figures import PartReport
-from benchmarks.harness.pages import (Code, Figure, Items, Page, Paragraph, Section, inline_html, markdown_table,
+from jointbench.benchmarks import report
+from jointbench.benchmarks.config import load_study
+from jointbench.benchmarks.figures import PartReport
+from jointbench.benchmarks.harness.pages import (Code, Figure, Items, Page, Paragraph, Section, inline_html, markdown_table,
                                       table, to_html, to_markdown)
-from benchmarks.tables import compare
+from jointbench.benchmarks.tables import compare
 
 PNG = bytes.fromhex("89504e470d0a1a0a0000000d4948445200000001000000010806000000"
                     "1f15c4890000000d49444154789c6360f8cfc0f01f0005000201e5276a4a0000000049454e44ae426082")

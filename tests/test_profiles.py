@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from jointbench.errors import ConfigError
-from sims import PROFILES, Experiment, simulate
-from sims.joint_time_varying import TimeVaryingJoint
-from sims.profile import parse_profile
+from jointbench.sims import PROFILES, Experiment, simulate
+from jointbench.sims.joint_time_varying import TimeVaryingJoint
+from jointbench.sims.profile import parse_profile
 
 T = np.linspace(-5.0, 130.0, 270_001)          # beyond one period of every case below, 0.5 ms apart
 

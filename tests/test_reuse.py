@@ -7,11 +7,11 @@ import dataclasses
 import numpy as np
 import pytest
 
-import sims
-from benchmarks.config import load_study
-from benchmarks.harness.case import run_case, run_group
-from benchmarks.runner import expand, group_cases
-from sims.reuse import reuse_responses
+from jointbench import sims
+from jointbench.benchmarks.config import load_study
+from jointbench.benchmarks.harness.case import run_case, run_group
+from jointbench.benchmarks.runner import expand, group_cases
+from jointbench.sims.reuse import reuse_responses
 from tests.harness_studies import study_copy
 
 

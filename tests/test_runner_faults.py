@@ -29,7 +29,7 @@ def history_cases(out: Path) -> list[tuple[int, str]]:
 
 
 def run_statuses(out: Path) -> list[str]:
-    from benchmarks.harness.history import History
+    from jointbench.benchmarks.harness.history import History
 
     with History(out / "history.sqlite") as h:        # opening marks dead 'running' runs as crashed
         return list(h.runs(limit=None).sort_values("id")["status"])
@@ -219,7 +219,7 @@ def test_pool_workers_exit_when_the_parent_is_killed(tmp_path, mode):
     """Both mechanisms on their own: PR_SET_PDEATHSIG (Linux) and the parent watchdog (portable)."""
     code = textwrap.dedent(f"""
         import time
-        from benchmarks.harness import pool
+        from jointbench.benchmarks.harness import pool
         if {mode == "watchdog only"!r}:
             pool.PR_SET_PDEATHSIG = 0x7FFF      # an invalid prctl option: prctl fails, the watchdog remains
         p = pool.WorkerPool(2)

@@ -13,11 +13,11 @@ import pandas as pd
 import pytest
 import yaml
 
-import estimators
-from benchmarks import report, status
-from benchmarks.config import CONFIGS, EVIDENCE, REPO, Check, load_checks, load_study
-from benchmarks.protocols import Context
-from benchmarks.tables import (DIRTY_BANNER, compare, evidence_counts, headline, method_specific, stamp,
+from jointbench import estimators
+from jointbench.benchmarks import report, status
+from jointbench.benchmarks.config import CONFIGS, EVIDENCE, REPO, Check, load_checks, load_study
+from jointbench.benchmarks.protocols import Context
+from jointbench.benchmarks.tables import (DIRTY_BANNER, compare, evidence_counts, headline, method_specific, stamp,
                                swap_estimators, swap_survival)
 from jointbench.errors import ConfigError
 from jointbench.signal import decimate_fft
@@ -188,8 +188,8 @@ def test_report_from_a_dirty_tree_says_so_loudly():
 
 
 def test_cli_summary_line_is_the_headline(tmp_path, capsys, monkeypatch):
-    from benchmarks import cli
-    import benchmarks.study as study_mod
+    from jointbench.benchmarks import cli
+    import jointbench.benchmarks.study as study_mod
 
     orig = study_mod.run_study
     monkeypatch.setattr(study_mod, "run_study",
@@ -380,7 +380,7 @@ def test_ibk_spectral_weights_the_fit_by_coherence_squared():
 def test_fsewls_settings_reach_the_ewls_and_its_start():
     """FSEWLS's output equals eq. 6 integrated independently (plain RK4 in P, Theta) from P(0) = the inverse
     of sum(Phi Phi^T) dt over init_window and Theta(0) the least-squares fit there, with lambda as set."""
-    from estimators.fsewls import _ewls_riccati_rk4, svf, svf_pole
+    from jointbench.estimators.fsewls import _ewls_riccati_rk4, svf, svf_pole
 
     fs, n = 1000.0, 4000
     rng = np.random.default_rng(2)
@@ -410,9 +410,9 @@ def test_fsewls_settings_reach_the_ewls_and_its_start():
 def test_vaf_optim_is_against_the_noise_free_torque():
     """In the van de Ruit protocol, VAF_optim compares the prediction with the noise-free output, VAF_self
     with the noisy one: a model predicting the noise-free torque exactly has VAF_optim 100 %."""
-    from benchmarks.protocols.vanderuit2018 import Table1Params, table1
+    from jointbench.benchmarks.protocols.vanderuit2018 import Table1Params, table1
     from jointbench.schema import parse
-    import sims
+    from jointbench import sims
 
     s = load_study("vanderuit2018_table1")
     part = s.parts["table1"]
@@ -467,7 +467,7 @@ def test_golden_pin_fails_on_a_flip_and_updates_only_with_a_reason(tmp_path, mon
 
 # ------------------------------------------------------------------------------------ new metrics
 def test_rule_of_thumb_is_one_decade_with_the_pass_band_snr():
-    from benchmarks.protocols.westwick2012 import rule_of_thumb_decades
+    from jointbench.benchmarks.protocols.westwick2012 import rule_of_thumb_decades
 
     assert rule_of_thumb_decades(5.0, 2, 40.0) == pytest.approx(np.log10((1e4 - 1) ** 0.25), rel=1e-12)
     assert rule_of_thumb_decades(5.0, 1, 40.0) == pytest.approx(2.0, abs=1e-4)      # -20 dB/decade: 2 decades
@@ -476,7 +476,7 @@ def test_rule_of_thumb_is_one_decade_with_the_pass_band_snr():
 
 
 def test_shape_difference_is_scale_free_and_sees_shape():
-    from benchmarks.protocols.westwick2012 import shape_difference
+    from jointbench.benchmarks.protocols.westwick2012 import shape_difference
 
     lags = np.arange(-50, 51)
     h = np.exp(-(lags / 10.0) ** 2) * np.cos(lags / 4.0)
@@ -489,7 +489,7 @@ def test_shape_difference_is_scale_free_and_sees_shape():
 
 
 def test_coherence_band_is_the_contiguous_band_around_the_maximum():
-    from benchmarks.protocols.generic import coherence_band
+    from jointbench.benchmarks.protocols.generic import coherence_band
 
     f = np.arange(10.0)
     c = np.array([0.2, 0.95, 0.5, 0.92, 0.99, 0.95, 0.91, 0.3, 0.97, 0.1])
@@ -499,8 +499,8 @@ def test_coherence_band_is_the_contiguous_band_around_the_maximum():
 
 def test_exact_derivative_control_leaves_only_the_ewls():
     """Fed the exact perturbed response, the EWLS's regression is exact and slow variations are tracked."""
-    import sims
-    from benchmarks.protocols import xu1998 as X
+    from jointbench import sims
+    from jointbench.benchmarks.protocols import xu1998 as X
     from jointbench.schema import parse
 
     part = load_study("xu1998").parts["fig2"]
@@ -524,7 +524,7 @@ def test_dirty_means_a_change_that_can_move_a_result(tmp_path):
     between studies); a change to code or configs does."""
     import subprocess
 
-    from benchmarks.harness.fingerprint import git_commit
+    from jointbench.benchmarks.harness.fingerprint import git_commit
 
     def git(*args):
         subprocess.run(["git", "-c", "user.name=t", "-c", "user.email=t@t", *args], cwd=tmp_path, check=True,

@@ -7,14 +7,14 @@ from scipy import signal as sps
 
 from jointbench.errors import ConfigError
 from jointbench.types import Trial
-from sims import BACKENDS, JOINTS, PERTURBATIONS, Experiment, simulate
-from sims.apparatus import PositionServo, TorqueDrive
-from sims.backend_lti import LTIBackend
-from sims.experiment import Acquisition
-from sims.joint_second_order import SecondOrderJoint
-from sims.perturbation_filtered_noise import FilteredNoise
-from sims.sensors import AngleSensor, Sensors, SensorFilter, TorqueSensor
-from sims.voluntary import Voluntary
+from jointbench.sims import BACKENDS, JOINTS, PERTURBATIONS, Experiment, simulate
+from jointbench.sims.apparatus import PositionServo, TorqueDrive
+from jointbench.sims.backend_lti import LTIBackend
+from jointbench.sims.experiment import Acquisition
+from jointbench.sims.joint_second_order import SecondOrderJoint
+from jointbench.sims.perturbation_filtered_noise import FilteredNoise
+from jointbench.sims.sensors import AngleSensor, Sensors, SensorFilter, TorqueSensor
+from jointbench.sims.voluntary import Voluntary
 
 ELBOW = SecondOrderJoint(I=0.171, B=1.22, K=53.5)
 
@@ -168,7 +168,7 @@ def test_lti_keeps_the_servo_damping(damping):
     """The seam of the two apparatus interfaces: forcing backend 'lti' on a damped servo used to drop the
     damping silently (torque off by about 14 times its rms). Both analytic backends now build their input
     from the one Coupling: lti agrees with ltv, and damping changes the torque."""
-    from sims.backend_ltv import LTVBackend
+    from jointbench.sims.backend_ltv import LTVBackend
 
     fs, n = 5000.0, 40000
     d, tv = random_inputs(n, fs)

@@ -7,17 +7,17 @@ from scipy.integrate import solve_ivp
 
 from jointbench.errors import ConfigError
 from jointbench.signal import decimate_fft
-from sims import JOINTS, PERTURBATIONS, PROFILES, Experiment, simulate
-from sims.apparatus import Handle, PositionServo, TorqueDrive
-from sims.backend_lti import LTIBackend
-from sims.backend_ltv import LTVBackend, affine_recursion, derivative, step_matrices
-from sims.joint_second_order import SecondOrderJoint
-from sims.joint_time_varying import TimeVaryingJoint
-from sims.joint_wrist_contact import WristContactJoint
-from sims.perturbation_multisine import Multisine
-from sims.perturbation_prbs import PRBS
-from sims.profile import parse_profile
-from sims.sensors import SensorFilter
+from jointbench.sims import JOINTS, PERTURBATIONS, PROFILES, Experiment, simulate
+from jointbench.sims.apparatus import Handle, PositionServo, TorqueDrive
+from jointbench.sims.backend_lti import LTIBackend
+from jointbench.sims.backend_ltv import LTVBackend, affine_recursion, derivative, step_matrices
+from jointbench.sims.joint_second_order import SecondOrderJoint
+from jointbench.sims.joint_time_varying import TimeVaryingJoint
+from jointbench.sims.joint_wrist_contact import WristContactJoint
+from jointbench.sims.perturbation_multisine import Multisine
+from jointbench.sims.perturbation_prbs import PRBS
+from jointbench.sims.profile import parse_profile
+from jointbench.sims.sensors import SensorFilter
 
 XU = {
     "joint": {"model": "time_varying", "I": 0.06, "damping_ratio": 0.3,
@@ -113,7 +113,7 @@ def test_step_matrices_equal_expm():
 
 def test_step_coefficients_shortcuts_are_bit_identical():
     """Chunks (long stacks) and shared runs (square waves) give exactly the numbers of one plain pass."""
-    from sims.backend_ltv import CHUNK, _series, step_coefficients
+    from jointbench.sims.backend_ltv import CHUNK, _series, step_coefficients
     n = 3 * CHUNK + 123
     t = np.arange(n) / 2500
     for k in (5.6 + 0.9 * np.sin(2 * np.pi * t / 20), np.where(np.mod(t / 10, 1) < 0.5, 6.5, 4.7)):
@@ -324,7 +324,7 @@ def test_multisine_has_exactly_the_requested_lines_and_rms():
 ])
 def test_multisine_equals_the_sum_of_cosines(settings, fs, duration, periods):
     """The inverse-FFT synthesis against the defining formula summed sample by sample, quiet margins included."""
-    from sims.perturbation_multisine import _periods_in_whole_samples
+    from jointbench.sims.perturbation_multisine import _periods_in_whole_samples
     m = Multisine(**settings)
     n = int(duration * fs)
     assert _periods_in_whole_samples(m.period * fs, n) == periods     # which path is tested

@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 from scipy import signal as sps
 
-import estimators
-from estimators.skirt import SkirtEstimate, basis
+from jointbench import estimators
+from jointbench.estimators.skirt import SkirtEstimate, basis
 from jointbench.errors import ConfigError, InputError
 from jointbench.types import Trial
 

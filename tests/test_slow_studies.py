@@ -11,8 +11,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from benchmarks.config import REPO
-from benchmarks.study import run_study
+from jointbench.benchmarks.config import REPO
+from jointbench.benchmarks.study import run_study
 
 STUDIES = ("westwick2012", "xu1998", "vanderuit2018_table1")
 

@@ -7,14 +7,14 @@ import numpy as np
 import pandas as pd
 import pytest
 
-import sims
-from benchmarks.config import CONFIGS, load_study
-from benchmarks.protocols import Context
-from benchmarks.protocols.vanderuit2018 import (Table1Params, _case_estimators, _case_experiment, noise_ratio,
+from jointbench import sims
+from jointbench.benchmarks.config import CONFIGS, load_study
+from jointbench.benchmarks.protocols import Context
+from jointbench.benchmarks.protocols.vanderuit2018 import (Table1Params, _case_estimators, _case_experiment, noise_ratio,
                                                 scored_mask, step_captured, step_ramp_time, step_times,
                                                 variation_labels)
-from benchmarks.runner import expand
-from benchmarks.study import run_study
+from jointbench.benchmarks.runner import expand
+from jointbench.benchmarks.study import run_study
 from jointbench.errors import ConfigError
 from jointbench.schema import parse
 from tests.golden import check_golden
@@ -75,7 +75,7 @@ def test_cases_expand_and_noise_free_settings_apply():
     assert len({c.case_id for c in cases}) == len(cases)
     p = _params(snr_db=math.inf)
     ctx = Context(part="table1", seed=0, params=p, experiment=None,
-                  estimators={n: __import__("estimators").make(n, st) for n, st in
+                  estimators={n: __import__("jointbench.estimators", fromlist=["make"]).make(n, st) for n, st in
                               s.parts["table1"].estimators.items()})
     est = _case_estimators(ctx, p)
     assert est["kbr"].settings.sigma == 8.0 and est["kbr"].settings.gamma == 25000.0
@@ -135,7 +135,7 @@ def test_step_metrics_on_hand_made_curves():
 
 
 def test_variation_labels():
-    from sims.profile import parse_profile
+    from jointbench.sims.profile import parse_profile
     assert variation_labels(parse_profile({"shape": "square", "mean": 5, "amplitude": 1, "period": 20}, "x")) == \
         {"shape": "square", "period_s": 20.0}
     assert variation_labels(parse_profile({"shape": "sine", "mean": 5, "amplitude": 1, "frequency": 0.05}, "x")) == \

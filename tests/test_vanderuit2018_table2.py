@@ -6,11 +6,11 @@ import pandas as pd
 import pytest
 import yaml
 
-from benchmarks.config import CONFIGS, load_study
-from benchmarks.protocols.vanderuit2018_table2 import (Table2Params, band, low_frequency_basis,
+from jointbench.benchmarks.config import CONFIGS, load_study
+from jointbench.benchmarks.protocols.vanderuit2018_table2 import (Table2Params, band, low_frequency_basis,
                                                        remove_low_frequency, to_rate)
-from benchmarks.runner import expand
-from benchmarks.study import run_study
+from jointbench.benchmarks.runner import expand
+from jointbench.benchmarks.study import run_study
 from jointbench.errors import ConfigError
 from jointbench.schema import parse
 from jointbench.types import Trial

@@ -5,10 +5,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-import estimators
-import sims
-from benchmarks.config import load_study
-from benchmarks.study import run_study
+from jointbench import estimators
+from jointbench import sims
+from jointbench.benchmarks.config import load_study
+from jointbench.benchmarks.study import run_study
 from tests.golden import check_golden
 from tests.test_harness import write_study
 

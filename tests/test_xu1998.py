@@ -8,12 +8,12 @@ import numpy as np
 import pandas as pd
 import pytest
 
-import estimators
-import sims
-from benchmarks.config import CONFIGS, load_study
-from benchmarks.metrics import rmse, vafm, vafv
-from benchmarks.protocols import xu1998 as X
-from benchmarks.study import run_study
+from jointbench import estimators
+from jointbench import sims
+from jointbench.benchmarks.config import CONFIGS, load_study
+from jointbench.benchmarks.metrics import rmse, vafm, vafv
+from jointbench.benchmarks.protocols import xu1998 as X
+from jointbench.benchmarks.study import run_study
 from jointbench.ensemble import valid_mask
 from jointbench.errors import ConfigError
 from jointbench.schema import parse

@@ -4,8 +4,8 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from benchmarks.figures import PartReport, new_figure, register, save
-from benchmarks.tables import median_range, over_seeds
+from jointbench.benchmarks.figures import PartReport, new_figure, register, save
+from jointbench.benchmarks.tables import median_range, over_seeds
 
 
 def _ok(rows: pd.DataFrame) -> pd.DataFrame:

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from benchmarks.figures import PartReport, new_figure, register, save
+from jointbench.benchmarks.figures import PartReport, new_figure, register, save
 
 #: grid axes that make a scenario, in the order of its label
 SCENARIO_AXES = ("scenario", "joint", "variation", "perturbation", "noise", "fs", "backend")

@@ -11,9 +11,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from benchmarks.figures import PartReport, new_figure, register, save
-from benchmarks.protocols.vanderuit2018 import TABLE1_METRICS
-from benchmarks.tables import median_range, over_seeds
+from jointbench.benchmarks.figures import PartReport, new_figure, register, save
+from jointbench.benchmarks.protocols.vanderuit2018 import TABLE1_METRICS
+from jointbench.benchmarks.tables import median_range, over_seeds
 
 LABELS = {"vaf_self": "VAF_self (%)", "vaf_optim": "VAF_optim (%)", "vaf_val": "VAF_val (%)",
           "rmse_k": "RMSE_k (N·m/rad)"}

@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from benchmarks.figures import PartReport, new_figure, register, save
+from jointbench.benchmarks.figures import PartReport, new_figure, register, save
 
 METHODS = ("kbr", "skirt", "sds", "guarin", "ensemble_irf")
 NAMES = {"kbr": "KBR", "skirt": "Skirt", "sds": "SDS", "guarin": "Guarin", "ensemble_irf": "Ensemble IRF"}

@@ -4,8 +4,8 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from benchmarks.figures import PartReport, new_figure, register, save
-from benchmarks.tables import median_range, summarize
+from jointbench.benchmarks.figures import PartReport, new_figure, register, save
+from jointbench.benchmarks.tables import median_range, summarize
 
 
 def _curve(curves: pd.DataFrame, name: str, **eq) -> pd.DataFrame:

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from benchmarks.figures import PartReport, new_figure, register, save
-from benchmarks.tables import median_range, over_seeds
+from jointbench.benchmarks.figures import PartReport, new_figure, register, save
+from jointbench.benchmarks.tables import median_range, over_seeds
 
 VAF_FLOOR = -60.0   # VAF axes are cut here (values below are drawn on the axis, marked 'v')
 
@@ -99,7 +99,7 @@ def _joint_text(part) -> str:
 
 def _forgetting(part) -> float:
     """lambda (1/s) of the part's FSEWLS settings."""
-    import estimators
+    from jointbench import estimators
 
     name = next(iter(part.estimators))
     return float(estimators.make(name, part.estimators[name]).settings.forgetting)

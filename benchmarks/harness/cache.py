@@ -15,8 +15,8 @@ import sys
 from pathlib import Path
 from typing import Iterable
 
-from benchmarks.harness import fingerprint
-from benchmarks.harness.case import Case, CaseResult
+from jointbench.benchmarks.harness import fingerprint
+from jointbench.benchmarks.harness.case import Case, CaseResult
 from jointbench.files import atomic_write, sweep_stale_temps
 
 FORMAT = 1

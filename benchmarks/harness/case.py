@@ -15,12 +15,12 @@ import time
 import traceback
 from typing import Any, Mapping
 
-import estimators
-import sims
-from benchmarks import protocols
+from jointbench import estimators
+from jointbench import sims
+from jointbench.benchmarks import protocols
 from jointbench.schema import parse
-from sims import reuse
-from sims.backend import record_simulations
+from jointbench.sims import reuse
+from jointbench.sims.backend import record_simulations
 
 
 @dataclasses.dataclass(frozen=True)

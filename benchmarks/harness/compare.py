@@ -15,8 +15,8 @@ import math
 import numpy as np
 import pandas as pd
 
-from benchmarks.config import EVIDENCE
-from benchmarks.harness.history import History
+from jointbench.benchmarks.config import EVIDENCE
+from jointbench.benchmarks.harness.history import History
 
 
 @dataclasses.dataclass(frozen=True)

@@ -1,6 +1,6 @@
 """What a number depends on besides its case: the code that computes it, the libraries, the machine.
 
-The code hash covers the **import closure of** :mod:`benchmarks.harness.case` (the module that runs a
+The code hash covers the **import closure of** :mod:`jointbench.benchmarks.harness.case` (the module that runs a
 case) within this repository, found statically: start from that module; follow every import of a
 project module (``import a.b``, ``from a import b``, relative imports, and imports inside functions);
 a package whose ``__init__`` calls ``import_submodules`` (the registries of protocols, estimators,
@@ -28,8 +28,11 @@ import sys
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[2]
-PACKAGES = ("jointbench", "sims", "estimators", "benchmarks")
-CASE_ENTRY = "benchmarks.harness.case"
+#: the repository's code folders and the installed packages they are (pyproject.toml's package-dir)
+PACKAGE_DIRS = {"jointbench": "jointbench", "jointbench.sims": "sims", "jointbench.estimators": "estimators",
+                "jointbench.benchmarks": "benchmarks"}
+PACKAGES = tuple(PACKAGE_DIRS.values())
+CASE_ENTRY = "jointbench.benchmarks.harness.case"
 #: libraries whose version is part of every cache key
 KEY_LIBRARIES = ("numpy", "scipy", "mujoco")
 #: libraries recorded with each run (history), besides the key libraries
@@ -41,9 +44,13 @@ RESULT_INPUTS = PACKAGES + ("configs", "pyproject.toml")
 
 def _module_file(name: str) -> Path | None:
     parts = name.split(".")
-    if parts[0] not in PACKAGES:
+    for n in range(min(2, len(parts)), 0, -1):   # jointbench.sims.x lives in sims/, jointbench.x in jointbench/
+        folder = PACKAGE_DIRS.get(".".join(parts[:n]))
+        if folder is not None:
+            break
+    else:
         return None
-    base = REPO.joinpath(*parts)
+    base = REPO.joinpath(folder, *parts[n:])
     if (base / "__init__.py").is_file():
         return base / "__init__.py"
     if base.with_suffix(".py").is_file():

@@ -28,8 +28,8 @@ from typing import Iterable
 
 import pandas as pd
 
-from benchmarks.harness import fingerprint
-from benchmarks.harness.case import CaseResult
+from jointbench.benchmarks.harness import fingerprint
+from jointbench.benchmarks.harness.case import CaseResult
 from jointbench.errors import ConfigError, OutputError
 from jointbench.files import pid_alive
 

@@ -18,9 +18,9 @@ import dataclasses
 import math
 from pathlib import Path
 
-from benchmarks.config import CONFIGS, _check_keys, _load_yaml
-from benchmarks.harness import fingerprint
-from benchmarks.harness.compare import Rules, RunDiff, Threshold
+from jointbench.benchmarks.config import CONFIGS, _check_keys, _load_yaml
+from jointbench.benchmarks.harness import fingerprint
+from jointbench.benchmarks.harness.compare import Rules, RunDiff, Threshold
 from jointbench.errors import ConfigError
 
 DEFAULT_CONFIG = CONFIGS / "nightly.yaml"

@@ -12,11 +12,11 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from benchmarks.harness.history import History
-from benchmarks.harness.compare import by_evidence
-from benchmarks.harness.pages import (Figure, Items, Page, Paragraph, Section, Table, figure_png, table, to_html,
+from jointbench.benchmarks.harness.history import History
+from jointbench.benchmarks.harness.compare import by_evidence
+from jointbench.benchmarks.harness.pages import (Figure, Items, Page, Paragraph, Section, Table, figure_png, table, to_html,
                                       to_markdown)
-from benchmarks.tables import headline
+from jointbench.benchmarks.tables import headline
 from jointbench.files import write_text
 
 VERDICT_TEXT = {
@@ -175,7 +175,7 @@ def _default_key_checks(c: pd.DataFrame, n: int = 6) -> list[str]:
 def _history_figures(study: str, per: pd.DataFrame, checks: pd.DataFrame, key: tuple[str, ...]) -> list[Figure]:
     from matplotlib.ticker import MaxNLocator
 
-    from benchmarks.figures import new_figure
+    from jointbench.benchmarks.figures import new_figure
 
     s = per[per["study"] == study].sort_values("nightly")
     figs = []
@@ -225,7 +225,7 @@ def _history_figures(study: str, per: pd.DataFrame, checks: pd.DataFrame, key: t
 
 def write_pages(history: History, nightly_id: int, verdict: str, regressions: list[str], outcomes, config,
                 site: Path, command: str) -> tuple[Path, Path]:
-    from benchmarks.harness import fingerprint
+    from jointbench.benchmarks.harness import fingerprint
 
     commit, dirty = fingerprint.git_state()
     env = fingerprint.environment()

@@ -28,7 +28,7 @@ import sys
 import threading
 import time
 
-from benchmarks.harness.case import one_blas_thread, run_group
+from jointbench.benchmarks.harness.case import one_blas_thread, run_group
 from jointbench.errors import ConfigError
 
 #: the executors :func:`make_executor` builds (``jointbench run --executor``)
@@ -111,7 +111,7 @@ def run_task(cases: list, code_hash: str | None = None) -> list:
     keys."""
     one_blas_thread()
     if code_hash is not None:
-        from benchmarks.harness.fingerprint import code_hash as here
+        from jointbench.benchmarks.harness.fingerprint import code_hash as here
 
         if here() != code_hash:
             raise RuntimeError(f"worker {os.uname().nodename}:{os.getpid()} runs other code (code hash "
@@ -130,7 +130,7 @@ def make_executor(kind: str, workers: int | None = None, scheduler: str | None =
     if kind == "serial":
         return InlineExecutor()
     if kind == "dask":
-        from benchmarks.harness.dask_executor import DaskExecutor
+        from jointbench.benchmarks.harness.dask_executor import DaskExecutor
 
         return DaskExecutor(scheduler=scheduler, workers=workers)
     return None

@@ -24,13 +24,13 @@ from typing import Literal
 import numpy as np
 from scipy import signal as sps
 
-import sims
-from benchmarks.protocols import Context, register
-from benchmarks.protocols.xu1998 import scored_window
-from estimators.ibk_spectral import weighted_ibk_fit
+from jointbench import sims
+from jointbench.benchmarks.protocols import Context, register
+from jointbench.benchmarks.protocols.xu1998 import scored_window
+from jointbench.estimators.ibk_spectral import weighted_ibk_fit
 from jointbench.ensemble import valid_mask
 from jointbench.schema import param
-from sims.voluntary import Voluntary
+from jointbench.sims.voluntary import Voluntary
 
 INPUTS = ("measured", "command")
 

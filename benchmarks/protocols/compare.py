@@ -36,10 +36,10 @@ from typing import Any, Literal
 
 import numpy as np
 
-import sims
-from benchmarks import metrics
-from benchmarks.protocols import Context, register
-from benchmarks.scoring import fit_timed, frozen_stiffness, scored_samples
+from jointbench import sims
+from jointbench.benchmarks import metrics
+from jointbench.benchmarks.protocols import Context, register
+from jointbench.benchmarks.scoring import fit_timed, frozen_stiffness, scored_samples
 from jointbench.ensemble import Ensemble, valid_mask
 from jointbench.errors import InputError
 from jointbench.schema import param

@@ -5,9 +5,9 @@ import dataclasses
 
 import numpy as np
 
-import sims
-from benchmarks.metrics import relative_error, vaf
-from benchmarks.protocols import Context, register
+from jointbench import sims
+from jointbench.benchmarks.metrics import relative_error, vaf
+from jointbench.benchmarks.protocols import Context, register
 from jointbench.estimate import FRFEstimate, IRFEstimate, ParametricEstimate
 from jointbench.schema import param
 

@@ -19,14 +19,14 @@ from typing import Any, Literal
 
 import numpy as np
 
-import estimators
-import sims
-from benchmarks.metrics import rmse, vaf
-from benchmarks.protocols import Context, register
-from benchmarks.scoring import frozen_stiffness
+from jointbench import estimators
+from jointbench import sims
+from jointbench.benchmarks.metrics import rmse, vaf
+from jointbench.benchmarks.protocols import Context, register
+from jointbench.benchmarks.scoring import frozen_stiffness
 from jointbench.errors import ConfigError
 from jointbench.schema import param
-from sims.profile import parse_profile
+from jointbench.sims.profile import parse_profile
 
 #: metric names of Table I (eqs. 17-18)
 TABLE1_METRICS = ("vaf_self", "vaf_optim", "vaf_val", "rmse_k")

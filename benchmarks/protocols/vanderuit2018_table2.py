@@ -28,16 +28,16 @@ import math
 
 import numpy as np
 
-from benchmarks.metrics import vaf
-from benchmarks.protocols import Context, register
-from benchmarks.scoring import frozen_stiffness
+from jointbench.benchmarks.metrics import vaf
+from jointbench.benchmarks.protocols import Context, register
+from jointbench.benchmarks.scoring import frozen_stiffness
 from jointbench.ensemble import Ensemble, valid_mask
 from jointbench.errors import InputError
 from jointbench.estimate_tv import TVIRFEstimate
 from jointbench.schema import param, parse
 from jointbench.signal import decimate_fft
 from jointbench.types import Trial
-from sims.subjects import SubjectDesign, draw_subjects, draw_trials, simulate_trial
+from jointbench.sims.subjects import SubjectDesign, draw_subjects, draw_trials, simulate_trial
 
 MODES = ("single", "ensemble")
 
@@ -142,7 +142,7 @@ def _skip_reason(name: str, estimator, data, multisine: bool) -> str | None:
 
 
 def estimator_tags(name: str) -> frozenset:
-    import estimators
+    from jointbench import estimators
 
     return estimators.REGISTRY.tags(name) if name in estimators.REGISTRY else frozenset()
 

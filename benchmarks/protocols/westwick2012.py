@@ -13,9 +13,9 @@ import dataclasses
 import numpy as np
 from scipy import signal as sps
 
-import sims
-from benchmarks.metrics import vaf
-from benchmarks.protocols import Context, register
+from jointbench import sims
+from jointbench.benchmarks.metrics import vaf
+from jointbench.benchmarks.protocols import Context, register
 from jointbench import differentiators as d
 from jointbench.schema import param
 from jointbench.signal import bandlimit_fb, resample_trial

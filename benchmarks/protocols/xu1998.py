@@ -23,13 +23,13 @@ from typing import Literal
 
 import numpy as np
 
-import sims
-from benchmarks.metrics import rmse, vaf, vafm, vafv
-from benchmarks.protocols import Context, register
+from jointbench import sims
+from jointbench.benchmarks.metrics import rmse, vaf, vafm, vafv
+from jointbench.benchmarks.protocols import Context, register
 from jointbench.ensemble import valid_mask
 from jointbench.schema import param, parse
-from sims.apparatus import TorqueDrive
-from sims.profile import Sine, Square
+from jointbench.sims.apparatus import TorqueDrive
+from jointbench.sims.profile import Sine, Square
 
 OUTPUTS = ("filtered_torque", "torque", "angle")
 
@@ -230,7 +230,7 @@ def exact_fit(est, trial) -> _ExactFit:
     perturbed response with the voluntary movement separated exactly (posture and movement alike); what
     is left is the EWLS itself (its forgetting lag).
     """
-    from estimators.fsewls import ewls_regression
+    from jointbench.estimators.fsewls import ewls_regression
 
     s, fs, truth = est.settings, trial.fs, trial.truth
     n = trial.n

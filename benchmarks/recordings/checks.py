@@ -73,7 +73,7 @@ def crop_gated(estimator, trials: list) -> tuple[list, list[str]]:
 
     Returns the trials and a note per cropped record. Other estimators get the records unchanged.
     """
-    import estimators
+    from jointbench import estimators
 
     if "multisine" not in estimators.REGISTRY.tags(estimator.name):
         return trials, []
@@ -157,7 +157,7 @@ def check_memory(estimator, trials: list) -> None:
     if plan is None:
         return
     need = plan(trials)
-    from benchmarks.recordings.io import available_memory
+    from jointbench.benchmarks.recordings.io import available_memory
 
     budget = MEMORY_FRACTION * available_memory()
     if need <= budget:

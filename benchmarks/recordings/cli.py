@@ -26,13 +26,13 @@ import os
 from pathlib import Path
 from typing import TYPE_CHECKING, Sequence
 
-from benchmarks.recordings.checks import (check_information, check_magnitudes, check_memory, crop_gated,
+from jointbench.benchmarks.recordings.checks import (check_information, check_magnitudes, check_memory, crop_gated,
                                           crop_window, decimate_trial, gate_hint, parse_window)
 from jointbench.errors import ConfigError, InputError
 from jointbench.files import atomic_write
 
 if TYPE_CHECKING:  # pragma: no cover
-    from benchmarks.recordings.io import Source
+    from jointbench.benchmarks.recordings.io import Source
     from jointbench.estimate import Estimate
 
 PLOT_SUFFIXES = (".png", ".pdf", ".svg")
@@ -118,13 +118,13 @@ def run(args: argparse.Namespace) -> int:
     window = parse_window(args.window) if args.window else None
     estimator = make_estimator(args.estimator, args.settings)
 
-    from benchmarks.recordings import io
+    from jointbench.benchmarks.recordings import io
 
     sources = [io.parse_source(s, args.array) for s in args.input]
     out = Path(args.output)
     plot = Path(args.plot) if args.plot else None
     _check_outputs(out, plot, sources)
-    from benchmarks.recordings import io_ensemble
+    from jointbench.benchmarks.recordings import io_ensemble
     from jointbench.ensemble import Ensemble
 
     ensemble = args.ensemble or (len(sources) > 1 and "ensemble" in estimator.accepts
@@ -141,7 +141,7 @@ def run(args: argparse.Namespace) -> int:
 
 def make_estimator(name: str, assignments: Sequence[str]):
     """The estimator with its ``--set`` settings; ``auto=true`` sets each of its :attr:`AUTO` keys to 'auto'."""
-    import estimators
+    from jointbench import estimators
     from jointbench.schema import parse_assignments
 
     settings = parse_assignments(list(assignments), where="--set")
@@ -202,7 +202,7 @@ def compute(estimator, raw: list, *, torque_sign: int = 1, decimate: int = 1,
     predictions = [prediction_of(est, t, k) for k, t in enumerate(trials)]
     figure = None
     if plot is not None:
-        from benchmarks.recordings.plots import plot_estimate
+        from jointbench.benchmarks.recordings.plots import plot_estimate
 
         buf = _io.BytesIO()
         plot_estimate(est, buf, trials=trials, fmt=plot.suffix[1:].lower())
@@ -316,7 +316,7 @@ def write_outputs(out: Path, plot: Path | None, o: Outcome) -> list[tuple[Path, 
 
 def list_text(name: str | None = None) -> str:
     """Registered estimators, and the settings table of ``name`` when given."""
-    import estimators
+    from jointbench import estimators
 
     names = estimators.REGISTRY.names()
     lines = ["estimators:"]

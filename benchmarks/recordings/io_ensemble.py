@@ -14,7 +14,7 @@ from typing import Sequence
 
 import numpy as np
 
-from benchmarks.recordings.io import (Source, _file_fs, _numeric, _read_mat, _read_npz, _shape, _time_base,
+from jointbench.benchmarks.recordings.io import (Source, _file_fs, _numeric, _read_mat, _read_npz, _shape, _time_base,
                                       _what_is_there, read_trials)
 from jointbench.ensemble import Ensemble
 from jointbench.errors import InputError

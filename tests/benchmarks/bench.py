@@ -88,7 +88,7 @@ def _cpu_seconds() -> float:
 
 def studies() -> tuple[int, list[dict]]:
     """Run every study of ``make reproduce`` without cache into a temporary folder; record the wall times."""
-    from benchmarks.study import run_study
+    from jointbench.benchmarks.study import run_study
 
     log = STORAGE / "study_times.csv"
     previous: dict[str, dict] = {}

@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 from numpy.lib.stride_tricks import sliding_window_view
 
-import estimators
-from estimators.guarin import time_basis
+from jointbench import estimators
+from jointbench.estimators.guarin import time_basis
 from jointbench.ensemble import Ensemble
 from jointbench.estimate_tv import TVIRFEstimate
 

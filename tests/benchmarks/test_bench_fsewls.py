@@ -16,9 +16,9 @@ import numpy as np
 import pytest
 from scipy import signal as sps
 
-import estimators
-import estimators.fsewls as fsewls_module
-from estimators.fsewls import (FSEWLS, _IU, _ewls_riccati_rk4, _forcing, _unpack, ewls, highpass,
+from jointbench import estimators
+import jointbench.estimators.fsewls as fsewls_module
+from jointbench.estimators.fsewls import (FSEWLS, _IU, _ewls_riccati_rk4, _forcing, _unpack, ewls, highpass,
                                rk4_coefficients, svf)
 from jointbench.types import Trial
 

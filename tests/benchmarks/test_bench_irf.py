@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from numpy.lib.stride_tricks import sliding_window_view
 
-import estimators
+from jointbench import estimators
 from jointbench.estimate import IRFEstimate
 from jointbench.types import Trial
 

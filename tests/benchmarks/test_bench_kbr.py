@@ -14,7 +14,7 @@ import tracemalloc
 import numpy as np
 import pytest
 
-import estimators
+from jointbench import estimators
 from jointbench.types import Trial
 from tests.test_kbr import FS, dense_solve, filtered_noise, ltv_record, multisine, sine_k, wrist_frf
 

@@ -10,7 +10,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from sims import Experiment, simulate
+from jointbench.sims import Experiment, simulate
 from tests.test_backend_mujoco import WRIST
 
 pytest.importorskip("mujoco")
@@ -32,7 +32,7 @@ def inputs(experiments):
 @pytest.mark.benchmark(group="mujoco-trial-50s-2500Hz")
 def test_bench_mujoco_backend(benchmark, experiments, inputs):
     """The physics alone: controls, one rollout of 125 000 steps, the response."""
-    from sims.backend_mujoco import MujocoBackend
+    from jointbench.sims.backend_mujoco import MujocoBackend
 
     e = experiments[1]
     MujocoBackend().respond(e, *inputs)            # the compiled model is cached, as in a study
@@ -43,7 +43,7 @@ def test_bench_mujoco_backend(benchmark, experiments, inputs):
 @pytest.mark.benchmark(group="mujoco-trial-50s-2500Hz")
 def test_bench_analytic_backend_baseline(benchmark, experiments, inputs):
     """The same input through the analytic backend (ltv: exponential midpoint, parallel prefix scan)."""
-    from sims.backend import AnalyticBackend
+    from jointbench.sims.backend import AnalyticBackend
 
     resp = benchmark(AnalyticBackend().respond, experiments[0], *inputs)
     assert resp.angle.shape == (125_000,)

@@ -19,10 +19,10 @@ import numpy as np
 import pytest
 from scipy import signal as sps
 
-from sims import Experiment, simulate
-from sims.backend_lti import LTIBackend
-from sims.backend_ltv import LTVBackend, affine_recursion, step_coefficients, step_matrices
-from sims.sensors import SensorFilter
+from jointbench.sims import Experiment, simulate
+from jointbench.sims.backend_lti import LTIBackend
+from jointbench.sims.backend_ltv import LTVBackend, affine_recursion, step_coefficients, step_matrices
+from jointbench.sims.sensors import SensorFilter
 from tests.test_sims import SPEC   # the paper's experiment: 30 s at 5 kHz, servo, sensors, to 500 Hz
 from tests.test_sims_tv import WRIST, exp
 

@@ -5,7 +5,7 @@ Run with ``--benchmark-enable`` for timings; by default (``--benchmark-disable``
 import numpy as np
 import pytest
 
-import estimators
+from jointbench import estimators
 from jointbench.types import Trial
 
 FS, T, NP, D = 44.0, 40.0, 7, 16
