@@ -16,7 +16,7 @@ from jointbench.ensemble import DATA_KINDS, Ensemble, data_kind
 from jointbench.errors import InputError
 from jointbench.estimate import Estimate
 from jointbench.registry import Registry, import_submodules, scan_registrations
-from jointbench.schema import parse
+from jointbench.schema import checked, parse
 from jointbench.types import Trial
 
 REGISTRY: Registry[type["Estimator"]] = Registry("estimator")
@@ -64,6 +64,12 @@ class Estimator(ABC):
                     f"the experiment has {kind!r}")
         return None
     accepts: ClassVar[frozenset[str]] = frozenset({"trial", "pooled"})
+
+    def __init_subclass__(cls, **kwargs):
+        """Every estimator's ``Settings`` checks its values on construction, as :func:`make` does
+        (:func:`jointbench.schema.checked`): ``IRFLeastSquares.Settings(lag_before=-5.0)`` is refused."""
+        super().__init_subclass__(**kwargs)
+        checked(cls.Settings)
 
     def __init__(self, settings: Any = None):
         self.settings = self.Settings() if settings is None else settings

@@ -11,7 +11,9 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import inspect
 import math
+import numbers
 import re
 import types
 import typing
@@ -79,7 +81,7 @@ def _number(value: Any, unit: str | None, where: str, key: str, integer: bool,
                 raise _fail(where, key, f"unit {u!r} is not a {want[0]} unit; allowed: {', '.join(same)}")
             num = num * got[1] / want[1]
         value = num
-    if not isinstance(value, (int, float)):
+    if not isinstance(value, numbers.Real):      # numpy scalars too (a value computed by code, not read)
         raise _fail(where, key, f"expected {kind}" + (f" in {unit}" if unit else "") + f", got {value!r}")
     if isinstance(value, float) and math.isnan(value):
         raise _fail(where, key, "NaN is not allowed")
@@ -96,6 +98,8 @@ def _convert(tp: Any, value: Any, meta: Mapping[str, Any], where: str, key: str)
     origin = typing.get_origin(tp)
     args = typing.get_args(tp)
     if tp is Any:
+        return value
+    if dataclasses.is_dataclass(tp) and isinstance(value, tp):   # already built (and checked)
         return value
     if origin in (typing.Union, types.UnionType):
         if type(None) in args and (value is None or (isinstance(value, str) and
@@ -186,6 +190,35 @@ def parse(cls: type, data: Mapping[str, Any] | None, where: str) -> Any:
         return cls(**kwargs)
     except (ValueError, TypeError) as exc:
         raise ConfigError(f"{where}: {exc}") from None
+
+
+def checked(cls: type) -> type:
+    """Make constructing dataclass ``cls`` check its arguments as :func:`parse` does (types, units, bounds).
+
+    ``Settings(lag_before=-5.0)`` is then refused with the same message as ``make(name, {"lag_before":
+    -5.0})``, and a value with a unit (``Settings(lag_before="40 ms")``) is converted. Only the arguments
+    given are checked (the defaults are the class's own); the class's ``__post_init__`` runs after the
+    check. Every estimator's ``Settings`` is checked this way (:class:`jointbench.estimators.Estimator`
+    applies it to its subclasses): one mechanism for every settings class. Returns ``cls``.
+    """
+    if not dataclasses.is_dataclass(cls) or cls.__dict__.get("_schema_checked"):
+        return cls
+    init = cls.__init__
+    signature = inspect.signature(init)
+    fields = {f.name: f for f in dataclasses.fields(cls) if f.init}
+    where = cls.__qualname__
+
+    @functools.wraps(init)
+    def __init__(self, *args, **kwargs):
+        given = signature.bind(self, *args, **kwargs).arguments
+        hints = _hints(cls)
+        values = {name: _convert(hints[name], v, fields[name].metadata, where, name) if name in fields else v
+                  for name, v in list(given.items())[1:]}
+        init(self, **values)
+
+    cls.__init__ = __init__
+    cls._schema_checked = True
+    return cls
 
 
 def _type_text(t: Any) -> str:
