@@ -20,13 +20,23 @@ class Registry(Generic[T]):
     ----------
     kind : str
         What the registry holds ("estimator", "joint model", ...), used in error messages.
+    entry_points : str, optional
+        An entry-point group whose installed plugins are imported before a name is first looked up or
+        listed (:func:`jointbench.plugins.load_entry_points`).
     """
 
-    def __init__(self, kind: str):
+    def __init__(self, kind: str, entry_points: str | None = None):
         self.kind = kind
         self._items: dict[str, T] = {}
         self._tags: dict[str, frozenset[str]] = {}
         self._deferred: dict[str, Registration] = {}
+        self._entry_points = entry_points   # plugins' entry-point group, imported on the first look-up
+
+    def _plugins(self) -> None:
+        if self._entry_points is not None:
+            from jointbench.plugins import load_entry_points
+
+            load_entry_points(self._entry_points)
 
     def defer(self, registrations: Iterable["Registration"]) -> None:
         """Know these names before their modules are imported; :meth:`get` imports a module on first use.
@@ -58,6 +68,8 @@ class Registry(Generic[T]):
 
     def get(self, name: str) -> T:
         """Return the object registered as ``name`` or raise a :class:`ConfigError` listing the names."""
+        if name not in self._items and name not in self._deferred:
+            self._plugins()
         self._load(name)
         try:
             return self._items[name]
@@ -67,6 +79,7 @@ class Registry(Generic[T]):
 
     def names(self, tag: str | None = None) -> list[str]:
         """Sorted registered names, optionally only those carrying ``tag``."""
+        self._plugins()
         every = set(self._items) | set(self._deferred)
         return sorted(n for n in every if tag is None or tag in self.tags(n))
 
@@ -89,6 +102,8 @@ class Registry(Generic[T]):
         return self.summary(name)
 
     def __contains__(self, name: object) -> bool:
+        if name not in self._items and name not in self._deferred:
+            self._plugins()
         return name in self._items or name in self._deferred
 
 
