@@ -15,11 +15,7 @@ def frozen_stiffness(trial, f_hz: float = 0.0) -> np.ndarray:
     frozen impedance (angle to torque) at ``f_hz`` (0: the static gain, what an IRF's sum and a parametric
     K estimate; the lowest multisine line: what KBR and skirt report). From the trial's input-to-output
     transfer function: itself when the angle is imposed, its inverse when the torque is."""
-    tr, t = trial.truth, trial.time
-    h = np.abs(np.atleast_1d(tr.frozen_response(np.array([float(f_hz)]), t, t))).reshape(-1)
-    if h.size == 1:
-        h = np.full(len(t), float(h[0]))
-    return h if trial.imposed == "angle" else 1.0 / h
+    return trial.frozen_stiffness(f_hz)      # jointbench.types.Trial.frozen_stiffness: one definition
 
 
 def scored_samples(time_s: np.ndarray, discard: float) -> np.ndarray:

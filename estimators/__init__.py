@@ -1,14 +1,16 @@
 """Estimators: one file per method, registered by ``@register("name")``.
 
 Every estimator is a class with a ``Settings`` dataclass (parsed strictly by
-:func:`jointbench.schema.parse`) and a ``fit(trials) -> Estimate`` method. An estimator sees only
-:class:`~jointbench.types.Trial` objects, never how they were made: this package imports
+:func:`jointbench.schema.parse`, and checked on construction) and a ``fit(trials) -> Estimate`` method.
+An estimator sees only :class:`~jointbench.types.Trial` objects without their truth (it fits blind), never
+how they were made: this package imports
 the core of ``jointbench`` only, never ``jointbench.sims`` or ``jointbench.benchmarks``. Installed as
 ``jointbench.estimators`` (the repository's ``estimators/`` folder).
 """
 from __future__ import annotations
 
 import dataclasses
+import functools
 from abc import ABC, abstractmethod
 from typing import Any, ClassVar, Mapping, Sequence
 
@@ -19,17 +21,43 @@ from jointbench.registry import Registry, import_submodules, scan_registrations
 from jointbench.schema import checked, parse
 from jointbench.types import Trial
 
-REGISTRY: Registry[type["Estimator"]] = Registry("estimator")
+#: the estimators: the built-in ones, and those of installed plugins (entry-point group jointbench.estimators)
+REGISTRY: Registry[type["Estimator"]] = Registry("estimator", entry_points="jointbench.estimators")
 
 
 def register(name: str, *, tags: Sequence[str] = ()):
     """Class decorator: register an :class:`Estimator` subclass under ``name``."""
 
     def deco(cls):
+        if not (isinstance(cls, type) and issubclass(cls, Estimator)):
+            raise TypeError(f"estimator {name!r}: {cls!r} must subclass jointbench.estimators.Estimator "
+                            f"(its fit checks the data and hides the truth)")
         cls.name = name
         return REGISTRY.register(name, tags=tags)(cls)
 
     return deco
+
+
+def blind(data, estimator: str = "?"):
+    """``data`` (a trial, records or an ensemble) without its truth: what :meth:`Estimator.fit` hands on."""
+    if isinstance(data, (Trial, Ensemble)):
+        return data.blind(estimator)
+    if isinstance(data, (list, tuple)):
+        return [t.blind(estimator) if isinstance(t, Trial) else t for t in data]
+    return data
+
+
+def _fits_blind(fit):
+    """``fit`` receiving its data without the truth (:class:`~jointbench.types.HiddenTruth`)."""
+    if getattr(fit, "_fits_blind", False):
+        return fit
+
+    @functools.wraps(fit)
+    def wrapper(self, trials, *args, **kwargs):
+        return fit(self, blind(trials, getattr(self, "name", "?")), *args, **kwargs)
+
+    wrapper._fits_blind = True
+    return wrapper
 
 
 @dataclasses.dataclass(frozen=True)
@@ -67,9 +95,13 @@ class Estimator(ABC):
 
     def __init_subclass__(cls, **kwargs):
         """Every estimator's ``Settings`` checks its values on construction, as :func:`make` does
-        (:func:`jointbench.schema.checked`): ``IRFLeastSquares.Settings(lag_before=-5.0)`` is refused."""
+        (:func:`jointbench.schema.checked`): ``IRFLeastSquares.Settings(lag_before=-5.0)`` is refused. And
+        every estimator fits blind: a subclass that overrides :meth:`fit` itself gets its data without the
+        truth too."""
         super().__init_subclass__(**kwargs)
         checked(cls.Settings)
+        if "fit" in cls.__dict__:
+            cls.fit = _fits_blind(cls.__dict__["fit"])
 
     def __init__(self, settings: Any = None):
         self.settings = self.Settings() if settings is None else settings
@@ -92,8 +124,13 @@ class Estimator(ABC):
                 if "ensemble" in cls.accepts else "")
         return f"{cls.name}: fits one record at a time (takes {takes}), got {len(list(data))} records{hint}"
 
+    @_fits_blind
     def fit(self, trials: Trial | Sequence[Trial] | Ensemble) -> Estimate:
-        """Fit one trial, several records of the same condition (pooled) or an ensemble."""
+        """Fit one trial, several records of the same condition (pooled) or an ensemble.
+
+        Blind: the estimator sees the data without their truth (a simulated trial's ``truth`` is replaced
+        by :class:`~jointbench.types.HiddenTruth`, which raises :class:`~jointbench.types.TruthHidden` when
+        read); the caller's trials keep theirs for scoring."""
         if isinstance(trials, Ensemble):
             why = self.refuses(trials)
             if why:

@@ -18,13 +18,14 @@ systems from ensemble data. IEEE Trans. Biomed. Eng. 39(12), 1213-1225.
 """
 from __future__ import annotations
 
+import copy
 import dataclasses
 from typing import Iterator, Literal, Sequence
 
 import numpy as np
 
 from jointbench.errors import InputError
-from jointbench.types import Trial, Truth
+from jointbench.types import HiddenTruth, Trial, Truth
 
 DataKind = Literal["trial", "pooled", "ensemble"]
 #: the kinds of data an estimator may accept (``Estimator.accepts``)
@@ -72,6 +73,15 @@ class Ensemble:
                 raise InputError(f"{where}: realization '{t.name}' imposes the {t.imposed} and '{first.name}' the "
                                  f"{first.imposed}; the realizations of an ensemble must impose the same signal")
         object.__setattr__(self, "realizations", reals)
+
+    def blind(self, estimator: str = "?") -> "Ensemble":
+        """The ensemble as an estimator may see it: every realization :meth:`~jointbench.types.Trial.blind`."""
+        reals = tuple(t.blind(estimator) for t in self.realizations)
+        if all(a is b for a, b in zip(reals, self.realizations)):
+            return self
+        out = copy.copy(self)
+        object.__setattr__(out, "realizations", reals)
+        return out
 
     # -------------------------------------------------------------------------------- construction
     @classmethod
@@ -158,7 +168,10 @@ class Ensemble:
         """
         truth = None
         truths = [t.truth for t in self.realizations]
-        if all(tr is not None for tr in truths):
+        hidden = [tr for tr in truths if isinstance(tr, HiddenTruth)]
+        if hidden:                  # while an estimator fits, the average's truth is hidden too
+            truth = hidden[0]
+        elif all(tr is not None for tr in truths):
             keys = set.intersection(*(set(tr.signals) for tr in truths))
             truth = Truth(I=_mean([tr.I for tr in truths]), B=_mean([tr.B for tr in truths]),
                           K=_mean([tr.K for tr in truths]),

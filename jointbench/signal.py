@@ -15,8 +15,8 @@ from jointbench.types import Trial, Truth
 def _map_truth(truth: Truth | None, on_signal: Callable[[np.ndarray], np.ndarray],
                on_param: Callable[[np.ndarray], np.ndarray]) -> Truth | None:
     """Apply ``on_signal`` to the truth's signals and ``on_param`` to its time-varying parameters."""
-    if truth is None:
-        return None
+    if not isinstance(truth, Truth):        # none, or hidden while an estimator fits (stays hidden)
+        return truth
     par = {k: (v if np.ndim(v) < (2 if k in ("num", "den") else 1) else on_param(np.asarray(v)))
            for k, v in (("I", truth.I), ("B", truth.B), ("K", truth.K), ("num", truth.num),
                         ("den", truth.den)) if v is not None}

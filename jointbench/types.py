@@ -1,12 +1,13 @@
 """The data a simulator produces and an estimator consumes: :class:`Trial` and its :class:`Truth`."""
 from __future__ import annotations
 
+import copy
 import dataclasses
 from typing import Literal, Mapping
 
 import numpy as np
 
-from jointbench.errors import InputError
+from jointbench.errors import InputError, JointBenchError
 
 Imposed = Literal["angle", "torque"]
 
@@ -103,6 +104,36 @@ class Truth:
         return H[0] if scalar_t else H
 
 
+class TruthHidden(JointBenchError):
+    """An estimator read ``Trial.truth`` while fitting: estimators fit blind."""
+
+
+class HiddenTruth:
+    """What ``Trial.truth`` is while an estimator fits (:meth:`Trial.blind`): reading anything of it, or
+    asking whether it is there, raises :class:`TruthHidden` naming the estimator. The trial the caller
+    holds keeps its truth for scoring."""
+
+    __slots__ = ("estimator",)
+
+    def __init__(self, estimator: str):
+        object.__setattr__(self, "estimator", estimator)
+
+    def _refuse(self, what: str):
+        raise TruthHidden(f"estimator '{self.estimator}' read Trial.truth{what} while fitting: estimators fit "
+                          f"blind (the truth of a simulated trial is hidden from fit and kept for scoring)")
+
+    def __getattr__(self, name: str):
+        if name.startswith("__"):            # copy, pickle and friends probing for protocols
+            raise AttributeError(name)
+        self._refuse(f".{name}")
+
+    def __bool__(self):
+        self._refuse(" (as a condition)")
+
+    def __repr__(self) -> str:
+        return f"<truth hidden while '{self.estimator}' fits>"
+
+
 @dataclasses.dataclass(frozen=True, eq=False)
 class Trial:
     """One record of joint angle and torque on a uniform time base.
@@ -185,3 +216,35 @@ class Trial:
 
     def replace(self, **changes) -> "Trial":
         return dataclasses.replace(self, **changes)
+
+    def blind(self, estimator: str = "?") -> "Trial":
+        """This trial as an estimator may see it: the same arrays, ``truth`` replaced by a
+        :class:`HiddenTruth` (``self`` when it has no truth). Cheap: nothing is copied or re-checked."""
+        if self.truth is None or isinstance(self.truth, HiddenTruth):
+            return self
+        out = copy.copy(self)
+        object.__setattr__(out, "truth", HiddenTruth(estimator))
+        return out
+
+    def frozen_stiffness(self, f_hz: float = 0.0) -> np.ndarray:
+        """The stiffness an estimator of this simulated trial should be scored against (N·m/rad), at every
+        sample: the magnitude of the true frozen impedance (angle to torque) at ``f_hz``.
+
+        ``f_hz = 0`` gives the static gain: what an IRF's sum, a parametric K and the series stiffness of a
+        joint with hand contact are (``truth.K`` is the joint's intrinsic stiffness alone, which is not what
+        the data determine when other elastic elements are in series); the lowest multisine line is what
+        KBR and skirt report. Computed from the trial's input-to-output transfer function
+        (:meth:`Truth.frozen_response`): itself when the angle is imposed, its inverse when the torque is.
+
+        Raises
+        ------
+        ValueError
+            A trial without a truth (a recording), or a truth without a transfer function.
+        """
+        if not isinstance(self.truth, Truth):
+            raise ValueError(f"trial '{self.name}' has no truth (only simulated trials have a frozen stiffness)")
+        t = self.time
+        h = np.abs(np.atleast_1d(self.truth.frozen_response(np.array([float(f_hz)]), t, t))).reshape(-1)
+        if h.size == 1:
+            h = np.full(len(t), float(h[0]))
+        return h if self.imposed == "angle" else 1.0 / h
