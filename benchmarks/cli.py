@@ -60,7 +60,16 @@ def _root(args) -> Path:
     return results_root(Path(args.out) if getattr(args, "out", None) else None)
 
 
+def _plugins(args) -> None:
+    """Import the ``--plugin`` modules (outside estimators, :mod:`jointbench.plugins`)."""
+    from jointbench import plugins
+
+    for ref in getattr(args, "plugin", None) or ():
+        plugins.load(ref, "--plugin")
+
+
 def _run(args) -> int:
+    _plugins(args)
     from jointbench.benchmarks.config import check_backend
     from jointbench.benchmarks.harness.pool import make_executor
     from jointbench.benchmarks.study import run_study
@@ -109,11 +118,12 @@ def _status(args) -> int:
 
 
 def _list(args) -> int:
+    _plugins(args)
     from jointbench import estimators
     from jointbench.benchmarks import protocols
-    from jointbench.benchmarks.config import CONFIGS
+    from jointbench.benchmarks.locate import study_ids
 
-    print("studies:   " + ", ".join(sorted(p.stem for p in (CONFIGS / "studies").glob("*.yaml"))))
+    print("studies:   " + ", ".join(study_ids()))
     print("estimators: " + ", ".join(estimators.REGISTRY.names()))
     print("protocols: " + ", ".join(protocols.REGISTRY.names()))
     return 0
@@ -143,14 +153,16 @@ def build_parser() -> argparse.ArgumentParser:
     parser = OneLineParser(prog="jointbench", description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="command", required=True, parser_class=OneLineParser)
     p = sub.add_parser("run", help="run a study: results/<study>/{comparison.csv,cases.csv,report.md}")
-    p.add_argument("study", help="study id (configs/studies/<id>.yaml) or path to a study config")
+    p.add_argument("study", help="a shipped study's id (jointbench list) or the path of a study file")
     p.add_argument("--parts", nargs="+", metavar="PART", help="only these parts (e.g. fig4 table1)")
     p.add_argument("--serial", action="store_true", help="run cases one after another in this process")
     p.add_argument("--workers", type=positive_int, default=None, help="processes (default: all cores)")
     p.add_argument("--no-cache", action="store_true", help="recompute cases even when cached")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.add_argument("--strict", action="store_true", help="exit 1 if a case fails or a check misses")
-    p.add_argument("--out", metavar="DIR", help="results folder (default: results/ of the checkout)")
+    p.add_argument("--out", metavar="DIR", help="results folder (default: ./results)")
+    p.add_argument("--plugin", action="append", metavar="MODULE",
+                   help="import an outside estimator first: a module name or the path of a .py file; repeatable")
     p.add_argument("--backend", metavar="NAME", default=None,
                    help="simulate every part on this backend (analytic, mujoco, ...); outputs in "
                         "results/<study>/backend-NAME/")
@@ -169,8 +181,8 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("status", help="status of every study from results/*/comparison.csv (README tables)")
     p.add_argument("--write-readme", action="store_true",
                    help="rewrite the block between <!-- status:begin --> and <!-- status:end --> in README.md")
-    p.add_argument("--results", metavar="DIR", help="results folder (default: results/ of the checkout)")
-    p.add_argument("--readme", metavar="FILE", help="README to rewrite (default: README.md of the checkout)")
+    p.add_argument("--results", metavar="DIR", help="results folder (default: ./results)")
+    p.add_argument("--readme", metavar="FILE", help="README to rewrite (default: ./README.md)")
     p.set_defaults(func=_status)
     p = sub.add_parser("nightly", help="run every paper study, compare with the previous nightly, write "
                                        "results/nightly/index.html; exit 1 on a regression")
@@ -179,10 +191,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--serial", action="store_true", help="run cases one after another in this process")
     p.add_argument("--workers", type=positive_int, default=None, help="processes (default: all cores)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
-    p.add_argument("--out", metavar="DIR", help="results folder (default: results/ of the checkout)")
+    p.add_argument("--out", metavar="DIR", help="results folder (default: ./results)")
     p.set_defaults(func=_nightly)
     cli_history.add_parsers(sub, positive_int)
     p = sub.add_parser("list", help="list studies, estimators and protocols")
+    p.add_argument("--plugin", action="append", metavar="MODULE", help="import an outside estimator first")
     p.set_defaults(func=_list)
     from jointbench.benchmarks.recordings.cli import add_parser as add_estimate_parser
 

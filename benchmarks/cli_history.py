@@ -137,7 +137,7 @@ def _cache(args) -> int:
 
 
 def add_parsers(sub, positive_int) -> None:
-    out = dict(metavar="DIR", help="results folder (default: results/ of the checkout)")
+    out = dict(metavar="DIR", help="results folder (default: ./results)")
     p = sub.add_parser("history", help="list recorded runs, or show one (results/history.sqlite)")
     p.add_argument("run", nargs="?", type=int, help="a run id: show it in full")
     p.add_argument("--study", help="only runs of this study")

@@ -4,8 +4,13 @@ A study config (``configs/studies/<id>.yaml``) names its parts (one per figure o
 paper), and for each part the protocol that computes it, its parameters, the simulated experiment
 (joint model, apparatus, perturbation, sensors, noise, sampling), the estimators with their settings,
 the seeds and any parameter sweep. Published values with tolerances and their source live in
-``configs/published/<id>.yaml``. Joint models may be given inline or by the name of a file in
-``configs/models/``. Every error names the file, the key and what is allowed.
+``configs/published/<id>.yaml`` (a comparison study may have none). Joint models may be given inline or
+by the name of a file in ``configs/models/``. Every error names the file, the key and what is allowed.
+
+The shipped configs are package data (``jointbench.configs``, the checkout's ``configs/`` folder): a
+study runs the same from an installed wheel as from the checkout. A study file of one's own (``jointbench
+run path/to/my_study.yaml``) finds what it names (``joint: my_model``, ``published: my_values.yaml``,
+``plugins``) beside it first, then in the package (:func:`search_roots`).
 """
 from __future__ import annotations
 
@@ -14,15 +19,16 @@ import itertools
 import math
 import re
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any, Mapping, Sequence
 
 import yaml
 
 from jointbench.benchmarks import overrides as _overrides
+from jointbench.benchmarks.locate import (CONFIGS, find_file, find_model, load_plugins, model_dirs, search_roots,
+                                          study_ids, study_path)
 from jointbench.errors import ConfigError
 
-REPO = Path(__file__).resolve().parents[1]
-CONFIGS = REPO / "configs"
+
 
 
 class _DuplicateKey(yaml.YAMLError):
@@ -180,6 +186,7 @@ class Study:
     checks: tuple[Check, ...]
     not_reproduced: tuple[NotReproduced, ...] = ()
     method_swap: MethodSwap | None = None
+    plugins: tuple[str, ...] = ()      # outside modules with estimators (jointbench.plugins), imported
 
 
 _PART_KEYS = {"protocol": True, "description": True, "params": False, "experiment": False,
@@ -189,8 +196,8 @@ _PART_KEYS = {"protocol": True, "description": True, "params": False, "experimen
 #: keys only a part with a comparison grid takes (benchmarks/grid.py)
 GRID_KEYS = ("scenarios", "variations", "perturbations", "budget")
 REPORT_SECTIONS = ("results", "interpretation")
-_STUDY_KEYS = {"study": True, "title": True, "paper": True, "published": True, "readings": False,
-               "not_reproduced": True, "method_swap": False, "parts": True}
+_STUDY_KEYS = {"study": True, "title": True, "paper": True, "published": False, "readings": False,
+               "not_reproduced": True, "method_swap": False, "parts": True, "plugins": False}
 _CHECK_KEYS = {"id": True, "part": True, "description": True, "source": True, "published": True,
                "low": False, "high": False, "select": True, "aggregate": False, "if_missed": False,
                "kind": False, "over": False, "direction": False, "slack": False, "versus": False, "by": False,
@@ -209,17 +216,19 @@ CHECK_KINDS = {
 }
 
 
-def _resolve_joint(experiment: Mapping, where: str, models_dir: Path) -> dict:
+def _resolve_joint(experiment: Mapping, where: str, models_dir: Path | Sequence[Path]) -> dict:
     exp = dict(experiment)
     joint = exp.get("joint")
     if isinstance(joint, str):
-        path = models_dir / f"{joint}.yaml"
-        if not path.is_file():
-            known = ", ".join(sorted(p.stem for p in models_dir.glob("*.yaml"))) or "(none)"
-            raise ConfigError(f"{where}: key 'joint': no model file {path.name} in {models_dir}; "
-                              f"known: {known}")
-        exp["joint"] = _load_yaml(path)
+        exp["joint"] = _load_yaml(find_model(joint, [models_dir] if isinstance(models_dir, Path) else models_dir,
+                                             where))
     return exp
+
+
+def resolve_joint(name: str, study_path: Path | None = None, where: str = "joint") -> dict:
+    """The joint model named ``name`` (a file ``<name>.yaml`` beside the study, in its ``models/`` folder or
+    in the package's ``configs/models``), as its mapping."""
+    return _resolve_joint({"joint": name}, where, model_dirs(search_roots(study_path)))["joint"]
 
 
 #: most seeds one part may run (a typo such as ``seeds: 1000000000`` must not exhaust the memory)
@@ -257,7 +266,7 @@ def check_backend(name: Any, where: str) -> str:
     return name
 
 
-def load_part(name: str, data: Mapping, where: str, models_dir: Path,
+def load_part(name: str, data: Mapping, where: str, models_dir: Path | Sequence[Path],
               overrides: list | None = None) -> Part:
     """One part, strictly; ``overrides`` (``--set``, :mod:`benchmarks.overrides`) are applied first."""
     if overrides:
@@ -443,19 +452,22 @@ def _method_swap(value: Any, where: str, parts: Mapping[str, Part]) -> MethodSwa
 
 
 def load_study(path: str | Path, configs_dir: Path = CONFIGS, overrides=()) -> Study:
-    """Load ``configs/studies/<id>.yaml`` (or a path) with its published checks, strictly.
+    """Load a shipped study (by id) or a study file (by path) with its published checks, strictly.
 
+    Relative paths and model names in the file are looked up beside it first, then in the package
+    (:func:`search_roots`). ``published`` is optional: a study without it (a comparison) has no checks.
+    ``plugins`` (module names or ``.py`` files) are imported first, so that their estimators can be named.
     ``overrides``: ``--set PART.KEY=VALUE`` texts (:mod:`benchmarks.overrides`), applied to the parts'
     YAML before the strict parse; errors name the override."""
-    path = Path(path)
-    if not path.suffix:
-        path = configs_dir / "studies" / f"{path}.yaml"
+    path = study_path(path, configs_dir)
     data = _load_yaml(path)
     _check_keys(data, _STUDY_KEYS, str(path))
     parts_data = data["parts"]
     if not isinstance(parts_data, Mapping) or not parts_data:
         raise ConfigError(f"{path}: key 'parts': expected a non-empty mapping")
-    models_dir = configs_dir / "models"
+    roots = search_roots(path, configs_dir)
+    plugin_specs = load_plugins(data.get("plugins"), str(path), roots)
+    models_dir = model_dirs(roots)
     per_part = _overrides.for_parts(overrides, list(parts_data), str(path))
     parts = {name: load_part(name, p, f"{path}: parts.{name}", models_dir, per_part[name])
              for name, p in parts_data.items()}
@@ -464,9 +476,8 @@ def load_study(path: str | Path, configs_dir: Path = CONFIGS, overrides=()) -> S
         where = f"{path}: readings[{i}]"
         _check_keys(r, {"id": True, "topic": True, "passage": True, "reading": True, "alternatives": False}, where)
         readings.append(Reading(**{k: str(v) for k, v in r.items()}))
-    pub = Path(data["published"])
-    pub = pub if pub.is_absolute() else configs_dir.parent / pub
-    checks = load_checks(pub, parts)
+    pub = find_file(data["published"], roots, str(path), "published") if data.get("published") else None
+    checks = load_checks(pub, parts) if pub is not None else ()
     known = {r.id for r in readings}
     for c in checks:
         missing = [r for r in c.readings if r not in known]
@@ -476,4 +487,4 @@ def load_study(path: str | Path, configs_dir: Path = CONFIGS, overrides=()) -> S
     return Study(id=str(data["study"]), title=str(data["title"]), paper=str(data["paper"]), path=path,
                  parts=parts, readings=tuple(readings), checks=checks,
                  not_reproduced=_not_reproduced(data["not_reproduced"], str(path)),
-                 method_swap=_method_swap(data.get("method_swap"), str(path), parts))
+                 method_swap=_method_swap(data.get("method_swap"), str(path), parts), plugins=plugin_specs)

@@ -127,6 +127,20 @@ def group_cases(cases: list[Case], indices: Iterable[int] | None = None) -> list
     return list(groups.values())
 
 
+def _plugin_modules(cases: list[Case]) -> dict:
+    """``{module: [folder, {estimator: hash}]}`` of the plugins the cases' estimators come from (what every
+    worker must import, :func:`benchmarks.harness.pool.run_task`); empty for built-in estimators only."""
+    from jointbench.benchmarks.harness.fingerprint import plugin_hash, plugin_requirements
+
+    names = sorted({n for c in cases for n in c.estimators})
+    hashes = plugin_hash(names)
+    out: dict = {}
+    for name in hashes:
+        module, folder = next(iter(plugin_requirements([name]).items()))
+        out.setdefault(module, [folder, {}])[1][name] = hashes[name]
+    return out
+
+
 def _progress(total: int, enabled: bool):
     if not enabled:
         return None
@@ -221,10 +235,12 @@ def run_cases(cases: list[Case], cache: Cache, workers: int | None = None, seria
         capacity = 2 * min(workers, len(tasks))
     else:
         capacity = 2 * (getattr(executor, "_max_workers", None) or workers)
+    outside = None
     if not isinstance(executor, InlineExecutor):
         from jointbench.benchmarks.harness.fingerprint import code_hash
 
         code = code_hash()
+        outside = _plugin_modules([cases[i] for i in todo])
     done_q: queue.SimpleQueue = queue.SimpleQueue()
     inflight: dict = {}
     pending = iter(tasks)
@@ -236,7 +252,7 @@ def run_cases(cases: list[Case], cache: Cache, workers: int | None = None, seria
                     break
                 batch = [cases[i] for i in group]
                 fut = (executor.submit(run_group, batch) if code is None else
-                       executor.submit(run_task, batch, code))
+                       executor.submit(run_task, batch, code, outside))
                 inflight[fut] = group
                 fut.add_done_callback(done_q.put)
             if not inflight:

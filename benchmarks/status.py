@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from jointbench.benchmarks.config import EVIDENCE, REPO
+from jointbench.benchmarks.config import EVIDENCE
 from jointbench.benchmarks.harness.pages import markdown_table as markdown
 from jointbench.benchmarks.tables import evidence_counts, headline
 from jointbench.errors import ConfigError
@@ -23,7 +23,7 @@ _MAX_IDS = 3
 
 def comparisons(results: Path | None = None) -> dict[str, pd.DataFrame]:
     """Study id -> its comparison table, for every ``results/<study>/comparison.csv`` (sorted by id)."""
-    root = results or REPO / "results"
+    root = results or Path.cwd() / "results"
     out = {}
     for path in sorted(root.glob("*/comparison.csv")):
         out[path.parent.name] = pd.read_csv(path, keep_default_na=False, na_values=[""])
@@ -97,7 +97,7 @@ def block(results: Path | None = None) -> str:
 
 def write_readme(results: Path | None = None, readme: Path | None = None) -> tuple[Path, bool]:
     """Rewrite the status block of ``readme``; returns (path, whether the text changed)."""
-    path = readme or REPO / "README.md"
+    path = readme or Path.cwd() / "README.md"
     text = path.read_text()
     if text.count(BEGIN) != 1 or text.count(END) != 1 or text.index(BEGIN) > text.index(END):
         raise ConfigError(f"{path}: needs exactly one {BEGIN} followed by one {END} around the status block")
@@ -111,5 +111,5 @@ def write_readme(results: Path | None = None, readme: Path | None = None) -> tup
 
 def readme_block(readme: Path | None = None) -> str:
     """The text currently between the markers of ``readme`` (for the test that it is up to date)."""
-    text = (readme or REPO / "README.md").read_text()
+    text = (readme or Path.cwd() / "README.md").read_text()
     return text.split(BEGIN)[1].split(END)[0].lstrip("\n")

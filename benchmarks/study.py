@@ -1,7 +1,7 @@
 """Run a whole study: expand, run cases, write tidy results, comparison, figures and the report, and
 record the run in the history.
 
-Outputs in ``results/<study>/``: ``cases.csv`` (tidy rows), ``curves.csv.gz`` (curves behind the
+Outputs in ``results/<study>/`` (``./results`` of the current folder, or ``--out``): ``cases.csv`` (tidy rows), ``curves.csv.gz`` (curves behind the
 figures), ``comparison.csv`` (one row per published check), ``report.md`` with its PNG figures,
 ``report.html`` (the same report, self-contained), ``failures.log`` (tracebacks of failed cases, when
 any). Beside them, shared by every study:
@@ -20,7 +20,7 @@ from pathlib import Path
 import pandas as pd
 
 from jointbench.benchmarks import backends, figures, report
-from jointbench.benchmarks.config import REPO, Study, load_study
+from jointbench.benchmarks.config import Study, load_study
 from jointbench.benchmarks.harness import fingerprint, outputs
 from jointbench.benchmarks.harness.cache import Cache, case_key
 from jointbench.benchmarks.harness.history import History
@@ -53,7 +53,9 @@ class StudyRun:
 
 
 def results_root(out_root: Path | None = None) -> Path:
-    return Path(out_root) if out_root is not None else REPO / "results"
+    """The results folder: ``out_root`` (``--out``), else ``./results`` in the current folder (in a checkout,
+    `make` runs from its root: the checkout's results/). Never derived from where the code is installed."""
+    return Path(out_root) if out_root is not None else Path.cwd() / "results"
 
 
 def config_hash(study: Study) -> str:

@@ -2,7 +2,8 @@
 
 The key is the SHA-256 of the key material: the case as its protocol sees it (no paths, see
 :meth:`~benchmarks.harness.case.Case.key_material`), the code hash of the modules that compute it and the
-versions of Python, numpy and scipy (:mod:`benchmarks.harness.fingerprint`). Each entry carries its key,
+versions of Python, numpy and scipy (:mod:`benchmarks.harness.fingerprint`), and for a case with an
+estimator from a plugin, the plugin's distribution, version and source hash. Each entry carries its key,
 its material and a checksum of its result, and is verified on every read: an entry copied over another
 case's file, edited by hand, truncated or written by other code or libraries is reported and recomputed,
 never served. ``put`` never deletes other entries (older code, other cases): the history may refer to
@@ -23,8 +24,12 @@ FORMAT = 1
 
 
 def key_material(case: Case) -> dict:
-    return {"format": FORMAT, "case": case.key_material(), "code": fingerprint.code_hash(),
-            "env": fingerprint.key_environment()}
+    material = {"format": FORMAT, "case": case.key_material(), "code": fingerprint.code_hash(),
+                "env": fingerprint.key_environment()}
+    outside = fingerprint.plugin_hash(case.estimators)     # plugin estimators: their source and version
+    if outside:
+        material["plugins"] = outside
+    return material
 
 
 def case_key(case: Case) -> str:

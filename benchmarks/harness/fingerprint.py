@@ -19,6 +19,7 @@ import ast
 import functools
 import hashlib
 import importlib.metadata
+import importlib.util
 import json
 import os
 import platform
@@ -27,11 +28,34 @@ import subprocess
 import sys
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parents[2]
 #: the repository's code folders and the installed packages they are (pyproject.toml's package-dir)
 PACKAGE_DIRS = {"jointbench": "jointbench", "jointbench.sims": "sims", "jointbench.estimators": "estimators",
                 "jointbench.benchmarks": "benchmarks"}
 PACKAGES = tuple(PACKAGE_DIRS.values())
+
+
+@functools.lru_cache(maxsize=None)
+def package_root(package: str) -> Path | None:
+    """The folder package ``package`` (a key of :data:`PACKAGE_DIRS`) is imported from: the checkout's
+    folder (``sims/``) in a checkout or an editable install, ``site-packages/jointbench/sims`` from a wheel."""
+    spec = importlib.util.find_spec(package)
+    locations = list(spec.submodule_search_locations or []) if spec is not None else []
+    return Path(locations[0]).resolve() if locations else None
+
+
+def source_checkout() -> Path | None:
+    """The git checkout the running code comes from (a checkout, or an editable install of one); None when
+    it runs from an installed wheel. Found from where the code is, and used only to read (the git state):
+    results go to ``./results`` or ``--out``."""
+    root = package_root("jointbench")
+    repo = root.parent if root is not None else None
+    if repo is not None and (repo / "pyproject.toml").is_file() and all((repo / f).is_dir() for f in PACKAGES):
+        return repo
+    return None
+
+
+#: the checkout of the running code (None: installed from a wheel)
+REPO = source_checkout()
 CASE_ENTRY = "jointbench.benchmarks.harness.case"
 #: libraries whose version is part of every cache key
 KEY_LIBRARIES = ("numpy", "scipy", "mujoco")
@@ -50,7 +74,10 @@ def _module_file(name: str) -> Path | None:
             break
     else:
         return None
-    base = REPO.joinpath(folder, *parts[n:])
+    root = package_root(".".join(parts[:n]))
+    if root is None:
+        return None
+    base = root.joinpath(*parts[n:])
     if (base / "__init__.py").is_file():
         return base / "__init__.py"
     if base.with_suffix(".py").is_file():
@@ -116,9 +143,55 @@ def code_hash() -> str:
     """SHA-256 of the sources of :func:`case_modules` (paths relative to the repository)."""
     h = hashlib.sha256()
     for p in case_modules():
-        h.update(p.relative_to(REPO).as_posix().encode() + b"\0")
+        h.update(repo_path(p).encode() + b"\0")
         h.update(p.read_bytes() + b"\0")
     return h.hexdigest()[:20]
+
+
+def repo_path(path: Path) -> str:
+    """A source file's path in the repository layout (``sims/backend.py``), wherever it is installed: the
+    checkout and a wheel of the same source hash alike."""
+    path = Path(path).resolve()
+    best = None
+    for pkg, folder in PACKAGE_DIRS.items():
+        root = package_root(pkg)
+        if root is not None and root in path.parents and (best is None or len(root.parts) > len(best[0].parts)):
+            best = (root, folder)
+    if best is None:
+        return path.name
+    return f"{best[1]}/{path.relative_to(best[0]).as_posix()}"
+
+
+# --- outside estimators (plugins): their source enters the key of the cases that use them ---------------
+def plugin_hash(estimator_names) -> dict[str, str]:
+    """``{estimator: "<distribution>==<version> <source hash>"}`` for the estimators of ``estimator_names``
+    whose code lives outside jointbench (plugins, :mod:`jointbench.plugins`): the hash of every source file
+    of the plugin's top-level package, so an edited plugin recomputes its cases. Built-in estimators are
+    covered by :func:`code_hash` and give nothing here."""
+    from jointbench import estimators
+
+    out = {}
+    for name in sorted(estimator_names):
+        module = estimators.REGISTRY.get(name).__module__
+        if module.split(".")[0] != "jointbench":
+            out[name] = _plugin_text(module)
+    return out
+
+
+@functools.lru_cache(maxsize=None)
+def _plugin_text(module: str) -> str:
+    from jointbench import plugins
+
+    dist, version = plugins.distribution_of(module)
+    return f"{dist or module.split('.')[0]}=={version or '-'} {plugins.source_hash(module)}"
+
+
+def plugin_requirements(estimator_names) -> dict[str, str]:
+    """What a worker must import to run these estimators: ``{top-level module: folder}`` of the plugins."""
+    from jointbench import estimators, plugins
+
+    mods = {estimators.REGISTRY.get(n).__module__ for n in estimator_names}
+    return dict(plugins.requirement(m) for m in sorted(mods) if m.split(".")[0] != "jointbench")
 
 
 def _version(dist: str) -> str | None:
@@ -165,6 +238,8 @@ def sha(obj, n: int = 32) -> str:
 
 
 def _git(*args: str, cwd: Path | None = None) -> str | None:
+    if cwd is None and REPO is None:
+        return None
     try:
         out = subprocess.run(["git", *args], cwd=REPO if cwd is None else cwd, capture_output=True,
                              text=True, timeout=20)
@@ -178,6 +253,8 @@ def git_state(repo: Path | None = None) -> tuple[str, bool]:
     (:data:`RESULT_INPUTS`; regenerated reports and the README's status block do not count) or untracked
     files in the code packages or configs."""
     repo = REPO if repo is None else repo
+    if repo is None:                      # installed from a wheel: no git, the package's version instead
+        return installed_version(), False
     commit = _git("rev-parse", "--short", "HEAD", cwd=repo)
     if commit is None:
         return "unknown", False
@@ -188,7 +265,13 @@ def git_state(repo: Path | None = None) -> tuple[str, bool]:
     return commit, dirty
 
 
+def installed_version() -> str:
+    """``v<version>`` of the installed jointbench: the stamp of results computed from a wheel."""
+    return f"v{_version('jointbench') or 'unknown'}"
+
+
 def git_commit(repo: Path | None = None) -> str:
-    """``<commit>`` or ``<commit>-dirty`` (the stamp of reports and tidy rows); 'unknown' outside git."""
+    """``<commit>`` or ``<commit>-dirty`` (the stamp of reports and tidy rows); 'unknown' in a checkout
+    without git, ``v<version>`` from an installed wheel."""
     commit, dirty = git_state(repo)
     return commit + ("-dirty" if dirty else "")

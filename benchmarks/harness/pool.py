@@ -104,11 +104,14 @@ class InlineExecutor(cf.Executor):
         return fut
 
 
-def run_task(cases: list, code_hash: str | None = None) -> list:
+def run_task(cases: list, code_hash: str | None = None, plugins: dict | None = None) -> list:
     """What a worker runs: one group of cases (:func:`~benchmarks.harness.case.run_group`) with one BLAS
     thread. ``code_hash`` is the parent's: a worker that runs other code (a remote Dask worker on another
     checkout) refuses, instead of computing numbers of other code that would be cached under this code's
-    keys."""
+    keys. ``plugins`` (``{module: [folder, {estimator: hash}]}``, from
+    :func:`~benchmarks.harness.fingerprint.plugin_requirements` and ``plugin_hash``): the outside modules
+    the cases' estimators come from, imported here first (a Dask worker has not imported them), and
+    refused when their source differs from the parent's."""
     one_blas_thread()
     if code_hash is not None:
         from jointbench.benchmarks.harness.fingerprint import code_hash as here
@@ -116,6 +119,16 @@ def run_task(cases: list, code_hash: str | None = None) -> list:
         if here() != code_hash:
             raise RuntimeError(f"worker {os.uname().nodename}:{os.getpid()} runs other code (code hash "
                                f"{here()}, the run's {code_hash}): install the same checkout on every worker")
+    if plugins:
+        from jointbench import plugins as _plugins
+        from jointbench.benchmarks.harness.fingerprint import plugin_hash
+
+        _plugins.ensure({m: folder for m, (folder, _) in plugins.items()})
+        for module, (_, hashes) in plugins.items():
+            here = plugin_hash(hashes)
+            if here != hashes:
+                raise RuntimeError(f"worker {os.uname().nodename}:{os.getpid()} runs other code of plugin "
+                                   f"{module} ({here}, the run's {hashes}): install the same plugin on every worker")
     return run_group(cases)
 
 

@@ -1,0 +1,108 @@
+"""Where a study's files are: the shipped configs (package data), and what a study file names.
+
+The shipped study configs, joint models, published values and the nightly config are package data,
+``jointbench.configs`` (the checkout's ``configs/`` folder, installed inside the wheel), so a study runs
+the same from an installed wheel in any folder as from the checkout. A study file of one's own (``jointbench
+run path/to/my_study.yaml``) finds the joint models, published values and plugins it names beside it first
+(and in the config folder it is part of), then in the package. Nothing here is ever written: results go
+to ``./results`` or ``--out`` (:func:`benchmarks.study.results_root`).
+"""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, Sequence
+
+from jointbench.errors import ConfigError
+
+
+def _package_configs() -> Path:
+    """The folder of package ``jointbench.configs`` (in a checkout, its ``configs/``)."""
+    from importlib.resources import files
+
+    return Path(str(files("jointbench.configs")))
+
+
+#: the shipped configs (read-only)
+CONFIGS = _package_configs()
+
+
+def study_ids(configs_dir: Path = CONFIGS) -> list[str]:
+    """The shipped studies (``jointbench list``)."""
+    return sorted(p.stem for p in (Path(configs_dir) / "studies").glob("*.yaml"))
+
+
+def study_path(ref: str | Path, configs_dir: Path = CONFIGS) -> Path:
+    """The file of study ``ref``: a path to a YAML file, or the id of a shipped study."""
+    path = Path(ref)
+    if path.suffix:
+        return path
+    shipped = Path(configs_dir) / "studies" / f"{path}.yaml"
+    if not shipped.is_file() and not path.is_file():
+        raise ConfigError(f"unknown study {str(ref)!r}; shipped studies: {', '.join(study_ids(configs_dir))} "
+                          f"(or give the path of a study file, e.g. my_study.yaml)")
+    return shipped if shipped.is_file() else path
+
+
+def search_roots(study_file: Path | None, configs_dir: Path = CONFIGS) -> list[Path]:
+    """Where the names and relative paths of a study file are looked up, in order: the study's folder, the
+    config folder it is part of (the parent of a ``studies/`` folder), then the package's configs and
+    their parent (so that ``published: configs/published/x.yaml``, written relative to a checkout, resolves
+    from a wheel too)."""
+    roots = []
+    if study_file is not None:
+        here = Path(study_file).resolve().parent
+        roots += [here] + ([here.parent] if here.name == "studies" else [])
+    roots += [Path(configs_dir), Path(configs_dir).parent]
+    return list(dict.fromkeys(roots))
+
+
+def model_dirs(roots: Sequence[Path]) -> list[Path]:
+    """The folders a joint model named in a study is looked up in: the study's own folder, then
+    ``<root>/models`` for each root (:func:`search_roots`) that has one."""
+    out = [r / "models" for r in roots if (r / "models").is_dir()]
+    if roots:
+        out.insert(0, roots[0])
+    return list(dict.fromkeys(out))
+
+
+def find_model(name: str, dirs: Sequence[Path], where: str) -> Path:
+    """The file ``<name>.yaml`` of a joint model named in a config, from the first of ``dirs`` holding it."""
+    for d in dirs:
+        if (Path(d) / f"{name}.yaml").is_file():
+            return Path(d) / f"{name}.yaml"
+    known = ", ".join(sorted({p.stem for d in dirs if Path(d).name == "models" for p in Path(d).glob("*.yaml")}))
+    raise ConfigError(f"{where}: key 'joint': no model file {name}.yaml in {', '.join(str(d) for d in dirs)}; "
+                      f"known: {known or '(none)'}")
+
+
+def find_file(ref: str | Path, roots: Sequence[Path], where: str, key: str) -> Path:
+    """A path named in a study file: absolute, or the first ``root / ref`` that exists."""
+    ref = Path(ref)
+    if ref.is_absolute():
+        if not ref.is_file():
+            raise ConfigError(f"{where}: key {key!r}: {ref}: file not found")
+        return ref
+    for root in roots:
+        if (root / ref).is_file():
+            return root / ref
+    raise ConfigError(f"{where}: key {key!r}: {ref} not found beside the study or in the package's configs "
+                      f"(looked in {', '.join(str(r) for r in roots)})")
+
+
+def load_plugins(value: Any, where: str, roots: Sequence[Path]) -> tuple[str, ...]:
+    """Import a study's ``plugins`` (module names, or ``.py`` files and package folders beside the study) so
+    that their estimators are registered; returns their specs, which the workers import too
+    (:func:`jointbench.plugins.load`)."""
+    from jointbench import plugins
+
+    if value is None:
+        return ()
+    if not isinstance(value, list) or not all(isinstance(v, str) and v.strip() for v in value):
+        raise ConfigError(f"{where}: key 'plugins': expected a list of module names or paths to .py files, "
+                          f"got {value!r}")
+    out = []
+    for ref in value:
+        if ref.endswith(".py") or "/" in ref:
+            ref = str(next((r / ref for r in roots if (r / ref).exists()), Path(ref)))
+        out.append(plugins.load(ref, f"{where}: key 'plugins'").spec)
+    return tuple(out)
