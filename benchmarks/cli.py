@@ -7,20 +7,19 @@ status 130 (143 for SIGTERM); run again to resume.
 """
 from __future__ import annotations
 
+import argparse
 import os
+import shlex
+import signal
+import sys
+from pathlib import Path
 
-# One BLAS thread per process: cases already run in parallel, and results do not depend on the
-# thread count. Must be set before numpy is imported.
-for _v in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
-    os.environ.setdefault(_v, "1")
+from jointbench.errors import JointBenchError
 
-import argparse  # noqa: E402
-import shlex  # noqa: E402
-import signal  # noqa: E402
-import sys  # noqa: E402
-from pathlib import Path  # noqa: E402
-
-from jointbench.errors import JointBenchError  # noqa: E402
+#: one BLAS thread per process for the command (cases already run in parallel, and results do not depend
+#: on the thread count); set by :func:`main` on the real command line only, before numpy is imported:
+#: importing this module (or jointbench.api) changes nothing for the caller
+BLAS_THREAD_VARIABLES = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
 
 
 class Terminated(KeyboardInterrupt):
@@ -204,6 +203,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    if argv is None:                       # the real command line: its own process, numpy not loaded yet
+        for v in BLAS_THREAD_VARIABLES:
+            os.environ.setdefault(v, "1")
     parser = build_parser()
     args = parser.parse_args(argv)
     previous = None

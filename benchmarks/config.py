@@ -451,16 +451,19 @@ def _method_swap(value: Any, where: str, parts: Mapping[str, Part]) -> MethodSwa
     return MethodSwap(str(value["part"]), (est[0], est[1]))
 
 
-def load_study(path: str | Path, configs_dir: Path = CONFIGS, overrides=()) -> Study:
-    """Load a shipped study (by id) or a study file (by path) with its published checks, strictly.
+def load_study(path: str | Path | Mapping, configs_dir: Path = CONFIGS, overrides=()) -> Study:
+    """Load a shipped study (by id), a study file (by path) or a study mapping with its checks, strictly.
 
     Relative paths and model names in the file are looked up beside it first, then in the package
     (:func:`search_roots`). ``published`` is optional: a study without it (a comparison) has no checks.
     ``plugins`` (module names or ``.py`` files) are imported first, so that their estimators can be named.
     ``overrides``: ``--set PART.KEY=VALUE`` texts (:mod:`benchmarks.overrides`), applied to the parts'
     YAML before the strict parse; errors name the override."""
-    path = study_path(path, configs_dir)
-    data = _load_yaml(path)
+    if isinstance(path, Mapping):    # a study as a mapping (jointbench.api.run): names resolve from the current folder
+        data, path = dict(path), Path.cwd() / f"{path.get('study', 'study')}.yaml"
+    else:
+        path = study_path(path, configs_dir)
+        data = _load_yaml(path)
     _check_keys(data, _STUDY_KEYS, str(path))
     parts_data = data["parts"]
     if not isinstance(parts_data, Mapping) or not parts_data:

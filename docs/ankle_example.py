@@ -1,37 +1,35 @@
-"""The README's worked example: the `estimate` command on the five REKLAB ankle recordings.
+"""The README's worked example: four estimators on the five REKLAB ankle recordings, with the Python API.
 
 Usage: python docs/ankle_example.py PATH/TO/ankle_stationary.npz OUTDIR
 (`make example-ankle` passes ../shared/data/reklab-ankle/ankle_stationary.npz and docs/). Writes
 OUTDIR/ankle_example.md (a table of I, B, K or stiffness with their 95 % confidence intervals, and the
-VAF, per record and estimator) and two figures made by `--plot`. Developers' data only: nothing here is read by the package at runtime.
+VAF, per record and estimator) and two figures. Each fit is :func:`jointbench.api.fit`, the checked pipeline
+of `jointbench estimate` (the same numbers as the command). Developers' data only: nothing here is read by
+the package at runtime.
 """
 from __future__ import annotations
 
-import contextlib
-import io
-import re
 import sys
-import tempfile
 from pathlib import Path
 
 import pandas as pd
 
-from jointbench.benchmarks.cli import main
-from jointbench.benchmarks.tables import markdown
+from jointbench import api
+from jointbench.benchmarks.harness.pages import markdown_table as markdown
 
 RECORDS = ["z_pf", "z_pf2", "z_df", "z_df2", "z_df3"]
-COMMON = ["--decimate", "10", "--torque-sign", "-1"]          # REKLAB: 100 Hz, torque sign flipped
+COMMON = {"decimate": 10, "torque_sign": -1}                  # REKLAB: 100 Hz, torque sign flipped
 ESTIMATORS = {
-    "ibk_irf": ["--set", "lag_before=40ms", "--set", "lag_after=40ms", "--set", "bandlimit=20Hz"],
-    "irf2_ls": ["--set", "lag_before=40ms", "--set", "lag_after=40ms"],
-    "spectral": [],
-    "ibk_spectral": [],
+    "ibk_irf": {"lag_before": "40 ms", "lag_after": "40 ms", "bandlimit": "20 Hz"},
+    "irf2_ls": {"lag_before": "40 ms", "lag_after": "40 ms"},
+    "spectral": {},
+    "ibk_spectral": {},
 }
 FIGURES = {("z_df", "ibk_irf"): "ankle_z_df_ibk_irf.png", ("z_df", "spectral"): "ankle_z_df_spectral.png"}
 
 
 def with_interval(frame: pd.DataFrame, col: str) -> str:
-    """``value [lo, hi]`` from OUT.csv (the 95 % interval columns), or empty when the column is absent."""
+    """``value [lo, hi]`` from the estimate's frame (its 95 % interval columns), or empty when absent."""
     if col not in frame:
         return ""
     text = f"{frame[col].mean():.4g}"
@@ -42,24 +40,16 @@ def with_interval(frame: pd.DataFrame, col: str) -> str:
 
 def run(npz: Path, out: Path) -> pd.DataFrame:
     rows = []
-    with tempfile.TemporaryDirectory() as tmp:
-        for rec in RECORDS:
-            for name, extra in ESTIMATORS.items():
-                csv = Path(tmp) / f"{rec}_{name}.csv"
-                argv = ["estimate", "-e", name, "-i", f"{npz}:{rec}", "-o", str(csv), *COMMON, *extra]
-                if (rec, name) in FIGURES:
-                    argv += ["--plot", str(out / FIGURES[rec, name])]
-                buf = io.StringIO()
-                with contextlib.redirect_stdout(buf):
-                    if main(argv) != 0:
-                        raise SystemExit(f"estimate failed: {' '.join(argv)}")
-                frame = pd.read_csv(csv)
-                vaf = float(re.search(r"^\s+\S+\s+(-?[\d.]+) %", buf.getvalue(), re.M).group(1))
-                row = {"record": rec, "estimator": name}
-                for col in ("I", "B", "K", "stiffness"):
-                    row[col] = with_interval(frame, col)
-                row["VAF_%"] = vaf
-                rows.append(row)
+    for rec in RECORDS:
+        for name, settings in ESTIMATORS.items():
+            fit = api.fit(name, f"{npz}:{rec}", settings=settings, **COMMON)
+            if (rec, name) in FIGURES:
+                fit.plot(out / FIGURES[rec, name])
+            row = {"record": rec, "estimator": name}
+            for col in ("I", "B", "K", "stiffness"):
+                row[col] = with_interval(fit.frame, col)
+            row["VAF_%"] = round(fit.vaf, 1)
+            rows.append(row)
     return pd.DataFrame(rows)
 
 

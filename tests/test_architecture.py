@@ -1,9 +1,10 @@
-"""Dependencies flow one way: jointbench <- {sims, estimators} <- benchmarks (CLI on top).
+"""Dependencies flow one way: jointbench <- {sims, estimators} <- benchmarks <- api <- CLI.
 
 The repository's folders ``jointbench/``, ``sims/``, ``estimators/`` and ``benchmarks/`` are one installed
 namespace: ``jointbench``, ``jointbench.sims``, ``jointbench.estimators``, ``jointbench.benchmarks``
 (pyproject.toml's package-dir). Here each folder is a *room*: ``core`` (jointbench/), ``sims``,
-``estimators`` and ``benchmarks``.
+``estimators`` and ``benchmarks``; and two rooms on top: ``api`` (jointbench/api.py, the Python API, which
+may use everything below it) and ``cli`` (the command-line modules, which wrap the API and the harness).
 """
 import ast
 import re
@@ -18,10 +19,16 @@ PACKAGE_OF = {"core": "jointbench", "sims": "jointbench.sims", "estimators": "jo
               "benchmarks": "jointbench.benchmarks"}
 FOLDER_OF = {"core": "jointbench", "sims": "sims", "estimators": "estimators", "benchmarks": "benchmarks"}
 FORBIDDEN = {
-    "core": {"sims", "estimators", "benchmarks"},
-    "sims": {"estimators", "benchmarks"},
-    "estimators": {"sims", "benchmarks"},
+    "core": {"sims", "estimators", "benchmarks", "api", "cli"},
+    "sims": {"estimators", "benchmarks", "api", "cli"},
+    "estimators": {"sims", "benchmarks", "api", "cli"},
+    "benchmarks": {"api", "cli"},          # the harness: the API and the CLI sit on it, never the reverse
+    "api": {"cli"},
 }
+#: the API room (a module of the jointbench folder) and the command-line modules (in the benchmarks folder)
+API_MODULES = {"jointbench.api"}
+CLI_MODULES = {"jointbench.benchmarks.cli", "jointbench.benchmarks.cli_history", "jointbench.benchmarks.__main__",
+               "jointbench.benchmarks.recordings.cli"}
 CODE = sorted(FOLDER_OF.values()) + ["tests", "docs", "examples", "configs"]
 
 
@@ -30,6 +37,10 @@ def room_of(module: str) -> str | None:
     parts = module.split(".")
     if parts[0] != "jointbench":
         return None
+    if module in API_MODULES:
+        return "api"
+    if module in CLI_MODULES:
+        return "cli"
     if len(parts) > 1 and parts[1] in ("sims", "estimators", "benchmarks"):
         return parts[1]
     return "core"
@@ -67,10 +78,22 @@ def imported_rooms(path: Path) -> set[str]:
     return {r for m in imported_modules(path) if m and (r := room_of(m)) is not None}
 
 
+def files_of(room: str) -> list[Path]:
+    """The source files of a room."""
+    every = [f for folder in FOLDER_OF.values() for f in sorted((REPO / folder).rglob("*.py"))]
+    return [f for f in every if room_of(_module_of_file(f)) == room]
+
+
+def _module_of_file(path: Path) -> str:
+    package = _package_of_file(path)
+    return package if path.name == "__init__.py" else f"{package}.{path.stem}"
+
+
 @pytest.mark.parametrize("room", sorted(FORBIDDEN))
 def test_layering(room):
     bad = []
-    for f in sorted((REPO / FOLDER_OF[room]).rglob("*.py")):
+    assert files_of(room), room
+    for f in files_of(room):
         hit = imported_rooms(f) & FORBIDDEN[room]
         if hit:
             bad.append(f"{f.relative_to(REPO)} imports {sorted(hit)}")
@@ -79,19 +102,22 @@ def test_layering(room):
 
 def test_recordings_need_only_the_core():
     """benchmarks/recordings (``jointbench estimate``) imports jointbench and estimators, nothing else of the
-    project: not the rest of benchmarks (harness, protocols, figures, config), not sims."""
+    project: not the rest of benchmarks (harness, protocols, figures, config), not sims; its command-line
+    module also uses the API (``jointbench.api.fit``), the library modules do not."""
     room = REPO / "benchmarks" / "recordings"
     files = sorted(room.rglob("*.py"))
     assert files, room
     inside = ("jointbench.benchmarks", "jointbench.benchmarks.recordings")  # the package itself and this room
 
-    def outside(m: str) -> bool:
+    def outside(m: str, cli: bool) -> bool:
         room = room_of(m)
-        return room == "sims" or (room == "benchmarks" and m not in inside and not m.startswith(inside[1] + "."))
+        return (room == "sims" or (room == "api" and not cli)
+                or (room == "benchmarks" and m not in inside and not m.startswith(inside[1] + ".")))
 
     bad = []
     for f in files:
-        hit = sorted(filter(outside, imported_modules(f)))
+        cli = room_of(_module_of_file(f)) == "cli"   # recordings/cli.py wraps jointbench.api.fit
+        hit = sorted(m for m in imported_modules(f) if outside(m, cli))
         if hit:
             bad.append(f"{f.relative_to(REPO)} imports {hit}")
     assert not bad, "\n".join(bad)
@@ -123,6 +149,30 @@ def test_estimator_index_matches_the_registry():
 
 
 BARE = re.compile(r"^\s*(?:import|from)\s+(sims|estimators|benchmarks)\b", re.M)
+
+
+def test_the_api_room_is_above_the_harness_and_below_the_cli():
+    """jointbench/api.py is its own room: the core files are the other modules of jointbench/, the harness
+    never imports the API, the API never imports a command-line module, and the CLI wraps the API."""
+    assert [f.name for f in files_of("api")] == ["api.py"]
+    assert (REPO / "jointbench" / "api.py") not in files_of("core")
+    assert "api" in imported_rooms(REPO / "benchmarks" / "recordings" / "cli.py")
+    assert room_of("jointbench.benchmarks.study") == "benchmarks" and room_of("jointbench.benchmarks.cli") == "cli"
+
+
+def test_importing_the_api_and_the_cli_sets_no_blas_threads():
+    """Importing jointbench.api or the CLI module leaves the caller's environment and BLAS pools alone."""
+    import subprocess
+    import sys
+
+    code = ("import os, json; before = dict(os.environ); import numpy; from threadpoolctl import threadpool_info; "
+            "n0 = [p['num_threads'] for p in threadpool_info()]; "
+            "import jointbench.api, jointbench.benchmarks.cli, jointbench.benchmarks.recordings.cli; "
+            "n1 = [p['num_threads'] for p in threadpool_info()]; "
+            "print(json.dumps([sorted(set(os.environ.items()) ^ set(before.items())), n0 == n1]))")
+    env = {k: v for k, v in __import__("os").environ.items() if not k.endswith("_NUM_THREADS")}
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env).stdout
+    assert out.strip() == "[[], true]", out
 
 
 def test_no_bare_top_level_imports():

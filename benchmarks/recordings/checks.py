@@ -3,8 +3,10 @@ gated multisine, and the checks that turn hopeless inputs into one-line errors (
 double precision's comfortable range, constant signals, a fit that would not fit in memory).
 
 Every function raises :class:`~jointbench.errors.InputError` or :class:`~jointbench.errors.ConfigError`
-with a message naming the record or the option; nothing here writes files. numpy and the estimators are
-imported inside the functions (``jointbench estimate --list`` must start quickly).
+with a message naming the record or the argument; nothing here writes files. The arguments are named as
+the caller knows them (:class:`Names`): the Python API's keywords (``window=``, ``decimate=``) by default,
+the command line's flags (``--window``, ``--decimate``) for ``jointbench estimate``. numpy and the
+estimators are imported inside the functions (``jointbench estimate --list`` must start quickly).
 """
 from __future__ import annotations
 
@@ -20,11 +22,36 @@ MAGNITUDE_RANGE = (1e-50, 1e50)
 MEMORY_FRACTION = 0.5
 
 
-def parse_window(text: str) -> tuple[float | None, float | None]:
+@dataclasses.dataclass(frozen=True)
+class Names:
+    """How error messages name the pipeline's arguments: keywords of :func:`jointbench.api.fit`
+    (:data:`PYTHON`) or flags of ``jointbench estimate`` (:data:`CLI`)."""
+
+    flags: tuple[tuple[str, str], ...] = ()
+
+    def __call__(self, key: str, value=None) -> str:
+        """``key`` (``window``, ``decimate``, ``settings``), with ``value`` when given: ``decimate=4`` or
+        ``--decimate 4``; a window ``(start, end)`` in seconds."""
+        flag = dict(self.flags).get(key)
+        if value is None:
+            return flag or key
+        if key == "window":
+            a, b = value
+            return f"{flag} {a:.3f}s:{b:.3f}s" if flag else f"window=({a:.3f}, {b:.3f})"
+        return f"{flag} {value}" if flag else f"{key}={value!r}"
+
+
+PYTHON = Names()
+CLI = Names((("window", "--window"), ("decimate", "--decimate"), ("settings", "--set"),
+             ("torque_sign", "--torque-sign"), ("fs", "--fs"), ("ensemble", "--ensemble")))
+
+
+def parse_window(text: str, names: Names = CLI) -> tuple[float | None, float | None]:
     """``START:END`` in seconds (``s`` or ``ms`` suffix allowed; either side may be left empty)."""
+    w = names("window")
     m = re.fullmatch(r"\s*([^:]*):([^:]*)\s*", text)
     if not m:
-        raise ConfigError(f"--window: expected START:END in seconds (e.g. 5s:45s), got {text!r}")
+        raise ConfigError(f"{w}: expected START:END in seconds (e.g. 5s:45s), got {text!r}")
 
     def value(part: str) -> float | None:
         part = part.strip()
@@ -32,17 +59,17 @@ def parse_window(text: str) -> tuple[float | None, float | None]:
             return None
         v = re.fullmatch(r"([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(s|ms)?", part)
         if not v:
-            raise ConfigError(f"--window: {part!r} is not a time in s or ms (e.g. 5s, 500ms, 5.5)")
+            raise ConfigError(f"{w}: {part!r} is not a time in s or ms (e.g. 5s, 500ms, 5.5)")
         x = float(v.group(1)) * (1e-3 if v.group(2) == "ms" else 1.0)
         if not (x >= 0 and x < float("inf")):
-            raise ConfigError(f"--window: times must be finite and >= 0 s, got {part!r}")
+            raise ConfigError(f"{w}: times must be finite and >= 0 s, got {part!r}")
         return x
 
     start, end = value(m.group(1)), value(m.group(2))
     if start is None and end is None:
-        raise ConfigError("--window: give a start, an end or both (START:END)")
+        raise ConfigError(f"{w}: give a start, an end or both (START:END)")
     if start is not None and end is not None and not end > start:
-        raise ConfigError(f"--window: the end ({end:g} s) must come after the start ({start:g} s)")
+        raise ConfigError(f"{w}: the end ({end:g} s) must come after the start ({start:g} s)")
     return start, end
 
 
@@ -53,22 +80,43 @@ def _slice(trial, i0: int, i1: int):
                  imposed=trial.imposed, name=trial.name)
 
 
-def crop_window(trial, window: tuple[float | None, float | None]):
+def as_window(value, names: Names = PYTHON) -> tuple[float | None, float | None]:
+    """A window from ``"START:END"`` text (:func:`parse_window`) or a ``(start, end)`` pair of seconds (either
+    may be None), checked alike."""
+    if isinstance(value, str):
+        return parse_window(value, names)
+    w = names("window")
+    try:
+        start, end = value
+    except (TypeError, ValueError):
+        raise ConfigError(f"{w}: expected (start, end) in seconds or 'START:END', got {value!r}") from None
+    for x in (start, end):
+        if x is not None and (isinstance(x, bool) or not isinstance(x, (int, float)) or not 0 <= x < float("inf")):
+            raise ConfigError(f"{w}: times must be finite numbers >= 0 s (or None), got {value!r}")
+    if start is None and end is None:
+        raise ConfigError(f"{w}: give a start, an end or both")
+    if start is not None and end is not None and not end > start:
+        raise ConfigError(f"{w}: the end ({end:g} s) must come after the start ({start:g} s)")
+    return (None if start is None else float(start), None if end is None else float(end))
+
+
+def crop_window(trial, window: tuple[float | None, float | None], names: Names = PYTHON):
     """The samples ``start <= t - t0 < end`` of ``trial`` (``t0`` its first sample's time)."""
     start, end = window
+    w = names("window")
     fs = trial.fs
     i0 = 0 if start is None else int(round(start * fs))
     i1 = trial.n if end is None else int(round(end * fs))
     if end is not None and i1 > trial.n:
-        raise InputError(f"--window: record '{trial.name}' is {trial.duration:g} s long; it has no samples "
+        raise InputError(f"{w}: record '{trial.name}' is {trial.duration:g} s long; it has no samples "
                          f"up to {end:g} s")
     if i1 - i0 < 2:
-        raise InputError(f"--window: keeps {max(i1 - i0, 0)} sample(s) of record '{trial.name}' "
+        raise InputError(f"{w}: keeps {max(i1 - i0, 0)} sample(s) of record '{trial.name}' "
                          f"({trial.duration:g} s at {fs:g} Hz); need at least 2")
     return _slice(trial, i0, i1)
 
 
-def crop_gated(estimator, trials: list) -> tuple[list, list[str]]:
+def crop_gated(estimator, trials: list, names: Names = PYTHON) -> tuple[list, list[str]]:
     """For the multisine methods: crop a gated multisine (quiet at the start or end) to its whole periods.
 
     Returns the trials and a note per cropped record. Other estimators get the records unchanged.
@@ -91,15 +139,15 @@ def crop_gated(estimator, trials: list) -> tuple[list, list[str]]:
         if g.period:
             text += (f"; fitted on {t.time[g.start] - t0:.3f} ... {t.time[g.stop - 1] - t0 + 1 / t.fs:.3f} s "
                      f"({g.periods} whole period{'s' if g.periods > 1 else ''} of {g.period / t.fs:g} s); "
-                     f"--window chooses another part")
+                     f"{names('window')} chooses another part")
         else:
-            text += "; fitted on that part (no repeating period found); --window chooses another part"
+            text += f"; fitted on that part (no repeating period found); {names('window')} chooses another part"
         notes.append(text)
         out.append(_slice(t, g.start, g.stop))
     return out, notes
 
 
-def gate_hint(estimator, trials: list) -> str:
+def gate_hint(estimator, trials: list, names: Names = PYTHON) -> str:
     """``"; ... gated ..."`` when a record's perturbation is on for part of it only (for error messages)."""
     try:
         from jointbench.signal import find_gate
@@ -110,7 +158,7 @@ def gate_hint(estimator, trials: list) -> str:
                 t0 = t.time[0]
                 a, b = t.time[g.on] - t0, t.time[g.off - 1] - t0 + 1 / t.fs
                 return (f" (record '{t.name}' is perturbed from {a:.3f} s to {b:.3f} s only: fit that part with "
-                        f"--window {a:.3f}s:{b:.3f}s)")
+                        f"{names('window', (a, b))})")
     except Exception:  # noqa: BLE001 - a hint must never hide the error it decorates
         return ""
     return ""
@@ -148,7 +196,7 @@ def _gib(b: float) -> str:
     return f"{b / 2 ** 30:.3g} GiB" if b >= 2 ** 29 else f"{b / 2 ** 20:.3g} MiB"
 
 
-def check_memory(estimator, trials: list) -> None:
+def check_memory(estimator, trials: list, names: Names = PYTHON) -> None:
     """Refuse a fit whose planned memory (``estimator.memory_bytes(trials)``) exceeds what is available.
 
     The message names the decimation that would fit. Estimators without ``memory_bytes`` are not checked.
@@ -171,10 +219,10 @@ def check_memory(estimator, trials: list) -> None:
         if plan(shapes) <= budget:
             raise InputError(f"{estimator.name}: the fit and its prediction need about {_gib(need)} for {n} samples at "
                              f"{fs:g} Hz, more than half the memory available ({_gib(2 * budget)}); at "
-                             f"{fs / q:g} Hz (--decimate {q}) they need {_gib(plan(shapes))}")
+                             f"{fs / q:g} Hz ({names('decimate', q)}) they need {_gib(plan(shapes))}")
     raise InputError(f"{estimator.name}: the fit needs about {_gib(need)} for {n} samples at {fs:g} Hz, more than "
                      f"half the memory available ({_gib(2 * budget)}), at any decimation; shorten the records "
-                     f"(--window)")
+                     f"({names('window')})")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -194,7 +242,7 @@ class _Shape:
         return self.n / self.fs
 
 
-def decimate_trial(trial, q: int):
+def decimate_trial(trial, q: int, names: Names = PYTHON):
     """Decimate ``trial`` by the whole factor ``q`` with :func:`jointbench.signal.resample_trial`."""
     if q == 1:
         return trial
@@ -203,4 +251,4 @@ def decimate_trial(trial, q: int):
     try:
         return resample_trial(trial, trial.fs / q)
     except InputError as exc:
-        raise InputError(f"--decimate {q}: {exc}") from None
+        raise InputError(f"{names('decimate', q)}: {exc}") from None

@@ -6,8 +6,9 @@
                         [--set key=value ...] [--decimate Q] [--window START:END] [--array NAME]
                         [--fs HZ] [--torque-sign {1,-1}] [--plot FIG.png] [--list]
 
-Reads the records (:mod:`benchmarks.recordings.io`), optionally negates the torque, decimates and crops
-them, fits them together with the estimator, and only then, when every step that can fail has passed,
+Reads the records (:mod:`benchmarks.recordings.io`) and fits them with :func:`jointbench.api.fit` (the
+checked pipeline, :mod:`benchmarks.recordings.fitting`: torque sign, decimation, crop, checks, fit), the
+errors naming this command's flags; only then, when every step that can fail has passed, it
 writes ``OUT.csv`` (:meth:`~jointbench.estimate.Estimate.to_frame`), ``OUT_irf.csv`` or
 ``OUT_frf.csv`` (the response, when the estimate has one), ``OUT_prediction.csv`` (what each VAF is
 computed on) and the figure, and prints a summary. User errors raise
@@ -21,19 +22,19 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import io as _io
 import os
 from pathlib import Path
 from typing import TYPE_CHECKING, Sequence
 
-from jointbench.benchmarks.recordings.checks import (check_information, check_magnitudes, check_memory, crop_gated,
-                                          crop_window, decimate_trial, gate_hint, parse_window)
-from jointbench.errors import ConfigError, InputError
+from jointbench.benchmarks.recordings.checks import CLI, decimate_trial, parse_window  # noqa: F401 - public
+from jointbench.benchmarks.recordings.fitting import Fit as Outcome
+from jointbench.benchmarks.recordings.fitting import compute as _compute
+from jointbench.benchmarks.recordings.fitting import estimator_from, fit, prediction_of, prediction_vaf  # noqa: F401
+from jointbench.errors import ConfigError
 from jointbench.files import atomic_write
 
 if TYPE_CHECKING:  # pragma: no cover
     from jointbench.benchmarks.recordings.io import Source
-    from jointbench.estimate import Estimate
 
 PLOT_SUFFIXES = (".png", ".pdf", ".svg")
 UNITS = {"I": "kg m^2", "B": "N m s/rad", "K": "N m/rad", "stiffness": "N m/rad"}
@@ -88,20 +89,6 @@ def add_parser(subparsers) -> None:
     p.set_defaults(func=run)
 
 
-@dataclasses.dataclass
-class Outcome:
-    """Everything a run produces, computed before anything is written."""
-
-    estimate: "Estimate"
-    raw: list
-    trials: list
-    notes: list[str]
-    predictions: list
-    frame: object
-    response: object
-    figure: bytes | None
-
-
 def run(args: argparse.Namespace) -> int:
     """Execute ``estimate``; returns 0 or raises :class:`~jointbench.errors.JointBenchError`."""
     if args.list:
@@ -130,8 +117,11 @@ def run(args: argparse.Namespace) -> int:
     ensemble = args.ensemble or (len(sources) > 1 and "ensemble" in estimator.accepts
                                  and not {"trial", "pooled"} & estimator.accepts)
     records = io_ensemble.read_records(sources, fs=args.fs, ensemble=ensemble)
-    outcome = compute(estimator, list(records), torque_sign=args.torque_sign, decimate=args.decimate,
-                      window=window, plot=plot, ensemble=records.name if isinstance(records, Ensemble) else None)
+    from jointbench import api
+
+    outcome = api.fit(estimator, records, torque_sign=args.torque_sign, decimate=args.decimate, window=window,
+                      ensemble=isinstance(records, Ensemble), figure=plot.suffix[1:].lower() if plot else None,
+                      names=CLI)
     written = write_outputs(out, plot, outcome)
     print(summary_text(args.estimator, estimator.settings, outcome, written, torque_sign=args.torque_sign))
     return 0
@@ -140,114 +130,19 @@ def run(args: argparse.Namespace) -> int:
 # --- the steps (public so that tests and other commands can use them) ------------------------------
 
 def make_estimator(name: str, assignments: Sequence[str]):
-    """The estimator with its ``--set`` settings; ``auto=true`` sets each of its :attr:`AUTO` keys to 'auto'."""
-    from jointbench import estimators
+    """The estimator with its ``--set`` settings (:func:`~benchmarks.recordings.fitting.estimator_from`:
+    ``auto=true`` sets each of its :attr:`AUTO` keys to 'auto')."""
     from jointbench.schema import parse_assignments
 
-    settings = parse_assignments(list(assignments), where="--set")
-    cls = estimators.REGISTRY.get(name)
-    if "auto" in settings:
-        value = settings.pop("auto").strip().lower()
-        if value not in ("true", "false", "yes", "no", "1", "0"):
-            raise ConfigError(f"--set (estimator '{name}'): key 'auto': expected true or false, got {value!r}")
-        keys = getattr(cls, "AUTO", ())
-        if not keys:
-            raise ConfigError(f"--set (estimator '{name}'): key 'auto': {name} has no smoothing or "
-                              f"regularisation parameter to choose from the data (the time-varying methods do)")
-        if value in ("true", "yes", "1"):
-            for k in keys:
-                settings.setdefault(k, "auto")
-    return estimators.make(name, settings, where="--set")
+    return estimator_from(name, parse_assignments(list(assignments), where="--set"), CLI)
 
 
 def compute(estimator, raw: list, *, torque_sign: int = 1, decimate: int = 1,
             window: tuple[float | None, float | None] | None = None, plot: Path | None = None,
             ensemble: str | None = None) -> Outcome:
-    """Every step that can fail, in order, without writing anything.
-
-    With ``ensemble`` (its name), the records are the realizations of one time-varying condition and
-    are fitted as an :class:`~jointbench.ensemble.Ensemble` (after the same checks and cropping).
-
-    Checks the data's magnitudes, negates the torque, decimates, crops (``--window``, or the perturbed
-    part of a gated multisine for the multisine methods), checks the records carry information,
-    checks the memory the estimator plans to use, fits, checks the estimate is finite, computes the
-    VAFs, the tables and the figure.
-    """
-    import numpy as np
-
-    notes: list[str] = []
-    check_magnitudes(raw)
-    if torque_sign == -1:
-        raw = [t.replace(torque=-t.torque) for t in raw]
-    trials = [decimate_trial(t, decimate) for t in raw]
-    if window is not None:
-        trials = [crop_window(t, window) for t in trials]
-    else:
-        trials, gate_notes = crop_gated(estimator, trials)
-        notes += gate_notes
-    check_information(trials)
-    check_memory(estimator, trials)
-    if ensemble is not None:
-        from jointbench.ensemble import Ensemble
-
-        est = fit(estimator, Ensemble(tuple(trials), name=ensemble))
-    else:
-        est = fit(estimator, trials)
-    frame = est.to_frame()
-    response = est.response_frame()
-    bad = [c for c in frame.columns if frame[c].dtype.kind == "f" and not np.all(np.isfinite(frame[c]))]
-    if bad:
-        raise InputError(f"{estimator.name}: the fit gave non-finite values in {', '.join(bad)}: the data do not "
-                         f"determine them (constant or far too small/large signals, or too few samples)")
-    predictions = [prediction_of(est, t, k) for k, t in enumerate(trials)]
-    figure = None
-    if plot is not None:
-        from jointbench.benchmarks.recordings.plots import plot_estimate
-
-        buf = _io.BytesIO()
-        plot_estimate(est, buf, trials=trials, fmt=plot.suffix[1:].lower())
-        figure = buf.getvalue()
-    return Outcome(est, list(raw), trials, notes, predictions, frame, response, figure)
-
-
-def fit(estimator, trials: list):
-    """``estimator.fit(trials)`` with numerical failures turned into one-line errors."""
-    import numpy as np
-
-    try:
-        with np.errstate(over="ignore", invalid="ignore", divide="ignore", under="ignore"):
-            return estimator.fit(trials)
-    except InputError as exc:
-        raise InputError(f"{exc}{gate_hint(estimator, trials)}") from None
-    except np.linalg.LinAlgError as exc:
-        raise InputError(f"{estimator.name}: the fit is numerically singular ({exc}): the records do not "
-                         f"determine the model (no perturbation, constant torque, or too few samples)"
-                         f"{gate_hint(estimator, trials)}") from None
-    except MemoryError:
-        n = sum(t.n for t in trials)
-        raise InputError(f"{estimator.name}: out of memory for {n} samples at {trials[0].fs:g} Hz; decimate "
-                         f"(--decimate) or shorten the records (--window)") from None
-
-
-def prediction_of(est, trial, index: int):
-    """:meth:`Estimate.prediction` of one record, its VAF checked to be computable."""
-    try:
-        p = est.prediction(trial, index)
-    except InputError as exc:
-        raise InputError(f"{trial.name}: {exc}") from None
-    except (ValueError, ArithmeticError) as exc:
-        raise InputError(f"{trial.name}: cannot predict the torque with the {est.estimator} estimate: "
-                         f"{exc}") from None
-    p.vaf()  # raises when the torque has no variance there
-    return p
-
-
-def prediction_vaf(est, trial, index: int = 0) -> float:
-    """VAF (%) of record ``trial`` as defined by :meth:`Estimate.prediction` (``nan`` if not computable)."""
-    try:
-        return est.prediction(trial, index).vaf()
-    except (NotImplementedError, ValueError, ArithmeticError):
-        return float("nan")
+    """:func:`benchmarks.recordings.fitting.compute` with the errors naming this command's flags."""
+    return _compute(estimator, raw, torque_sign=torque_sign, decimate=decimate, window=window, plot=plot,
+                    ensemble=ensemble, names=CLI)
 
 
 def response_kind(est) -> str | None:

@@ -1,0 +1,362 @@
+"""The Python API: everything ``jointbench`` does, from a script or a notebook (the CLI is a thin layer on it).
+
+Fit recordings (or any arrays) through the same checked pipeline as ``jointbench estimate``::
+
+    from jointbench import api
+    fit = api.fit("ibk_irf", "ankle.npz:z_df", decimate=10, torque_sign=-1,
+                  settings={"lag_before": "40 ms", "lag_after": "40 ms"})
+    fit.estimate.parameters(), fit.vaf, fit.frame
+
+Simulate a trial from a config mapping (joint models by name) or a study's scenario, and score against
+the stiffness the estimator should find (:meth:`jointbench.types.Trial.frozen_stiffness`)::
+
+    trial = api.simulate("matrix:xu1998_elbow", seed=0, duration="10 s")
+    k_true = trial.frozen_stiffness()
+
+Run a study (a shipped one, a study file or a mapping) and read its tidy rows and checks, and the run
+history, as DataFrames::
+
+    run = api.run("westwick2012", parts=["fig2"], out="results")
+    run.rows, run.checks, api.history(out="results")
+
+This module is a room of its own above the harness (tests/test_architecture.py): it may use the core,
+``jointbench.sims``, ``jointbench.estimators`` and ``jointbench.benchmarks``; only the command-line modules
+sit on it. Everything heavy is imported inside the functions, and importing it changes nothing for the
+caller (no BLAS thread limits, no environment variables). Errors are
+:class:`~jointbench.errors.JointBenchError` subclasses whose messages name the arguments. See docs/api.md.
+"""
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Mapping, Sequence
+
+from jointbench.errors import ConfigError
+from jointbench.types import Trial
+
+if TYPE_CHECKING:  # pragma: no cover
+    import pandas as pd
+
+    from jointbench.benchmarks.recordings.fitting import Fit
+
+__all__ = ["StudyResult", "estimators", "experiment", "fit", "history", "history_cases", "history_checks",
+           "history_rows", "joint", "load_plugin", "read", "run", "scenario", "scenarios", "settings", "simulate"]
+
+
+# ----------------------------------------------------------------------------------------- estimators
+def estimators() -> "pd.DataFrame":
+    """The registered estimators (built-in and from plugins): ``name, tags, summary, module``."""
+    import pandas as pd
+
+    from jointbench import estimators as reg
+
+    rows = []
+    for n in reg.REGISTRY.names():
+        cls = reg.REGISTRY.get(n)
+        rows.append({"name": n, "tags": ", ".join(sorted(reg.REGISTRY.tags(n))), "summary": reg.REGISTRY.summary(n),
+                     "module": cls.__module__})
+    return pd.DataFrame(rows)
+
+
+def settings(estimator: str) -> "pd.DataFrame":
+    """The settings of ``estimator``: ``key, type, default, meaning`` (units in the type column)."""
+    import pandas as pd
+
+    from jointbench import estimators as reg
+    from jointbench.schema import describe
+
+    return pd.DataFrame(describe(reg.REGISTRY.get(estimator).Settings), columns=["key", "type", "default", "meaning"])
+
+
+def load_plugin(ref: str):
+    """Import an outside estimator module (a name, or the path of a ``.py`` file or package folder) and
+    return its :class:`jointbench.plugins.Plugin` record; its estimators are then registered."""
+    from jointbench import plugins
+
+    return plugins.load(ref, "load_plugin")
+
+
+# ---------------------------------------------------------------------------------------------- fitting
+def read(path: str | Path | Sequence[str | Path], *, array: str | None = None, fs: float | None = None,
+         ensemble: bool = False):
+    """Read records (CSV, NPZ, MATLAB ``.mat``; ``FILE:ARRAY`` picks an N x 2 array) as ``jointbench
+    estimate --input`` does: a list of :class:`~jointbench.types.Trial`, or an
+    :class:`~jointbench.ensemble.Ensemble` (a file with 2-D angle and torque, or ``ensemble=True``)."""
+    from jointbench.benchmarks.recordings import io, io_ensemble
+
+    paths = [path] if isinstance(path, (str, Path)) else list(path)
+    return io_ensemble.read_records([io.parse_source(str(p), array) for p in paths], fs=fs, ensemble=ensemble)
+
+
+def _records(data, angle, torque, fs, time, array, name: str, names):
+    """(records, ensemble name or None) of the data given to :func:`fit`."""
+    import numpy as np
+
+    from jointbench.ensemble import Ensemble
+
+    if data is not None and (angle is not None or torque is not None):
+        raise ConfigError("fit: give either data (records, an ensemble or file paths) or angle= and torque=")
+    if data is None:
+        if angle is None or torque is None:
+            raise ConfigError("fit: give data (a Trial, a list of records, an Ensemble or file paths), or the "
+                              "arrays angle= and torque= with fs= (or time=)")
+        if fs is None:
+            if time is None:
+                raise ConfigError("fit: angle= and torque= need the sampling rate fs= (Hz) or the sample times time=")
+            t = np.asarray(time, float)
+            fs = 1.0 / float(np.median(np.diff(t)))
+        if np.ndim(angle) == 2:
+            ens = Ensemble.from_arrays(angle, torque, fs, name=name)
+            return list(ens.realizations), ens.name
+        if time is not None:
+            return [Trial(time=np.asarray(time, float), angle=angle, torque=torque, fs=fs, name=name)], None
+        return [Trial.from_arrays(angle, torque, fs, name=name)], None
+    if isinstance(data, (str, Path)) or (isinstance(data, (list, tuple)) and data
+                                         and all(isinstance(d, (str, Path)) for d in data)):
+        data = read(data, array=array, fs=fs)
+    if isinstance(data, Ensemble):
+        return list(data.realizations), data.name
+    if isinstance(data, Trial):
+        return [data], None
+    if isinstance(data, (list, tuple)) and data and all(isinstance(d, Trial) for d in data):
+        return list(data), None
+    raise ConfigError(f"fit: data must be a Trial, a list of Trials, an Ensemble or file paths, got "
+                      f"{type(data).__name__}")
+
+
+def fit(estimator, data=None, *, angle=None, torque=None, fs: float | None = None, time=None,
+        settings: Mapping[str, Any] | None = None, decimate: int = 1, window=None, torque_sign: int = 1,
+        ensemble: bool | None = None, array: str | None = None, name: str = "record",
+        figure: str | None = None, names=None) -> "Fit":
+    """Fit ``estimator`` through the checked pipeline of ``jointbench estimate`` (same steps, same numbers).
+
+    Parameters
+    ----------
+    estimator : str or Estimator
+        A registered name (``api.estimators()``) with ``settings``, or an estimator object.
+    data : Trial, list of Trial, Ensemble, path or list of paths, optional
+        The records (files are read as :func:`read` reads them). Or give ``angle`` and ``torque`` arrays
+        (1-D: one record; 2-D, samples x realizations: an ensemble) with ``fs`` (Hz) or ``time`` (s).
+    settings : mapping, optional
+        The estimator's settings, checked strictly; units allowed (``{"lag_before": "40 ms"}``);
+        ``auto=True`` chooses a time-varying method's smoothing from the data.
+    decimate : int
+        Decimate every record by this whole factor (anti-alias filtered) before the fit.
+    window : (start, end) or str, optional
+        Fit only this part of every record, seconds from its first sample (``(5, 45)``, ``"5s:45s"``);
+        without it a gated multisine is cropped to its whole periods for the multisine methods.
+    torque_sign : {1, -1}
+        -1 negates every torque record.
+    ensemble : bool, optional
+        Fit several records as the realizations of one time-varying condition (default: when the
+        estimator takes ensembles only).
+    figure : {'png', 'pdf', 'svg'}, optional
+        Also draw the estimate (``Fit.figure``, bytes); ``Fit.plot(path)`` draws it later.
+    names : optional
+        How errors name the arguments (``jointbench estimate`` passes its flags).
+
+    Returns
+    -------
+    Fit
+        ``estimate`` (:class:`~jointbench.estimate.Estimate`), ``frame`` (parameters over time with 95 %
+        intervals), ``response`` (IRF/FRF), ``vaf`` / ``vafs`` (each record's predicted-torque VAF, %),
+        ``predictions``, ``trials`` (as fitted), ``notes``.
+
+    Raises
+    ------
+    ConfigError, InputError
+        Bad settings or arguments, unusable data: one line naming the argument or the record.
+    """
+    from jointbench import estimators as reg
+    from jointbench.benchmarks.recordings import checks, fitting
+
+    names = names or checks.PYTHON
+    if isinstance(estimator, str):
+        est = fitting.estimator_from(estimator, settings, names)
+    elif isinstance(estimator, reg.Estimator):
+        if settings:
+            raise ConfigError("fit: settings= applies to an estimator given by name; this one is built already")
+        est = estimator
+    else:
+        raise ConfigError(f"fit: estimator must be a registered name or an Estimator, got {type(estimator).__name__}")
+    records, ens_name = _records(data, angle, torque, fs, time, array, name, names)
+    if ens_name is None:
+        pooled_ok = {"trial", "pooled"} & est.accepts
+        if ensemble or (ensemble is None and len(records) > 1 and "ensemble" in est.accepts and not pooled_ok):
+            ens_name = f"{len(records)} records" if len(records) > 1 else records[0].name
+    if window is not None:
+        window = checks.as_window(window, names)
+    return fitting.compute(est, records, torque_sign=torque_sign, decimate=decimate, window=window,
+                           plot=Path(f"figure.{figure}") if figure else None, ensemble=ens_name, names=names)
+
+
+# ------------------------------------------------------------------------------------------- simulating
+def joint(name: str) -> dict:
+    """The joint model ``name`` (a shipped model, ``configs/models/<name>.yaml``, or a YAML file's path) as
+    its mapping, ready for an experiment's ``joint``."""
+    from jointbench.benchmarks.config import _load_yaml, resolve_joint
+
+    if name.endswith((".yaml", ".yml")):
+        return _load_yaml(Path(name))
+    return resolve_joint(name, where="joint")
+
+
+def scenarios() -> "pd.DataFrame":
+    """The named experiments of the shipped studies: ``name`` (``study:scenario`` of a comparison grid,
+    ``study:part`` of a part with an experiment), ``study``, ``kind``, ``description``."""
+    import pandas as pd
+
+    from jointbench.benchmarks.config import load_study
+    from jointbench.benchmarks.locate import study_ids
+
+    rows = []
+    for sid in study_ids():
+        study = load_study(sid)
+        for pname, part in study.parts.items():
+            if part.grid is not None:
+                rows += [{"name": f"{sid}:{s}", "study": sid, "kind": "grid scenario", "description": part.description}
+                         for s in part.grid.scenarios]
+            elif part.experiment is not None:
+                rows.append({"name": f"{sid}:{pname}", "study": sid, "kind": "part", "description": part.description})
+    return pd.DataFrame(rows)
+
+
+def scenario(name: str) -> dict:
+    """The named experiment ``study:scenario`` (a comparison grid's scenario: ``{experiment, stiffness,
+    discard, estimators}``) or ``study:part`` (``{experiment}``), joint models resolved, as a mapping to
+    edit and pass to :func:`simulate`, :func:`experiment` or a study's ``scenarios``."""
+    from jointbench.benchmarks.config import load_study
+
+    sid, sep, key = name.partition(":")
+    if not sep or not key:
+        raise ConfigError(f"scenario: expected 'study:scenario' or 'study:part' (see api.scenarios()), got {name!r}")
+    study = load_study(sid)
+    for part in study.parts.values():
+        if part.grid is not None and key in part.grid.scenarios:
+            sc = part.grid.scenarios[key]
+            out = {"experiment": dict(sc.experiment), "estimators": dict(sc.estimators)}
+            if sc.stiffness is not None:
+                out["stiffness"] = dataclasses.asdict(sc.stiffness)
+            if sc.discard is not None:
+                out["discard"] = sc.discard
+            return out
+    if key in study.parts and study.parts[key].experiment is not None:
+        return {"experiment": dict(study.parts[key].experiment)}
+    raise ConfigError(f"scenario: {sid} has no scenario or part with an experiment named {key!r}; see api.scenarios()")
+
+
+def experiment(config: Mapping[str, Any] | str | None = None, *, backend: str = "analytic", **changes):
+    """A :class:`jointbench.sims.Experiment` from a config mapping (as a study's ``experiment``; ``joint``
+    may name a model: ``joint="wrist_vanderuit2018"``) or a scenario name (:func:`scenario`); ``changes``
+    replace top-level keys (``duration="10 s"``)."""
+    from jointbench import sims
+    from jointbench.benchmarks.config import check_backend, resolve_joint
+
+    if isinstance(config, str):
+        config = scenario(config)["experiment"]
+    mapping = {**dict(config or {}), **changes}
+    if isinstance(mapping.get("joint"), str):
+        mapping["joint"] = joint(mapping["joint"]) if mapping["joint"].endswith((".yaml", ".yml")) else \
+            resolve_joint(mapping["joint"], where="experiment")
+    return sims.Experiment.from_mapping(mapping, "experiment", backend=check_backend(backend, "backend"))
+
+
+def simulate(config: Mapping[str, Any] | str | Any = None, seed: int = 0, *, backend: str | None = None,
+             realization: int = 0, replicate: int = 0, name: str = "trial", **changes) -> Trial:
+    """Simulate one trial of an experiment (a mapping, a scenario name or an :class:`~jointbench.sims.
+    Experiment`; ``changes`` as in :func:`experiment`). The trial carries its truth: ``trial.truth`` and
+    ``trial.frozen_stiffness()``, the stiffness an estimator should be scored against. Same config and
+    seed, identical arrays."""
+    from jointbench import sims
+
+    exp = config if isinstance(config, sims.Experiment) and not changes else \
+        experiment(config, backend=backend or "analytic", **changes)
+    return sims.simulate(exp, seed, backend, name=name, replicate=replicate, realization=realization)
+
+
+# ------------------------------------------------------------------------------------------------ studies
+@dataclasses.dataclass
+class StudyResult:
+    """A finished run: ``rows`` (tidy: one per metric of every case), ``checks`` (one per published check),
+    ``failures`` (case id, error), and where it was written (``folder``, ``report``, history ``run_id``)."""
+
+    study: str
+    folder: Path
+    rows: "pd.DataFrame"
+    checks: "pd.DataFrame"
+    failures: "pd.DataFrame"
+    run_id: int | None
+    wall_s: float
+
+    @property
+    def report(self) -> Path:
+        return self.folder / "report.md"
+
+
+def run(study: str | Path | Mapping[str, Any], *, parts: Sequence[str] | None = None, out: str | Path | None = None,
+        executor: str | Any = "process", workers: int | None = None, use_cache: bool = True,
+        overrides: Sequence[str] = (), backend: str | None = None, plugins: Sequence[str] = (),
+        progress: bool = False) -> StudyResult:
+    """Run a study as ``jointbench run`` does and return its rows and checks.
+
+    ``study``: a shipped study's id, a study file's path, or a study as a mapping (the YAML's content; its
+    relative names are looked up in the current folder, then in the package), e.g. a comparison grid.
+    ``out``: the results folder (default ``./results``). ``executor``: ``process`` (a pool on this
+    machine), ``serial``, ``dask`` (a local cluster) or a ``concurrent.futures`` executor. ``overrides``:
+    ``PART.KEY=VALUE`` texts (``--set``). ``plugins``: outside estimator modules to import first.
+    """
+    import pandas as pd
+
+    from jointbench import plugins as _plugins
+    from jointbench.benchmarks.harness.pool import make_executor
+    from jointbench.benchmarks.study import run_study
+
+    for ref in plugins:
+        _plugins.load(ref, "run: plugins")
+    ref = dict(study) if isinstance(study, Mapping) else study
+    own = isinstance(executor, str)
+    exe = make_executor(executor, workers) if own else executor
+    try:
+        r = run_study(ref, parts=list(parts) if parts else None, out_root=Path(out) if out else None,
+                      serial=executor == "serial", workers=workers, use_cache=use_cache, progress=progress,
+                      command="jointbench.api.run", executor=exe, backend=backend, overrides=tuple(overrides))
+    finally:
+        if own and exe is not None:
+            exe.shutdown(wait=True)
+    failures = pd.DataFrame([{"case_id": f.case.case_id, "error": f.error} for f in r.failed],
+                            columns=["case_id", "error"])
+    return StudyResult(r.study.id, r.folder, r.rows, r.comparison, failures, r.run_id, r.wall_s)
+
+
+# ------------------------------------------------------------------------------------------------ history
+def _history(out):
+    from jointbench.benchmarks.harness.history import History
+    from jointbench.benchmarks.study import HISTORY_FILE, results_root
+
+    return History(results_root(Path(out) if out else None) / HISTORY_FILE, create=False)
+
+
+def history(out: str | Path | None = None, study: str | None = None, kind: str | None = None,
+            limit: int | None = None) -> "pd.DataFrame":
+    """The recorded runs (``<out>/history.sqlite``, default ``./results``): one row per run with its study,
+    status, commit, code hash, counts of cases and checks, wall time and versions."""
+    with _history(out) as h:
+        return h.runs(study=study, kind=kind, limit=limit)
+
+
+def history_rows(run_id: int, out: str | Path | None = None) -> "pd.DataFrame":
+    """The tidy rows of recorded run ``run_id`` (case labels as columns)."""
+    with _history(out) as h:
+        return h.rows(run_id)
+
+
+def history_checks(run_id: int, out: str | Path | None = None) -> "pd.DataFrame":
+    """The checks of recorded run ``run_id`` (outcome, band, evidence)."""
+    with _history(out) as h:
+        return h.checks(run_id)
+
+
+def history_cases(run_id: int, out: str | Path | None = None) -> "pd.DataFrame":
+    """The cases of recorded run ``run_id`` (status, error, wall time, cached, cache key)."""
+    with _history(out) as h:
+        return h.cases(run_id)
