@@ -13,14 +13,15 @@ RUN     := $(BIN)/jointbench run $(if $(BACKEND),--backend $(BACKEND)) $(RUN_ARG
 SHARED  ?= ../shared
 PAPER_STUDIES := westwick2012 xu1998 vanderuit2018_table1
 
-.PHONY: help venv test test-slow bench bench-save bench-studies reproduce westwick2012 westwick2012-fig2 westwick2012-fig3 \
+.PHONY: help venv test lint test-slow bench bench-save bench-studies reproduce westwick2012 westwick2012-fig2 westwick2012-fig3 \
         westwick2012-fig4 westwick2012-fig5 westwick2012-fig6 westwick2012-table1 westwick2012-fig7 \
         westwick2012-fig8 xu1998 xu1998-fig2 xu1998-fig3 xu1998-calibration vanderuit2018-table1 \
         vanderuit2018-table2 apparatus matrix reproduce-mujoco example-ankle clean-results nightly chromium
 
 help:
 	@echo "make reproduce   run every implemented paper study (results/<study>/report.md)"
-	@echo "make test        run the tests (creates .venv when missing)"
+	@echo "make test        run the tests (creates .venv when missing; installs every extra: .[all,test])"
+	@echo "make lint        ruff on the code (what .ci/run calls after the tests)"
 	@echo "make test-slow   exact-value tests of the full studies (slow marker)"
 	@echo "make bench       speed benchmarks against the last stored run (fails on a median 20 % slower;"
 	@echo "                 stores a passing run) + study wall times (.benchmarks/study_times.csv)"
@@ -44,13 +45,17 @@ help:
 $(STAMP): pyproject.toml
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e '.[test,dask]'
+	$(BIN)/python -m pip install --quiet -e '.[all,test]'
 	@touch $(STAMP)
 
 venv: $(STAMP)
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q
+
+# Lint (ruff, installed with the test extra; the rules are pyproject.toml's [tool.ruff]): .ci/run calls it.
+lint: $(STAMP)
+	$(BIN)/ruff check .
 
 # Long tests (pytest marker `slow`, not part of `make test`): exact values of the full studies, kbr on 50 s
 # at 2.5 kHz, interval coverage on 30 s records.

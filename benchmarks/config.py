@@ -263,6 +263,9 @@ def check_backend(name: Any, where: str) -> str:
     if not isinstance(name, str) or name not in BACKENDS:
         raise ConfigError(f"{where}: unknown simulation backend {name!r}; known: "
                           f"{', '.join(BACKENDS.names())}")
+    why = getattr(BACKENDS.get(name), "unavailable", lambda: None)()
+    if why:                                  # e.g. mujoco without the [mujoco] extra: one line, before any case
+        raise ConfigError(f"{where}: simulation backend {name!r} {why}")
     return name
 
 

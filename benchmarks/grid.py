@@ -204,6 +204,9 @@ def parse_grid(data: Mapping, experiment: Mapping | None, part_estimators: Mappi
         if not isinstance(v, str) or v not in sims.BACKENDS:
             raise ConfigError(f"{where}: grid.backend[{i}]: unknown simulation backend {v!r}; known: "
                               f"{', '.join(sims.BACKENDS.names())}")
+        if getattr(sims.BACKENDS.get(v), "unavailable", lambda: None)():     # an extra not installed
+            raise ConfigError(f"{where}: grid.backend[{i}]: simulation backend {v!r} "
+                              f"{sims.BACKENDS.get(v).unavailable()}")
     for i, v in enumerate(axes.get("data", ())):
         if v not in DATA:
             raise ConfigError(f"{where}: grid.data[{i}]: {v!r} not allowed; allowed: {', '.join(DATA)}")

@@ -91,8 +91,9 @@ def find_file(ref: str | Path, roots: Sequence[Path], where: str, key: str) -> P
 
 def load_plugins(value: Any, where: str, roots: Sequence[Path]) -> tuple[str, ...]:
     """Import a study's ``plugins`` (module names, or ``.py`` files and package folders beside the study) so
-    that their estimators are registered; returns their specs, which the workers import too
-    (:func:`jointbench.plugins.load`)."""
+    that their estimators are registered; returns their specs (:func:`jointbench.plugins.load`). A bare
+    name is an installed module when one is importable, else a package folder or ``<name>.py`` beside the
+    study."""
     from jointbench import plugins
 
     if value is None:
@@ -100,9 +101,17 @@ def load_plugins(value: Any, where: str, roots: Sequence[Path]) -> tuple[str, ..
     if not isinstance(value, list) or not all(isinstance(v, str) and v.strip() for v in value):
         raise ConfigError(f"{where}: key 'plugins': expected a list of module names or paths to .py files, "
                           f"got {value!r}")
+    import importlib.util
+
     out = []
     for ref in value:
         if ref.endswith(".py") or "/" in ref:
             ref = str(next((r / ref for r in roots if (r / ref).exists()), Path(ref)))
+        elif importlib.util.find_spec(ref.split(".")[0]) is None:     # not installed: a folder or file beside
+            here = roots[0] if roots else Path.cwd()
+            for cand in (here / ref, here / f"{ref}.py"):
+                if (cand / "__init__.py").is_file() or cand.is_file():
+                    ref = str(cand)
+                    break
         out.append(plugins.load(ref, f"{where}: key 'plugins'").spec)
     return tuple(out)

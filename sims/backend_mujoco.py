@@ -87,7 +87,7 @@ def _mujoco():
         from mujoco import rollout  # noqa: F401 - a submodule, loaded here
     except ImportError as exc:  # pragma: no cover - depends on the installation
         raise ConfigError(f"backend 'mujoco' needs the packages mujoco and dm-control "
-                          f"(pip install mujoco dm-control): {exc}") from None
+                          f"(pip install 'jointbench[mujoco]'): {exc}") from None
     if not _READY:
         mjcf_module()   # dm_control installs its own handler on import: install ours after it
         mujoco.set_mju_user_warning(lambda text: _LOG.debug("MuJoCo: %s", text))
@@ -203,6 +203,17 @@ class MujocoBackend(Backend):
 
     name: ClassVar[str] = "mujoco"
     integrator: ClassVar[str] = "implicitfast"
+
+    @classmethod
+    def unavailable(cls) -> str | None:
+        """Why this backend cannot run in this installation (its packages are an extra), or None."""
+        import importlib.util
+
+        missing = [m for m in ("mujoco", "dm_control") if importlib.util.find_spec(m) is None]
+        if missing:
+            return (f"needs {' and '.join(missing)}, not installed: pip install 'jointbench[mujoco]' (or "
+                    f"jointbench[all])")
+        return None
 
     def check(self, experiment) -> None:
         """Build and compile the model, and refuse a step that is unstable at the stiffest instant."""

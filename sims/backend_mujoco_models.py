@@ -61,7 +61,7 @@ def mjcf_module():
         from dm_control import mjcf
     except ImportError as exc:  # pragma: no cover - depends on the installation
         raise ConfigError(f"backend 'mujoco' needs the packages mujoco and dm-control "
-                          f"(pip install mujoco dm-control): {exc}") from None
+                          f"(pip install 'jointbench[mujoco]'): {exc}") from None
     return mjcf
 
 

@@ -142,7 +142,7 @@ def case_modules(entry: str = CASE_ENTRY) -> tuple[Path, ...]:
 def code_hash() -> str:
     """SHA-256 of the sources of :func:`case_modules` (paths relative to the repository)."""
     h = hashlib.sha256()
-    for p in case_modules():
+    for p in sorted(case_modules(), key=repo_path):       # repository order, wherever they are installed
         h.update(repo_path(p).encode() + b"\0")
         h.update(p.read_bytes() + b"\0")
     return h.hexdigest()[:20]
@@ -219,6 +219,11 @@ def environment() -> dict:
                 "release": platform.release(), "host": socket.gethostname(), "cpus": os.cpu_count(),
                 "executable": sys.executable})
     env["packages"] = {lib: v for lib in KEY_LIBRARIES + RECORDED_LIBRARIES if (v := _version(lib))}
+    from jointbench import plugins
+
+    loaded = plugins.loaded()
+    if loaded:          # outside estimators in this run's process (their hashes are in the case keys)
+        env["plugins"] = {p.module: f"{p.distribution or p.spec}=={p.version or '-'}" for p in loaded}
     return env
 
 

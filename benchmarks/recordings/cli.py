@@ -86,11 +86,19 @@ def add_parser(subparsers) -> None:
     p.add_argument("--plot", metavar="FIG.png", help="also draw the estimate (.png, .pdf or .svg)")
     p.add_argument("--list", action="store_true",
                    help="list the estimators (and with --estimator its settings) and exit")
+    p.add_argument("--plugin", action="append", metavar="MODULE",
+                   help="import an outside estimator first: a module name or the path of a .py file; repeatable "
+                        "(installed plugins with a 'jointbench.estimators' entry point need none)")
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     """Execute ``estimate``; returns 0 or raises :class:`~jointbench.errors.JointBenchError`."""
+    if getattr(args, "plugin", None):
+        from jointbench import plugins
+
+        for ref in args.plugin:
+            plugins.load(ref, "--plugin")
     if args.list:
         print(list_text(args.estimator))
         return 0

@@ -18,8 +18,8 @@ The angle is taken as the imposed signal (``Trial.imposed == "angle"``). Every p
 :class:`~jointbench.errors.InputError` with a message naming the file.
 
 MATLAB files of versions 4 to 7.2 are read with :func:`scipy.io.loadmat`, version 7.3 (HDF5) with
-``h5py``. An NPZ member is loaded only after its header's claimed size has been checked against the
-bytes stored and the memory available.
+``h5py`` (an extra: ``pip install 'jointbench[hdf5]'``). An NPZ member is loaded only after its header's
+claimed size has been checked against the bytes stored and the memory available.
 """
 from __future__ import annotations
 
@@ -318,9 +318,9 @@ def _read_mat73(path: Path) -> dict[str, np.ndarray]:
     where = str(path)
     try:
         import h5py
-    except ImportError:  # pragma: no cover - h5py is a dependency
-        raise InputError(f"{where}: MATLAB v7.3 (HDF5) file: reading it needs the h5py package "
-                         f"(pip install h5py), or save with: save(file, ..., '-v7')") from None
+    except ImportError:  # h5py is an extra: pip install 'jointbench[hdf5]'
+        raise InputError(f"{where}: MATLAB v7.3 (HDF5) file: reading it needs h5py, not installed: pip install "
+                         f"'jointbench[hdf5]' (or save with: save(file, ..., '-v7'))") from None
     try:
         with h5py.File(path, "r") as f:
             out = {}

@@ -1,0 +1,117 @@
+"""Outside methods end to end: the worked example (examples/plugin_estimator) pip-installed into a folder
+of its own, found by its entry point, benchmarked beside two built-in estimators on the process pool and
+on a local Dask cluster (identical rows), and recomputed (only its cases) when its source is edited."""
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from jointbench import plugins
+from jointbench.errors import ConfigError
+from tests.harness_studies import cli_env
+
+REPO = Path(__file__).resolve().parents[1]
+EXAMPLE = REPO / "examples" / "plugin_estimator"
+TIMINGS = ("wall_time_s", "sim_time_s")
+
+
+def _pip_install(src: Path, target: Path) -> None:
+    """``pip install`` the plugin into ``target`` (no dependencies: the test venv has them; no build
+    isolation: its setuptools builds it, nothing is downloaded)."""
+    subprocess.run([sys.executable, "-m", "pip", "install", "--quiet", "--no-deps", "--no-build-isolation",
+                    "--no-index", "--upgrade", "--target", str(target), str(src)], check=True, timeout=600,
+                   capture_output=True)
+
+
+@pytest.fixture(scope="module")
+def plugin(tmp_path_factory):
+    """(source copy, install folder, env with the install folder on PYTHONPATH)."""
+    root = tmp_path_factory.mktemp("plugin")
+    src = root / "src"
+    shutil.copytree(EXAMPLE, src, ignore=shutil.ignore_patterns("build", "*.egg-info", "__pycache__"))
+    target = root / "site"
+    _pip_install(src, target)
+    env = cli_env()
+    env["PYTHONPATH"] = str(target)
+    return src, target, env
+
+
+def _jb(env, *args, cwd, timeout=600):
+    r = subprocess.run([sys.executable, "-m", "jointbench.benchmarks", *map(str, args)], cwd=cwd, env=env,
+                       capture_output=True, text=True, timeout=timeout)
+    assert r.returncode == 0, r.stdout + r.stderr
+    return r
+
+
+def _numbers(path: Path) -> pd.DataFrame:
+    rows = pd.read_csv(path)
+    rows = rows.drop(columns=[c for c in TIMINGS if c in rows.columns])
+    rows = rows[rows["metric"] != "fit_time_s"]
+    return rows.sort_values(["case_id", "estimator", "metric"], kind="stable").reset_index(drop=True)
+
+
+def _cases(out: Path) -> pd.DataFrame:
+    from jointbench import api
+
+    runs = api.history(out=out).sort_values("id")
+    cases = api.history_cases(int(runs["id"].iloc[-1]), out=out)
+    cases["estimator"] = cases["case_id"].str.extract(r"estimator=([a-z0-9_]+)")[0]
+    return cases.set_index("estimator")
+
+
+def test_the_plugin_runs_everywhere_and_an_edit_recomputes_its_cases(plugin, tmp_path):
+    src, target, env = plugin
+    listed = _jb(env, "estimate", "--list", cwd=tmp_path).stdout          # found by its entry point
+    assert "sliding_ibk" in listed and "a plugin example" in listed
+    study, out = src / "comparison.yaml", tmp_path / "results"
+    pool = _jb(env, "run", study, "--out", out, "--workers", "2", "--quiet", cwd=tmp_path)
+    assert "3 cases (0 from cache), 0 failed" in pool.stdout
+    first = _numbers(out / "plugin_comparison" / "cases.csv")
+    assert set(first["estimator"]) == {"sliding_ibk", "fsewls", "irf2_ls"}
+    assert (first["status"] == "ok").all()
+    keys = _cases(out)["cache_key"]
+    # the same grid on a local Dask cluster (workers import the plugin themselves): identical rows
+    dask_out = tmp_path / "dask"
+    _jb(env, "run", study, "--out", dask_out, "--executor", "dask", "--workers", "2", "--quiet", cwd=tmp_path)
+    pd.testing.assert_frame_equal(_numbers(dask_out / "plugin_comparison" / "cases.csv"), first)
+    # not installed: the study's plugins: finds the package folder beside it, and the Dask workers import it
+    # from that folder (jointbench.plugins.ensure)
+    bare = {k: v for k, v in env.items() if k != "PYTHONPATH"}
+    beside = tmp_path / "beside"
+    _jb(bare, "run", study, "--out", beside, "--executor", "dask", "--workers", "2", "--quiet", cwd=tmp_path)
+    pd.testing.assert_frame_equal(_numbers(beside / "plugin_comparison" / "cases.csv"), first)
+    # edit the plugin (a comment: its source hash changes), install it again: its cases recompute, only they
+    init = src / "sliding_ibk" / "__init__.py"
+    init.write_text(init.read_text() + "\n# edited: the source hash changes\n")
+    _pip_install(src, target)
+    again = _jb(env, "run", study, "--out", out, "--workers", "2", "--quiet", cwd=tmp_path)
+    assert "3 cases (2 from cache), 0 failed" in again.stdout
+    cases = _cases(out)
+    assert cases.loc["sliding_ibk", "cached"] == 0 and cases.loc["fsewls", "cached"] == 1
+    assert cases.loc["sliding_ibk", "cache_key"] != keys["sliding_ibk"]
+    assert cases.loc["irf2_ls", "cache_key"] == keys["irf2_ls"]
+    pd.testing.assert_frame_equal(_numbers(out / "plugin_comparison" / "cases.csv"), first)   # a comment: same numbers
+
+
+def test_a_plugin_by_path_and_its_errors(tmp_path):
+    p = tmp_path / "my_method.py"
+    p.write_text("raise RuntimeError('broken on purpose')\n")
+    with pytest.raises(ConfigError, match=r"^--plugin: plugin .*my_method.py' failed to import: RuntimeError: broken"):
+        plugins.load(str(p))
+    with pytest.raises(ConfigError, match="no module named 'no_such_plugin_xyz'"):
+        plugins.load("no_such_plugin_xyz")
+    from jointbench import estimators
+
+    loaded = plugins.load(str(EXAMPLE / "sliding_ibk"))
+    try:
+        assert loaded.module == "sliding_ibk" and "sliding_ibk" in estimators.REGISTRY.names()
+        from jointbench.benchmarks.harness.fingerprint import plugin_hash
+
+        text = plugin_hash(["sliding_ibk", "fsewls"])
+        assert list(text) == ["sliding_ibk"] and text["sliding_ibk"].startswith("sliding_ibk==- ")
+    finally:
+        estimators.REGISTRY._items.pop("sliding_ibk", None)
+        estimators.REGISTRY._tags.pop("sliding_ibk", None)
