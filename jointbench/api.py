@@ -203,7 +203,8 @@ def joint(name: str) -> dict:
 
 def scenarios() -> "pd.DataFrame":
     """The named experiments of the shipped studies: ``name`` (``study:scenario`` of a comparison grid,
-    ``study:part`` of a part with an experiment), ``study``, ``kind``, ``description``."""
+    ``study:part`` of a part with an experiment), ``study``, ``kind``, ``description``. A study this
+    installation cannot load (its backend's extra missing) is left out."""
     import pandas as pd
 
     from jointbench.benchmarks.config import load_study
@@ -211,7 +212,10 @@ def scenarios() -> "pd.DataFrame":
 
     rows = []
     for sid in study_ids():
-        study = load_study(sid)
+        try:
+            study = load_study(sid)
+        except ConfigError:          # e.g. a study on the mujoco backend without the [mujoco] extra
+            continue
         for pname, part in study.parts.items():
             if part.grid is not None:
                 rows += [{"name": f"{sid}:{s}", "study": sid, "kind": "grid scenario", "description": part.description}

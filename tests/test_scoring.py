@@ -15,13 +15,14 @@ import yaml
 
 from jointbench import estimators
 from jointbench.benchmarks import report, status
-from jointbench.benchmarks.config import CONFIGS, EVIDENCE, REPO, Check, load_checks, load_study
+from jointbench.benchmarks.config import CONFIGS, EVIDENCE, Check, load_checks, load_study
 from jointbench.benchmarks.protocols import Context
 from jointbench.benchmarks.tables import (DIRTY_BANNER, compare, evidence_counts, headline, method_specific, stamp,
                                swap_estimators, swap_survival)
 from jointbench.errors import ConfigError
 from jointbench.signal import decimate_fft
 from jointbench.types import Trial
+from tests.harness_studies import REPO
 
 STUDIES = ("westwick2012", "xu1998", "vanderuit2018_table1")
 

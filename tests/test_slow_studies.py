@@ -11,7 +11,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from jointbench.benchmarks.config import REPO
+from tests.harness_studies import REPO
 from jointbench.benchmarks.study import run_study
 
 STUDIES = ("westwick2012", "xu1998", "vanderuit2018_table1")
