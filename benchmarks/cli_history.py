@@ -35,7 +35,8 @@ def _list_runs(args) -> int:
     t = pd.DataFrame({
         "run": runs["id"], "kind": runs["kind"], "study": runs["study"], "started": runs["started"].str[:19],
         "status": runs["status"], "commit": runs["commit_id"] + runs["dirty"].map({1: "-dirty", 0: ""}),
-        "cases": [f"{d}/{n}" if s != "ok" else str(n) for d, n, s in zip(runs["n_done"], runs["n_cases"], runs["status"])],
+        "cases": [f"{d}/{n}" if s != "ok" else str(n)
+                  for d, n, s in zip(runs["n_done"], runs["n_cases"], runs["status"])],
         "failed": runs["n_failed"].fillna(0).astype(int), "cached": runs["n_cached"].fillna(0).astype(int),
         "checks": [f"{p}/{c}" if c else "" for p, c in zip(runs["n_pass"], runs["n_checks"])],
         "wall s": runs["wall_s"].round(1)})
@@ -69,7 +70,8 @@ def _show_run(h, run_id: int) -> int:
         print("\nfailed cases:")
         print(_text(failed[["case_id", "error"]]))
     if len(cases):
-        per = cases.groupby("part", sort=False).agg(cases=("case_id", "size"), failed=("status", lambda s: int((s != "ok").sum())),
+        per = cases.groupby("part", sort=False).agg(cases=("case_id", "size"),
+                                                    failed=("status", lambda s: int((s != "ok").sum())),
                                                     cached=("cached", "sum"), compute_s=("wall_time_s", "sum"))
         print("\nparts:")
         print(_text(per.reset_index().round(2)))

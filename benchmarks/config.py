@@ -25,7 +25,7 @@ import yaml
 
 from jointbench.benchmarks import overrides as _overrides
 from jointbench.benchmarks.locate import (CONFIGS, find_file, find_model, load_plugins, model_dirs, search_roots,
-                                          study_ids, study_path)
+                                          study_path)
 from jointbench.errors import ConfigError
 
 

@@ -16,8 +16,8 @@ import pandas as pd
 
 from jointbench.benchmarks import backends
 from jointbench.benchmarks.config import EVIDENCE, Study
-from jointbench.benchmarks.harness.pages import (Code, Figure, Items, Page, Paragraph, Section, paragraphs, table, to_html,
-                                      to_markdown)
+from jointbench.benchmarks.harness.pages import (Code, Figure, Items, Page, Paragraph, Section, paragraphs, table,
+                                                 to_html, to_markdown)
 from jointbench.benchmarks.tables import DIRTY_BANNER, evidence_counts, headline
 from jointbench.files import write_text
 
@@ -108,7 +108,8 @@ def model(study: Study, comparison: pd.DataFrame, part_reports: dict, failed: li
     if not comparison.empty:
         ev = comparison["evidence"].fillna("unrecorded") if "evidence" in comparison else None
         for kind in (*EVIDENCE, "unrecorded"):
-            sel = comparison[ev == kind] if ev is not None else (comparison if kind == "unrecorded" else comparison.iloc[0:0])
+            sel = (comparison[ev == kind] if ev is not None
+                   else comparison if kind == "unrecorded" else comparison.iloc[0:0])
             if len(sel):
                 groups.append(_group(sel, kind))
     sections = {"results": [], "interpretation": []}

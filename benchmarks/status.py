@@ -70,7 +70,8 @@ def groups(comp: pd.DataFrame) -> pd.DataFrame:
             miss = list(g.loc[g["status"] != "pass", "check"])
             recs.append({"checks": fam, "evidence": kind,
                          "pass": f"{int((g['status'] == 'pass').sum())} of {len(g)}",
-                         "missed": ", ".join(miss) if len(miss) <= _MAX_IDS else f"{len(miss)} checks (see the report)"})
+                         "missed": ", ".join(miss) if len(miss) <= _MAX_IDS
+                         else f"{len(miss)} checks (see the report)"})
     return pd.DataFrame(recs)
 
 

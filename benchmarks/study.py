@@ -1,8 +1,9 @@
 """Run a whole study: expand, run cases, write tidy results, comparison, figures and the report, and
 record the run in the history.
 
-Outputs in ``results/<study>/`` (``./results`` of the current folder, or ``--out``): ``cases.csv`` (tidy rows), ``curves.csv.gz`` (curves behind the
-figures), ``comparison.csv`` (one row per published check), ``report.md`` with its PNG figures,
+Outputs in ``results/<study>/`` (``./results`` of the current folder, or ``--out``): ``cases.csv`` (tidy
+rows), ``curves.csv.gz`` (curves behind the figures), ``comparison.csv`` (one row per published check),
+``report.md`` with its PNG figures,
 ``report.html`` (the same report, self-contained), ``failures.log`` (tracebacks of failed cases, when
 any). Beside them, shared by every study:
 ``results/cache/`` (finished cases, :mod:`benchmarks.harness.cache`) and ``results/history.sqlite``
@@ -170,7 +171,8 @@ def run_study(ref: str | Path, parts: list[str] | None = None, out_root: Path | 
     history = History(root / HISTORY_FILE)
     run_parts = list(dict.fromkeys(c.part for c in cases))
     n_workers = 1 if serial else (workers or os.cpu_count() or 1)
-    run_id = history.begin_run(study.id if backend is None else f"{study.id}@{backend}", run_parts, config_hash(study), len(cases), kind=kind,
+    run_id = history.begin_run(study.id if backend is None else f"{study.id}@{backend}", run_parts, config_hash(study),
+                               len(cases), kind=kind,
                                nightly_id=nightly_id, command=command or f"jointbench run {study.id}",
                                workers=n_workers)
     done = [0, time.monotonic()]

@@ -7,8 +7,8 @@ from typing import Literal
 import numpy as np
 
 from jointbench.estimators import register
-from jointbench.estimators._tvirf import (EnsembleEstimator, TVLagSettings, centred, fill_invalid, gram_stack, lag_samples,
-                               lagged, mdl_solve)
+from jointbench.estimators._tvirf import (EnsembleEstimator, TVLagSettings, centred, fill_invalid, gram_stack,
+                                          lag_samples, lagged, mdl_solve)
 from jointbench.ensemble import Ensemble
 from jointbench.errors import InputError
 from jointbench.estimate_tv import TVIRFEstimate

@@ -40,8 +40,8 @@ class FSEWLSEstimate(ParametricEstimate):
     highpassed : ndarray, shape (2, n_records, n)
         Angle and torque after the high-pass ``H`` (eq. 3; as measured when it is off), means kept.
 
-    :attr:`valid` = :meth:`steady` (read by :func:`jointbench.ensemble.valid_mask`). :meth:`predict` and :meth:`frequency_response` give torque from angle (impedance), whichever
-    signal the trial imposed.
+    :attr:`valid` = :meth:`steady` (read by :func:`jointbench.ensemble.valid_mask`). :meth:`predict` and
+    :meth:`frequency_response` give torque from angle (impedance), whichever signal the trial imposed.
 
     References
     ----------
@@ -170,9 +170,10 @@ class FSEWLS(Estimator):
         svf_cutoff: float = param(3.2, unit="Hz", gt=0, doc="cutoff of the state-variable filter L")
         svf_cutoff_means: Literal["-3dB", "a"] = param("-3dB", doc="-3 dB point of a^n/(s+a)^n, or 'a' (2 pi cutoff)")
         svf_causal: bool = param(False, doc="true: causal L (lags ~ n/a); false: zero phase, |L| kept")
-        svf_form: Literal["printed", "lowpass"] = param("printed", doc="L = s^(n-2) a^n/(s+a)^n as printed, or a^n/(s+a)^n")
+        svf_form: Literal["printed", "lowpass"] = param("printed", doc="L = s^(n-2) a^n/(s+a)^n as printed, or "
+                                                                       "a^n/(s+a)^n")
         forgetting: float | Literal["auto"] = param(20.0, unit="1/s", gt=0, doc="forgetting rate lambda of the EWLS "
-                                                                          "(eq. 6); auto = the held-out prediction's best")
+                                                    "(eq. 6); auto = the held-out prediction's best")
         init_window: float = param(0.5, unit="s", gt=0, doc="first seconds fitted for Theta(0) and P(0)")
 
     #: the setting ``--set auto=true`` chooses from the data (:meth:`choose_forgetting`)

@@ -9,7 +9,8 @@ from numpy.polynomial import legendre
 from scipy.interpolate import BSpline
 
 from jointbench.estimators import register
-from jointbench.estimators._tvirf import EnsembleEstimator, TVLagSettings, centred, gram_stack, lag_samples, one_blas_thread
+from jointbench.estimators._tvirf import (EnsembleEstimator, TVLagSettings, centred, gram_stack, lag_samples,
+                                          one_blas_thread)
 from jointbench.ensemble import Ensemble
 from jointbench.errors import InputError
 from jointbench.estimate_tv import TVIRFEstimate

@@ -51,8 +51,9 @@ class IBKIRF(Estimator):
     ----------
     settings : Settings
         ``irf_method`` ('ls' or 'corr', default 'ls'); ``lag_before``, ``lag_after`` (s, default 0.1);
-        ``remove_mean`` (default True); ``edges`` ('zero' or 'valid', 'ls' only; default 'valid'); ``differentiator_length``
-        (samples ``N``, default 0 = the first record's length, rounded up to even); ``bandlimit`` (Hz,
+        ``remove_mean`` (default True); ``edges`` ('zero' or 'valid', 'ls' only; default 'valid');
+        ``differentiator_length`` (samples ``N``, default 0 = the first record's length, rounded up to even);
+        ``bandlimit`` (Hz,
         default 20 Hz as in the paper; 'none' = off); ``bandlimit_order`` (Butterworth order, default 8).
 
     Notes

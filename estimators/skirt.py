@@ -319,7 +319,8 @@ class Skirt(Estimator):
             if n > p:
                 table[n_p], fits[n_p] = n * rss / (n - p) ** 2, est
         if not table:
-            raise InputError(f"{self.name}: n_p = auto: no order 0 ... {self.MAX_AUTO_ORDER} fits these lines and records")
+            raise InputError(f"{self.name}: n_p = auto: no order 0 ... {self.MAX_AUTO_ORDER} fits these lines and "
+                             f"records")
         best = min(table, key=table.get)
         return fits[best], table
 
@@ -387,7 +388,8 @@ def stiffness_band(est: SkirtEstimate, cov0: np.ndarray, level: float) -> Interv
     se = np.sqrt(np.maximum(np.sum((J @ cov0) * J, axis=1), 0.0))
     z = float(stats.norm.ppf(0.5 + level / 2))
     return Intervals(level=level, method="least-squares covariance of the lowest band (residual variance of its "
-                                         "bins), linearised", bounds={"stiffness": (np.abs(g) - z * se, np.abs(g) + z * se)})
+                                         "bins), linearised",
+                     bounds={"stiffness": (np.abs(g) - z * se, np.abs(g) + z * se)})
 
 
 def solve_bands(inputs: list[np.ndarray], outputs: list[np.ndarray], bins: np.ndarray, n_p: int, D: int,

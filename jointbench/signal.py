@@ -251,7 +251,8 @@ def find_gate(x: np.ndarray, fs: float, window_s: float = 0.25, quiet_ratio: flo
                 cand = np.arange(max(0, on - reach), min(n - span_n, on + reach) + 1)
                 if cand.size and whole >= 2:
                     off_harm = np.arange(span_n // 2 + 1) % whole != 0
-                    leak = [float(np.sum(np.abs(np.fft.rfft(x[c:c + span_n] - np.mean(x[c:c + span_n])))[off_harm] ** 2))
+                    leak = [float(np.sum(np.abs(np.fft.rfft(x[c:c + span_n] - np.mean(x[c:c + span_n])))[off_harm]
+                                         ** 2))
                             for c in cand]
                     start = int(cand[int(np.argmin(leak))])
             start = min(max(start, 0), n - span_n)

@@ -4,8 +4,8 @@ The limb ``I theta'' + B(t) theta' + K(t) theta = T_a + T_v`` with the coupling 
 :class:`sims.apparatus.Coupling`, ``T_a = g d + g_d d' - k_a theta - b_a theta'``, is a 2-state linear
 time-varying system. Over each step [t_k, t_k+1] its coefficients are frozen at the midpoint and the
 step is taken exactly for inputs that vary linearly over the step (first-order hold of
-``g d + g_d d' + T_v``, with d' from fourth-order central differences, :func:`derivative`). This is the exponential midpoint
-rule: second-order accurate in the time variation, exact for constant coefficients (it then agrees with
+``g d + g_d d' + T_v``, with d' from fourth-order central differences, :func:`derivative`). This is the exponential
+midpoint rule: second-order accurate in the time variation, exact for constant coefficients (it then agrees with
 backend ``lti``), and stable for stiff contacts (e.g. the wrist's 3 kHz pole at 2.5 kHz sampling).
 
 The per-step matrices E = e^{A h}, J1 = ∫_0^h e^{A s} ds, J2 = ∫_0^h J1(s) ds are power series in A, and

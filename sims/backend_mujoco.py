@@ -37,8 +37,9 @@ What is read where: the angle from a ``jointpos`` sensor (the handle's from a ``
 the torque of a torque drive or position servo from an ``actuatorfrc`` sensor at the step's start t_k;
 a servo damping's part of it is moved to t_k as well (the sensor saw the feed-forward at the step's
 middle and the staggered velocity theta'_k-1/2: the damping part becomes B_a (theta_r'(t_k) - theta'(t_k)),
-theta'(t_k) the mean of the two staggered velocities). The contact torque of the wrist is the torque the handle applies to the hand over each step,
-from the hand's own equation of motion, I theta'' + B theta' + K theta - T_v - tau_g: reading it from
+theta'(t_k) the mean of the two staggered velocities). The contact torque of the wrist is the torque the handle
+applies to the hand over each step, from the hand's own equation of motion, I theta'' + B theta' + K theta - T_v -
+tau_g: reading it from
 the contact's deflection (tendon sensors, k_c delta + b_c delta') would multiply the integrator's error
 in the hand's angle by |Z_c / Z_w|, about 100 near the wrist's resonance (VAF 97.6 % against the
 analytic backend instead of 99.99 %).

@@ -240,7 +240,8 @@ class Experiment:
         for key, v, unit in (("fs_sim", self.fs_sim, "Hz"), ("duration", self.duration, "s")):
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and v > 0):
                 raise ConfigError(f"{w}: key '{key}': must be a finite number > 0 {unit}, got {v!r}")
-        for key, obj, need in (("joint", self.joint, "coefficients_at"), ("perturbation", self.perturbation, "generate"),
+        for key, obj, need in (("joint", self.joint, "coefficients_at"),
+                               ("perturbation", self.perturbation, "generate"),
                                ("apparatus", self.apparatus, "coupling")):
             if not hasattr(obj, need):
                 raise ConfigError(f"{w}: key '{key}': expected a {key} model, got {obj!r}")

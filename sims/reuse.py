@@ -11,8 +11,9 @@ another estimator) can reuse the first.
 Inside ``with reuse_responses():`` every :func:`sims.simulate` call looks its first half up by
 :func:`response_key` and computes it only when it is new; outside such a block nothing is kept. A whole trial asked for
 again (the same experiment, seed, replicate and realization: one trial fitted by several estimators) is
-kept too. A reused response or trial is handed out as fresh copies of the same arrays, so the trial is bit-identical to one computed
-alone (tests/test_reuse.py). The block is what a harness opens around a group of cases scheduled together.
+kept too. A reused response or trial is handed out as fresh copies of the same arrays, so the trial is bit-identical
+to one computed alone (tests/test_reuse.py). The block is what a harness opens around a group of cases scheduled
+together.
 """
 from __future__ import annotations
 

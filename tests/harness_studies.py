@@ -13,7 +13,8 @@ REPO = Path(__file__).resolve().parents[1]
 
 
 def tiny_study(folder: Path, study: str = "tiny", seeds: int = 4, duration: str = "4 s",
-               extra_parts: dict | None = None, estimators: dict | None = None, perturbation: dict | None = None) -> Path:
+               extra_parts: dict | None = None, estimators: dict | None = None,
+               perturbation: dict | None = None) -> Path:
     """A one-part study (second-order joint on a position servo, ibk_spectral) with one check on K.
 
     One case takes about ``0.004 s`` per simulated second on this machine (``duration: 120 s`` is about
@@ -64,8 +65,8 @@ def cli_env() -> dict:
 
 def cli(*args, timeout: float = 300, **kw) -> subprocess.CompletedProcess:
     """``jointbench ARGS`` in a fresh process."""
-    return subprocess.run([sys.executable, "-m", "jointbench.benchmarks", *map(str, args)], cwd=REPO, capture_output=True,
-                          text=True, timeout=timeout, env=cli_env(), **kw)
+    return subprocess.run([sys.executable, "-m", "jointbench.benchmarks", *map(str, args)], cwd=REPO,
+                          capture_output=True, text=True, timeout=timeout, env=cli_env(), **kw)
 
 
 def start(*args, log: Path, prefix: list[str] | None = None) -> subprocess.Popen:

@@ -179,7 +179,8 @@ def test_simulation_timing_counts_computed_responses_per_backend():
     """Trials served a shared response are counted as trials, not as computed responses (hand-checkable)."""
     from jointbench.benchmarks.backends import timing
 
-    cases = pd.DataFrame({"case_id": ["a", "a", "b", "c", "d"], "backend": ["analytic", "analytic", "analytic", "mujoco", "x"],
+    cases = pd.DataFrame({"case_id": ["a", "a", "b", "c", "d"],
+                          "backend": ["analytic", "analytic", "analytic", "mujoco", "x"],
                           "part": ["p", "p", "q", "p", "p"], "sim_time_s": [0.3, 0.3, 0.1, 2.0, 0.0],
                           "n_trials": [4, 4, 2, 5, 0], "n_responses": [1, 1, 2, 4, 0], "git_commit": ["abc"] * 5})
     t = timing(cases)

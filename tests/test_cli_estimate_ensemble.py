@@ -46,7 +46,8 @@ def test_npz_ensemble_gives_stiffness_and_long_irf(tmp_path, capsys):
     assert list(irf.columns) == ["time", "lag", "lag_s", "h"] and len(irf) == 1500 * 9
     assert np.allclose(irf["lag_s"], irf["lag"] / FS)
     text = capsys.readouterr().out
-    assert "ens.npz[0]" in text and "ens.npz[11]" in text and "VAF of the predicted torque" in text and "where the time-varying IRF is estimated" in text
+    assert "ens.npz[0]" in text and "ens.npz[11]" in text and "VAF of the predicted torque" in text
+    assert "where the time-varying IRF is estimated" in text
 
 
 def test_mat_ensemble_with_time(tmp_path, capsys):

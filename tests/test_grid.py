@@ -4,9 +4,8 @@ from __future__ import annotations
 
 import pandas as pd
 import pytest
-import yaml
 
-from jointbench.benchmarks.config import CONFIGS, load_study
+from jointbench.benchmarks.config import load_study
 from jointbench.benchmarks.grid import stiffness_profile, Stiffness
 from jointbench.benchmarks.runner import expand_study
 from jointbench.benchmarks.study import OverBudget, run_study
@@ -69,12 +68,14 @@ def test_an_estimator_that_refuses_the_data_is_reported_not_fitted(tmp_path):
 
 @pytest.mark.parametrize("change, words", [
     ({"grid": {"estimator": ["ibk_spectral", "fsewl"]}}, "grid.estimator[1]: unknown estimator 'fsewl'; allowed: "),
-    ({"grid": {"estimator": ["sds"], "scenario": ["knee"]}}, "grid.scenario[0]: unknown scenario 'knee'; allowed: elbow"),
+    ({"grid": {"estimator": ["sds"], "scenario": ["knee"]}},
+     "grid.scenario[0]: unknown scenario 'knee'; allowed: elbow"),
     ({"grid": {"estimator": ["sds"], "variation": ["triangle"]}},
      "grid.variation[0]: unknown variation 'triangle'; allowed: native, square, sine"),
     ({"grid": {"estimator": ["sds"], "noise": [0.1, "loud"]}}, "grid.noise[1]: expected a number >= 0"),
     ({"grid": {"estimator": ["sds"], "backend": ["bullet"]}}, "grid.backend[0]: unknown simulation backend 'bullet'"),
-    ({"grid": {"estimator": ["sds"], "data": ["pooled"]}}, "grid.data[0]: 'pooled' not allowed; allowed: trial, ensemble"),
+    ({"grid": {"estimator": ["sds"], "data": ["pooled"]}},
+     "grid.data[0]: 'pooled' not allowed; allowed: trial, ensemble"),
     ({"grid": {"estimator": ["sds"], "joint": ["knee_model"]}}, "no model file knee_model.yaml"),
     ({"grid": {"estimator": ["sds"], "colour": ["red"]}}, "grid: unknown axis 'colour'; axes: scenario"),
     ({"grid": {"estimator": ["sds"], "fs": ["fast"]}}, "grid: key 'fs[0]': expected a number in Hz"),
@@ -137,7 +138,8 @@ def test_set_overrides_values_before_the_strict_parse():
                                             "fig2.experiment.duration=20 s"])
     assert all(len(p.seeds) == 2 for p in every.parts.values())
     assert every.parts["fig2"].experiment["joint"]["I"] == 0.07 and every.parts["fig2"].experiment["duration"] == "20 s"
-    assert every.parts["fig3"].experiment["joint"]["I"] == "0.06 kg.m2" and every.parts["fig3"].experiment["duration"] == "49 s"
+    assert every.parts["fig3"].experiment["joint"]["I"] == "0.06 kg.m2"
+    assert every.parts["fig3"].experiment["duration"] == "49 s"
 
 
 def test_set_on_a_grid_axis(tmp_path):

@@ -38,7 +38,8 @@ def test_study_config_loads_and_names_every_part():
     (lambda d: d["parts"]["fig6"]["experiment"]["joint"].update(I=-0.1) if isinstance(
         d["parts"]["fig6"]["experiment"]["joint"], dict) else d["parts"]["fig6"]["experiment"].update(
         joint={"model": "second_order", "I": -0.1, "B": 1, "K": 50}), r"I.*> 0"),
-    (lambda d: d["parts"]["fig6"].update(estimators={"no_such_method": {}}), r"unknown estimator 'no_such_method'; known: .*irf2_ls"),
+    (lambda d: d["parts"]["fig6"].update(estimators={"no_such_method": {}}),
+     r"unknown estimator 'no_such_method'; known: .*irf2_ls"),
     (lambda d: d["parts"]["fig6"].update(estimators={"ibk_spectral": {"fmaxx": 20}}), r"unknown key 'fmaxx'"),
     (lambda d: d["parts"]["fig6"].update(seeds=0), r"key 'seeds': need at least 1 seed"),
     (lambda d: d["parts"]["fig6"]["experiment"].update(joint="no_such_model"), r"no model file no_such_model.yaml"),

@@ -174,7 +174,8 @@ def test_non_increasing_time(tmp_path, trial):
     t = trial.time.copy()
     t[[10, 11]] = t[[11, 10]]
     p = _write(tmp_path / "r.npz", time=t, angle=trial.angle, torque=trial.torque)
-    with pytest.raises(InputError, match=err(p) + r"time is not increasing: .* at sample 10 is followed by .* at sample 11"):
+    with pytest.raises(InputError,
+                       match=err(p) + r"time is not increasing: .* at sample 10 is followed by .* at sample 11"):
         io.read_trial(p)
 
 

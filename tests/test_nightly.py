@@ -90,7 +90,8 @@ def test_flipped_checks_show_their_evidence_grouped_and_every_kind_counts(tmp_pa
     assert recorded == {"T-K": "sanity", "T-vaf": "sanity", "T-rep": "reproduction", "T-cal": "calibrated"}
     res = run_nightly(load_config(cfg), out, serial=True, progress=False)
     assert res.verdict == "regression"
-    assert res.regressions == ["tiny: 2 check(s) flipped from pass to miss (reproduction 1: T-rep; calibrated 1: T-cal)"]
+    assert res.regressions == [
+        "tiny: 2 check(s) flipped from pass to miss (reproduction 1: T-rep; calibrated 1: T-cal)"]
     flipped = res.outcomes[0].diff.flipped.set_index("check")
     assert dict(flipped["evidence"]) == {"T-rep": "reproduction", "T-cal": "calibrated", "T-K": "sanity"}
     assert dict(flipped["change"]) == {"T-rep": "regressed", "T-cal": "regressed", "T-K": "improved"}

@@ -74,7 +74,8 @@ def test_results_go_to_the_current_folder_by_default(tmp_path, monkeypatch):
     path = tiny_study(tmp_path / "cfg", seeds=1, duration="2 s")
     run = run_study(path, serial=True, progress=False)
     assert run.folder == (tmp_path / "results" / "tiny").resolve()
-    assert (tmp_path / "results" / "tiny" / "report.md").is_file() and (tmp_path / "results" / "history.sqlite").is_file()
+    assert (tmp_path / "results" / "tiny" / "report.md").is_file()
+    assert (tmp_path / "results" / "history.sqlite").is_file()
 
 
 def test_one_version_source():

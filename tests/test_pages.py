@@ -12,8 +12,8 @@ import pytest
 from jointbench.benchmarks import report
 from jointbench.benchmarks.config import load_study
 from jointbench.benchmarks.figures import PartReport
-from jointbench.benchmarks.harness.pages import (Code, Figure, Items, Page, Paragraph, Section, inline_html, markdown_table,
-                                      table, to_html, to_markdown)
+from jointbench.benchmarks.harness.pages import (Code, Figure, Items, Page, Paragraph, Section, inline_html,
+                                                 markdown_table, table, to_html, to_markdown)
 from jointbench.benchmarks.tables import compare
 
 PNG = bytes.fromhex("89504e470d0a1a0a0000000d4948445200000001000000010806000000"
@@ -56,8 +56,8 @@ def parse(html: str) -> _Text:
 def test_inline_markdown_becomes_escaped_html():
     html = str(inline_html("**W1** (`K_a`, _reading R2_): <script>x</script> & [report](../a/report.html); "
                            "snake_case_names and 2*3*4 stay"))
-    assert html.startswith("<strong>W1</strong> (<code>K_a</code>, <em>reading R2</em>): &lt;script&gt;x&lt;/script&gt; "
-                           "&amp; <a href=\"../a/report.html\">report</a>;")
+    assert html.startswith("<strong>W1</strong> (<code>K_a</code>, <em>reading R2</em>): "
+                           "&lt;script&gt;x&lt;/script&gt; &amp; <a href=\"../a/report.html\">report</a>;")
     assert html.endswith("snake_case_names and 2*3*4 stay")
     assert str(inline_html("`<b>`")) == "<code>&lt;b&gt;</code>"
 
@@ -70,7 +70,8 @@ def test_one_page_gives_the_same_content_in_markdown_and_html(tmp_path):
     page = Page("Title & more", banner="**WARNING: dirty.** Commit `x`.", banner_cls="dirty", body=[
         Paragraph("Intro with `code`."),
         Section("Checks", anchor="checks", body=[
-            Paragraph("_Why._"), table("", df, classes=lambda r: {"status": "pass" if r["status"] == "pass" else "miss"}),
+            Paragraph("_Why._"),
+            table("", df, classes=lambda r: {"status": "pass" if r["status"] == "pass" else "miss"}),
             Items(["**A** one", "two"]),
             Section("Inner", body=[Figure("a caption", path=fig), Figure("in memory", png=PNG)])]),
         Section("Reproduce", body=[Code("jointbench run x")])])

@@ -49,7 +49,8 @@ def _check(**over) -> dict:
 
 @pytest.mark.parametrize("over, message", [
     ({"evidence": None}, "missing required key 'evidence'"),
-    ({"evidence": "anecdote"}, "'evidence': 'anecdote' not allowed; allowed: reproduction, conditional, calibrated, sanity"),
+    ({"evidence": "anecdote"},
+     "'evidence': 'anecdote' not allowed; allowed: reproduction, conditional, calibrated, sanity"),
     ({"evidence": "conditional"}, "evidence 'conditional' needs key 'reading'"),
     ({"evidence": "conditional", "reading": "the first one"}, "needs key 'reading'"),
     ({"reading": "R1"}, "'reading' applies to evidence 'conditional' only"),
@@ -104,7 +105,8 @@ def test_every_study_states_evidence_reasons_and_what_is_not_reproduced():
 def test_no_hand_typed_claim_about_the_standard_snr_table():
     """The false R1 claim ('keeps all 32 VAF_optim/RMSE_k cells in tolerance') is gone: such counts are
     derived in the report, not typed into configs."""
-    for path in (CONFIGS / "studies" / "vanderuit2018_table1.yaml", CONFIGS / "published" / "vanderuit2018_table1.yaml"):
+    for path in (CONFIGS / "studies" / "vanderuit2018_table1.yaml",
+                 CONFIGS / "published" / "vanderuit2018_table1.yaml"):
         text = path.read_text()
         for claim in ("32 of 32", "0 of 32", "29 of 32", "every VAF_optim and RMSE_k cell inside its band"):
             assert claim not in text, (path.name, claim)

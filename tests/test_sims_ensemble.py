@@ -8,7 +8,8 @@ from jointbench.errors import ConfigError
 from jointbench.schema import parse
 from jointbench.sims import Experiment, simulate
 from jointbench.sims.perturbation_pralds import PRALDS
-from jointbench.sims.subjects import SubjectDesign, draw_subjects, draw_trials, simulate_trial, stiffness, torque_fraction
+from jointbench.sims.subjects import (SubjectDesign, draw_subjects, draw_trials, simulate_trial, stiffness,
+                                      torque_fraction)
 
 WRIST = {
     "joint": {"model": "wrist_contact", "I": "3 g.m2", "b": 0.035, "b_c": 10, "k_c": 100,

@@ -10,9 +10,9 @@ import pytest
 from jointbench import sims
 from jointbench.benchmarks.config import CONFIGS, load_study
 from jointbench.benchmarks.protocols import Context
-from jointbench.benchmarks.protocols.vanderuit2018 import (Table1Params, _case_estimators, _case_experiment, noise_ratio,
-                                                scored_mask, step_captured, step_ramp_time, step_times,
-                                                variation_labels)
+from jointbench.benchmarks.protocols.vanderuit2018 import (Table1Params, _case_estimators, _case_experiment,
+                                                           noise_ratio, scored_mask, step_captured, step_ramp_time,
+                                                           step_times, variation_labels)
 from jointbench.benchmarks.runner import expand
 from jointbench.benchmarks.study import run_study
 from jointbench.errors import ConfigError

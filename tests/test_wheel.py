@@ -41,8 +41,9 @@ def venv(tmp_path_factory):
     (wheel,) = dist.glob("jointbench-*.whl")
     env = root / "venv"
     subprocess.run([sys.executable, "-m", "venv", "--without-pip", str(env)], check=True, timeout=300)
-    site = Path(subprocess.run([str(env / "bin" / "python"), "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"],
-                               check=True, capture_output=True, text=True).stdout.strip())
+    purelib = "import sysconfig; print(sysconfig.get_paths()['purelib'])"
+    site = Path(subprocess.run([str(env / "bin" / "python"), "-c", purelib], check=True, capture_output=True,
+                               text=True).stdout.strip())
     (site / "_test_venv_libraries.pth").write_text(sysconfig.get_paths()["purelib"] + "\n")
     subprocess.run([str(env / "bin" / "python"), "-m", "pip", "install", "--quiet", "--no-deps", "--no-index",
                     "--ignore-installed", str(wheel)], check=True, capture_output=True, timeout=900)

@@ -144,7 +144,8 @@ def gravity(part, rows, curves, folder, checks) -> PartReport:
                 continue
             colour = "0.4" if "no gravity" in series or series == "joint K(t)" else col
             b.plot(d["x"], d["y"], ls, color=colour, lw=1,
-                   label=f"{series}" + ("" if "no gravity" in series or series == "joint K(t)" else f", {posture:g} deg"))
+                   label=f"{series}"
+                   + ("" if "no gravity" in series or series == "joint K(t)" else f", {posture:g} deg"))
     if len(c0):
         t0 = float(c0["x"].min())
         b.set_xlim(t0, t0 + 6)
@@ -167,5 +168,6 @@ def gravity(part, rows, curves, folder, checks) -> PartReport:
             f"({100 * dev.max() / mgl:.2g} % of m g l) at every posture.")
     return PartReport(figures=[(name, "Gravity: the stiffness offset FSEWLS reports against the linearized gravity "
                                       "stiffness (top); K-hat(t) with and without gravity (bottom).")],
-                      tables=[("Mean stiffness over the scored 40 s (N·m/rad; medians over seeds)", pd.DataFrame(table))],
+                      tables=[("Mean stiffness over the scored 40 s (N·m/rad; medians over seeds)",
+                               pd.DataFrame(table))],
                       text=text)

@@ -253,7 +253,8 @@ def table1(part, rows, curves, folder, checks) -> PartReport:
                              "outside the scored [0, 30] s."))
         f4 = stiffness_figure(curves, others, folder, f"{part.name}_fig4_sine.png", "Fig. 4: sinusoidal stiffness")
         if f4:
-            periods = ", ".join(str((part.params.get("variations") or {}).get(v, {}).get("period", "?")) for v in others)
+            periods = ", ".join(str((part.params.get("variations") or {}).get(v, {}).get("period", "?"))
+                                for v in others)
             figs.append((f4, f"Fig. 4 style: the same for the sinusoidal stiffness (period {periods})."))
         f7 = tf_figure(curves, folder, f"{part.name}_tf_image.png")
         if f7:

@@ -173,8 +173,9 @@ def fig2(part, rows, curves, folder, checks) -> PartReport:
                                               "vaf_output_angle"], order)
     exp = part.experiment or {}
     acq = exp.get("acquisition") or {}
-    text = (f"Each case: {exp.get('duration', '?')} simulated, acquired at {acq.get('fs', '?')} ({acq.get('trim', '0 s')} "
-            f"trimmed at each end), {part.params.get('discard', '?')} discarded at each end, VAFs and errors "
+    text = (f"Each case: {exp.get('duration', '?')} simulated, acquired at {acq.get('fs', '?')} "
+            f"({acq.get('trim', '0 s')} trimmed at each end), {part.params.get('discard', '?')} discarded at each end, "
+            "VAFs and errors "
             "on the rest (readings R8, R13). Noise free. Posture is analysed without the high-pass H, "
             "movement with it (R5). `mean_err_K` = mean(K_hat) - mean(K) (check X4; at the slowest f_v it is zero "
             "within the seed spread). The output VAF of the "
@@ -223,13 +224,14 @@ def fig3(part, rows, curves, folder, checks) -> PartReport:
     t = _wide(rows, ["nsr"], ["vafv_K", "vafm_K", "vafv_B", "vafm_B", "vafv_I", "vafm_I", "vaf_output",
                               "mean_err_K", "mean_I"])
     drops = _wide(rows, ["nsr"], ["drop_vafv_K", "drop_vafm_K", "drop_vafv_B", "drop_vaf_output"])
-    text = (f"Movement at f_v = {part.params.get('f_v', '?')} with white noise on the measured {channel} (reading R11), NSR = "
-            "var(noise)/var(noise-free signal) over the acquired record. VAFM and VAFV of I stay near 100 % "
+    text = (f"Movement at f_v = {part.params.get('f_v', '?')} with white noise on the measured {channel} "
+            "(reading R11), NSR = var(noise)/var(noise-free signal) over the acquired record. VAFM and VAFV of I "
+            "stay near 100 % "
             "whatever I_hat does: with the floor of 1 of eq. 8 they measure absolute errors in kg·m² (R13); "
             "`mean_I` shows I_hat itself. Each case also fits the same record without noise; the second table "
             "gives the falls against it.")
-    return PartReport(figures=figs, text=text, tables=[(f"VAFs against NSR (noise on the {channel}): median (min to max) "
-                                             "over seeds", t),
+    return PartReport(figures=figs, text=text, tables=[(f"VAFs against NSR (noise on the {channel}): median "
+                                             "(min to max) over seeds", t),
                                             ("Fall of each VAF against the same record without noise (points; "
                                              "check X5-K-faster)", drops)])
 

@@ -79,7 +79,8 @@ class RunDiff:
             out.append(f"{self.study}: {len(names)} metric(s) drifted beyond their threshold: {', '.join(names)}")
         if len(self.new_failures):
             out.append(f"{self.study}: {len(self.new_failures)} case(s) fail that did not: "
-                       f"{', '.join(self.new_failures['case_id'][:5])}" + (" ..." if len(self.new_failures) > 5 else ""))
+                       f"{', '.join(self.new_failures['case_id'][:5])}"
+                       + (" ..." if len(self.new_failures) > 5 else ""))
         gone = self.coverage[self.coverage["only_before"] > 0] if len(self.coverage) else self.coverage
         if len(gone):
             out.append(f"{self.study}: values missing that the previous run had, in part(s) "

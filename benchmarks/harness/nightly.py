@@ -113,7 +113,8 @@ class StudyOutcome:
     def regressions(self) -> list[str]:
         if self.error:
             return [f"{self.study}: could not run: {self.error}"]
-        fails = [f"{self.study}: {len(self.run.failed)} case(s) failed"] if self.run.failed and self.diff is None else []
+        failed = self.run.failed and self.diff is None
+        fails = [f"{self.study}: {len(self.run.failed)} case(s) failed"] if failed else []
         return fails + (self.diff.regressions if self.diff is not None else [])
 
 

@@ -14,8 +14,8 @@ import pandas as pd
 
 from jointbench.benchmarks.harness.history import History
 from jointbench.benchmarks.harness.compare import by_evidence
-from jointbench.benchmarks.harness.pages import (Figure, Items, Page, Paragraph, Section, Table, figure_png, table, to_html,
-                                      to_markdown)
+from jointbench.benchmarks.harness.pages import (Figure, Items, Page, Paragraph, Section, Table, figure_png, table,
+                                                 to_html, to_markdown)
 from jointbench.benchmarks.tables import headline
 from jointbench.files import write_text
 
@@ -28,7 +28,8 @@ VERDICT_TEXT = {
 
 def _flipped_tables(flips: list[dict]) -> list[Table]:
     """The checks that flipped, one table per kind of evidence (regressions of every kind count)."""
-    cls_change = lambda r: {"change": "bad" if r["change"] == "regressed" else "good" if r["change"] == "improved" else "warn"}  # noqa: E731
+    cls_change = lambda r: {"change": "bad" if r["change"] == "regressed"  # noqa: E731
+                            else "good" if r["change"] == "improved" else "warn"}
     cols = {"study": "study", "check": "check", "evidence": "evidence", "description": "description",
             "before": "before", "after": "after", "change": "change", "reproduced_before": "reproduced before",
             "reproduced_after": "reproduced now", "low": "low", "high": "high"}
@@ -150,7 +151,8 @@ def _history_data(history: History, nightly_id: int, verdict: str) -> tuple[pd.D
             if run["status"] != "ok":
                 continue
             c = history.checks(run_id)
-            recs.append({"nightly": int(n.id), "started": n.started, "commit": n.commit_id + ("-dirty" if n.dirty else ""),
+            recs.append({"nightly": int(n.id), "started": n.started,
+                         "commit": n.commit_id + ("-dirty" if n.dirty else ""),
                          "verdict": verdict if int(n.id) == nightly_id else str(n.verdict),
                          "study": study, "run": run_id,
                          "pass": int((c["status"] == "pass").sum()), "checks": len(c), "wall_s": run["wall_s"]})
@@ -209,8 +211,9 @@ def _history_figures(study: str, per: pd.DataFrame, checks: pd.DataFrame, key: t
             ok = d["status"].to_numpy() == "pass"
             ax.plot(x[~ok], y[~ok], "o", color="tab:red", ms=5)
             if np.isfinite(lo).any() or np.isfinite(hi).any():
-                ax.fill_between(x, np.where(np.isfinite(lo), lo, np.nanmin(y)), np.where(np.isfinite(hi), hi, np.nanmax(y)),
-                                color="tab:green", alpha=0.15, lw=0, step="mid")
+                ax.fill_between(x, np.where(np.isfinite(lo), lo, np.nanmin(y)),
+                                np.where(np.isfinite(hi), hi, np.nanmax(y)), color="tab:green", alpha=0.15, lw=0,
+                                step="mid")
             ax.set_title(cid, fontsize=9)
             ax.xaxis.set_major_locator(MaxNLocator(integer=True))
             ax.tick_params(labelsize=7)
@@ -231,7 +234,8 @@ def write_pages(history: History, nightly_id: int, verdict: str, regressions: li
     env = fingerprint.environment()
     stamp = _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
     facts = [("nightly", str(nightly_id)), ("generated", stamp), ("commit", commit + ("-dirty" if dirty else "")),
-             ("code hash", fingerprint.code_hash()), ("machine", f"{env['host']} ({env['machine']}, {env['cpus']} cpus)"),
+             ("code hash", fingerprint.code_hash()),
+             ("machine", f"{env['host']} ({env['machine']}, {env['cpus']} cpus)"),
              ("python", env["python"]),
              ("libraries", ", ".join(f"{k} {v}" for k, v in sorted(env["packages"].items()))),
              ("config", str(config.path.name)), ("command", command)]
@@ -257,7 +261,8 @@ def write_pages(history: History, nightly_id: int, verdict: str, regressions: li
         for study in sorted(per["study"].unique()):
             hsections.append(Section(study, anchor=f"history-{study}",
                                      body=_history_figures(study, per, checks, config.key_checks.get(study, ()))))
-    hist = Page(title="JointBench nightly history", facts=[("generated", stamp), ("nightlies", str(per["nightly"].nunique() if len(per) else 0))],
+    hist = Page(title="JointBench nightly history",
+                facts=[("generated", stamp), ("nightlies", str(per["nightly"].nunique() if len(per) else 0))],
                 links=[("index.html", "Latest nightly")], body=hsections,
                 footer="Every nightly run recorded in results/history.sqlite.")
     write_text(site / "index.html", to_html(index))

@@ -258,7 +258,8 @@ def summary_text(name: str, settings, o: Outcome, written: Sequence[tuple[Path, 
         if t.fs != r.fs:
             line += f", decimated to {t.fs:g} Hz"
         if t.time[0] != r.time[0] or abs(t.duration - r.duration) > 1.5 / t.fs:
-            line += f", fitted on {t.time[0] - r.time[0]:.3f} ... {t.time[-1] - r.time[0] + 1 / t.fs:.3f} s ({t.n} samples)"
+            line += (f", fitted on {t.time[0] - r.time[0]:.3f} ... {t.time[-1] - r.time[0] + 1 / t.fs:.3f} s "
+                     f"({t.n} samples)")
         elif t.fs != r.fs:
             line += f" ({t.n} samples)"
         lines.append(line)
