@@ -5,8 +5,10 @@ of one's own runs beside its own model; site-packages holds ``jointbench`` and n
 or ``benchmarks``.
 
 Fast and offline: the wheel is built without build isolation (the test venv's setuptools) and installed
-with ``--no-deps``; the new venv reaches the test venv's libraries (numpy, scipy, ...) through a ``.pth``
-line, so nothing is downloaded, and its jointbench is the wheel's (its site-packages comes first).
+with ``--no-deps``; the new venv reaches the core's libraries (numpy, scipy, pandas, ...) through a ``.pth``
+line to a folder of links into the test venv's site-packages, so nothing is downloaded. The folder leaves
+out jointbench itself (the venv's is the wheel's) and every extra (mujoco, dm_control, dask, h5py): the
+venv is the light core, and asking for an extra's feature is one line naming the extra.
 """
 import shutil
 import subprocess
@@ -23,6 +25,8 @@ import jointbench
 
 REPO = Path(__file__).resolve().parents[1]
 SOURCES = ("pyproject.toml", "README.md", "LICENSE", "jointbench", "sims", "estimators", "benchmarks", "configs")
+#: what the light core's venv does not see of the test venv: jointbench's editable install and the extras
+EXTRAS = ("jointbench", "__editable__", "mujoco", "dm_control", "dm_env", "labmaze", "dask", "distributed", "h5py")
 
 
 @pytest.fixture(scope="module")
@@ -44,7 +48,12 @@ def venv(tmp_path_factory):
     purelib = "import sysconfig; print(sysconfig.get_paths()['purelib'])"
     site = Path(subprocess.run([str(env / "bin" / "python"), "-c", purelib], check=True, capture_output=True,
                                text=True).stdout.strip())
-    (site / "_test_venv_libraries.pth").write_text(sysconfig.get_paths()["purelib"] + "\n")
+    libs = root / "core-libraries"                 # the test venv's libraries, without jointbench and the extras
+    libs.mkdir()
+    for entry in Path(sysconfig.get_paths()["purelib"]).iterdir():
+        if not entry.name.lower().startswith(EXTRAS) and not entry.name.endswith(".pth"):
+            (libs / entry.name).symlink_to(entry)
+    (site / "_test_venv_libraries.pth").write_text(f"{libs}\n")
     subprocess.run([str(env / "bin" / "python"), "-m", "pip", "install", "--quiet", "--no-deps", "--no-index",
                     "--ignore-installed", str(wheel)], check=True, capture_output=True, timeout=900)
     return env / "bin" / "python", env / "bin" / "jointbench", site
@@ -115,3 +124,19 @@ def test_a_study_file_of_ones_own_from_the_wheel(venv, tmp_path):
     out = _run([jb, "run", "my/mine.yaml", "--out", "elsewhere", "--serial", "--quiet"], cwd=tmp_path)
     assert "pass  sanity" in out
     assert (tmp_path / "elsewhere" / "mine" / "report.md").is_file() and not (tmp_path / "results").exists()
+
+
+def test_the_light_core_names_the_extra_a_feature_needs(venv, tmp_path):
+    python, jb, _ = venv
+    assert _run([python, "-c", "import importlib.util as u; print([m for m in ('mujoco', 'dask', 'h5py') "
+                 "if u.find_spec(m)])"], cwd=tmp_path).strip() == "[]"
+    for args, extra in ((["run", "apparatus"], "jointbench[mujoco]"),
+                        (["run", "westwick2012", "--backend", "mujoco"], "jointbench[mujoco]"),
+                        (["run", "westwick2012", "--parts", "fig2", "--executor", "dask"], "jointbench[dask]")):
+        r = subprocess.run([str(jb), *args], cwd=tmp_path, capture_output=True, text=True, timeout=600)
+        assert r.returncode == 2, r.stdout + r.stderr
+        assert len(r.stderr.strip().splitlines()) == 1 and extra in r.stderr, r.stderr
+    loaded = _run([python, "-c", "import sys, jointbench.api, jointbench.sims, jointbench.benchmarks.cli; "
+                   "print(sorted({m.split('.')[0] for m in sys.modules} & {'mujoco', 'dm_control', 'dask', 'h5py'}))"],
+                  cwd=tmp_path)
+    assert loaded.strip() == "[]", loaded
