@@ -126,6 +126,28 @@ def test_module_hash_follows_meaning_not_text(tmp_path):
     assert fingerprint.module_hash(a) == fingerprint.module_hash(b) != fingerprint.module_hash(c)
 
 
+def test_module_facts_are_remembered_by_content_and_a_damaged_memo_is_ignored(tmp_path, monkeypatch):
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
+    monkeypatch.setattr(fingerprint, "_MEMO", {})
+    monkeypatch.setattr(fingerprint, "_MEMO_STATE", {"loaded": False, "dirty": False})
+    fingerprint.forget()
+    mod = tmp_path / "m.py"
+    mod.write_text("import math\nX = 1\n")
+    first = fingerprint.case_code_hash(("jointbench.estimators.kbr",)), fingerprint.module_hash(mod)
+    fingerprint.hash_modules({"m": mod})                                  # writes the memo
+    memo = fingerprint._memo_file()
+    assert memo.is_file() and str(tmp_path / "cache") in str(memo) and len(json.loads(memo.read_text())) > 20
+    memo.write_text("{not json")                                           # damaged: ignored, rewritten
+    monkeypatch.setattr(fingerprint, "_MEMO", {})
+    monkeypatch.setattr(fingerprint, "_MEMO_STATE", {"loaded": False, "dirty": False})
+    fingerprint.forget()
+    assert (fingerprint.case_code_hash(("jointbench.estimators.kbr",)), fingerprint.module_hash(mod)) == first
+    mod.write_text("import math\nX = 2\n")                                # new content, new key
+    fingerprint.forget()
+    assert fingerprint.module_hash(mod) != first[1]
+    fingerprint.forget()
+
+
 @pytest.fixture
 def code_copy(tmp_path, monkeypatch):
     """A copy of the code packages that the hasher reads instead of the checkout (the running code is
