@@ -90,7 +90,8 @@ def _run(args) -> int:
     comp = run.comparison
     n_pass = int((comp["status"] == "pass").sum()) if len(comp) else 0
     n_cached = sum(r.cached for r in run.results)
-    print(f"{run.study.id}: {len(run.results)} cases ({n_cached} from cache), {len(run.failed)} failed; "
+    print(f"{run.study.id}: {len(run.results)} cases ({n_cached} from cache, {len(run.results) - n_cached} computed), "
+          f"{len(run.failed)} failed; "
           f"{headline(comp)}")
     for r in comp.itertuples():
         print(f"  {r.status:4s}  {r.evidence:12s}  {r.check:18s} reproduced {r.reproduced:.5g}  "

@@ -30,6 +30,7 @@ class Registry(Generic[T]):
         self._items: dict[str, T] = {}
         self._tags: dict[str, frozenset[str]] = {}
         self._deferred: dict[str, Registration] = {}
+        self._modules: dict[str, str] = {}
         self._entry_points = entry_points   # plugins' entry-point group, imported on the first look-up
 
     def _plugins(self) -> None:
@@ -54,14 +55,16 @@ class Registry(Generic[T]):
             if name not in self._items:
                 raise RuntimeError(f"{self.kind} {name!r}: module {r.module} did not register it")
 
-    def register(self, name: str, *, tags: Iterable[str] = ()) -> Callable[[T], T]:
-        """Decorator registering ``obj`` under ``name`` (names are unique)."""
+    def register(self, name: str, *, tags: Iterable[str] = (), module: str | None = None) -> Callable[[T], T]:
+        """Decorator registering ``obj`` under ``name`` (names are unique); ``module``: the module that
+        defines it (default ``obj.__module__``)."""
 
         def deco(obj: T) -> T:
             if name in self._items and self._items[name] is not obj:
                 raise RuntimeError(f"{self.kind} {name!r} registered twice")
             self._items[name] = obj
             self._tags[name] = frozenset(tags)
+            self._modules[name] = module or getattr(obj, "__module__", None)
             return obj
 
         return deco
@@ -101,6 +104,12 @@ class Registry(Generic[T]):
         self.get(name)
         return self.summary(name)
 
+    def module_of(self, name: str) -> str | None:
+        """The module that registers ``name`` (without importing it when deferred), or None if unknown."""
+        if name in self._deferred:
+            return self._deferred[name].module
+        return self._modules.get(name)
+
     def __contains__(self, name: object) -> bool:
         if name not in self._items and name not in self._deferred:
             self._plugins()
@@ -109,7 +118,8 @@ class Registry(Generic[T]):
 
 @dataclasses.dataclass(frozen=True)
 class Registration:
-    """A ``@decorator("name", tags=...)`` class found in a module's source by :func:`scan_registrations`."""
+    """A ``@decorator("name", tags=...)`` class or function found in a module's source by
+    :func:`scan_registrations`."""
 
     name: str
     module: str
@@ -121,9 +131,10 @@ def scan_registrations(package_name: str, package_path: Iterable[str],
                        decorator: str = "register") -> list[Registration]:
     """Registrations in the non-private modules of a package, read from their source (nothing imported).
 
-    Finds classes decorated ``@decorator("name")`` or ``@decorator("name", tags=(...))`` (name and tags
-    literal strings), with the first line of the class docstring. ``tests/test_architecture.py``
-    checks that it finds exactly what importing every module registers.
+    Finds classes and functions decorated ``@decorator("name", ...)`` or ``@decorator("name", ...,
+    tags=(...))`` (name and tags literal strings; other arguments ignored), with the first line of their
+    docstring. ``tests/test_architecture.py`` checks that it finds exactly what importing every module
+    registers, for the estimators, protocols and figure makers.
     """
     out = []
     for info in pkgutil.iter_modules(list(package_path)):
@@ -134,7 +145,7 @@ def scan_registrations(package_name: str, package_path: Iterable[str],
             continue
         tree = ast.parse(path.read_text(encoding="utf-8"), str(path))
         for node in ast.walk(tree):
-            if not isinstance(node, ast.ClassDef):
+            if not isinstance(node, (ast.ClassDef, ast.FunctionDef)):
                 continue
             for dec in node.decorator_list:
                 if not (isinstance(dec, ast.Call) and getattr(dec.func, "id", getattr(dec.func, "attr", None))

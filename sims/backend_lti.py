@@ -19,8 +19,7 @@ I theta'' + B theta' + K theta - T_v at the sample instants.
 from __future__ import annotations
 
 import numpy as np
-import scipy.linalg
-from scipy import signal as sps
+from jointbench.lazy import scipy_linalg, scipy_signal as sps   # imported on first use (0.8 CPU-s)
 
 from jointbench.errors import ConfigError
 from jointbench.sims import BACKENDS
@@ -70,7 +69,7 @@ def foh(A: np.ndarray, B: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray
     M[:n, :n] = A * dt
     M[:n, n:n + m] = B * dt
     M[n:n + m, n + m:] = np.eye(m)
-    E = scipy.linalg.expm(M)
+    E = scipy_linalg.expm(M)
     P, Q = E[:n, n:n + m], E[:n, n + m:]
     return E[:n, :n], P - Q, Q
 

@@ -5,7 +5,7 @@ import dataclasses
 from typing import ClassVar
 
 import numpy as np
-from scipy import signal as sps
+from jointbench.lazy import scipy_signal as sps   # imported on first use: 0.6 CPU-s with scipy.stats
 
 from jointbench.errors import ConfigError
 from jointbench.schema import param

@@ -4,7 +4,7 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
-from scipy import signal as sps
+from jointbench.lazy import scipy_signal as sps   # imported on first use: 0.6 CPU-s with scipy.stats
 
 from jointbench.errors import ConfigError
 from jointbench.schema import param

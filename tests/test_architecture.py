@@ -8,6 +8,8 @@ may use everything below it) and ``cli`` (the command-line modules, which wrap t
 """
 import ast
 import re
+import subprocess
+import sys
 import tomllib
 from pathlib import Path
 
@@ -146,6 +148,37 @@ def test_estimator_index_matches_the_registry():
     loaded = {n: (estimators.REGISTRY._tags[n], (estimators.REGISTRY._items[n].__doc__ or "").strip().splitlines()[0])
               for n in estimators.REGISTRY._items}
     assert known == loaded
+
+
+def _first_line(obj) -> str:
+    doc = (getattr(obj, "__doc__", None) or "").strip().splitlines()
+    return doc[0] if doc else ""
+
+
+def test_protocol_and_figure_indexes_match_the_registries():
+    """Protocols and figure makers are registered lazily too (the study module imports none of them):
+    the names, tags and summaries read from their source are exactly what importing every module
+    registers."""
+    from jointbench.benchmarks import figures, protocols
+
+    for package, doc_of in ((protocols, lambda p: p.fn), (figures, lambda f: f)):
+        reg = package.REGISTRY
+        known = {n: (reg.tags(n), reg.summary(n) if n not in reg._items else _first_line(doc_of(reg._items[n])))
+                 for n in reg.names()}
+        package.import_all()
+        loaded = {n: (reg._tags[n], _first_line(doc_of(reg._items[n]))) for n in reg._items}
+        assert known == loaded and len(known) > 5, package.__name__
+
+
+def test_importing_the_study_module_loads_no_protocol_or_figure():
+    """Lazy registration: ``jointbench list`` and a study's start pay for no protocol, figure or
+    scipy.stats import (each was 0.5-0.7 CPU-s of every CLI process)."""
+    code = ("import sys, jointbench.benchmarks.study, jointbench.benchmarks.cli as c; c.main(['list']); "
+            "print(sorted(m for m in sys.modules if m.startswith(('jointbench.benchmarks.protocols.', "
+            "'jointbench.benchmarks.figures.', 'scipy.stats'))))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip().splitlines()[-1] == "[]"
 
 
 BARE = re.compile(r"^\s*(?:import|from)\s+(sims|estimators|benchmarks)\b", re.M)

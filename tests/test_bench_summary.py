@@ -47,13 +47,83 @@ def test_with_two_baselines_each_benchmark_takes_the_one_named_like_it():
     assert rows["`test_bench_analytic_backend_baseline`"] == "baseline"
 
 
-def test_the_comparison_with_the_stored_run_names_what_is_beyond_the_limit():
-    reference = {**REPORT, "commit_info": {"id": "0123456789"},
-                 "benchmarks": [_bench("test_bench_fast", "g", 0.020), _bench("test_bench_slow_baseline", "g", 0.1),
-                                _bench("test_bench_alone", "h", 2.5)]}
-    md = render(REPORT, reference=reference, limit=20)
-    assert "1 of 3 medians more than 20 % slower than the stored run of commit `0123456`" in md
-    assert "| `test_bench_fast` | 20 ms | 25 ms | +25 % | **slower** |" in md        # 0.025 / 0.020
-    assert "| `test_bench_slow_baseline` | 100 ms | 100 ms | +0 % |  |" in md
+def _scaled(report, factor=1.0, **medians):
+    """``report`` with every median times ``factor`` (a slower or faster machine), then the named ones set."""
+    out = [_bench(b["name"], b["group"], medians.get(b["name"], b["stats"]["median"] * factor))
+           for b in report["benchmarks"]]
+    return {**report, "commit_info": {"id": "0123456789"}, "benchmarks": out}
+
+
+def test_a_machine_twice_as_slow_fails_nothing_a_lost_fast_path_fails():
+    from tests.benchmarks.summary import gate
+
+    slower = _scaled(REPORT, 2.0)                   # everything twice as slow: the ratios did not move
+    lines, failed = gate(slower, {**REPORT, "commit_info": {"id": "0123456789"}}, factor=1.5)
+    assert failed == []
+    assert "| `test_bench_fast` | 25 ms | 50 ms | +100 % | 0.25 -> 0.25 (x1.00) |  |" in lines
+    assert "no ratio to the same-run baseline grew by more than x1.5 over the stored run of commit `0123456` " \
+           "(1 judged)" in lines[1]
+    lost = _scaled(REPORT, test_bench_fast=0.05)    # the fast path twice as slow, its baseline unchanged
+    lines, failed = gate(lost, REPORT, factor=1.5)
+    assert failed == ["test_bench_fast"]
+    assert "| `test_bench_fast` | 25 ms | 50 ms | +100 % | 0.25 -> 0.5 (x2.00) | **fails** |" in lines
+    assert "1 of 1 ratios to the same-run baseline grew by more than x1.5" in lines[1]
+
+
+def test_the_gate_takes_the_factor_as_stated_and_judges_only_ratios():
+    from tests.benchmarks.summary import RATIO_FACTOR, gate
+
+    noisy = _scaled(REPORT, 3.0, test_bench_fast=0.025 * 1.4 * 3.0)   # ratio x1.4 on a 3x slower machine
+    assert gate(noisy, REPORT, factor=1.5)[1] == [] and gate(noisy, REPORT, factor=1.3)[1] == ["test_bench_fast"]
+    lines = gate(noisy, REPORT)[0]
+    alone = next(line for line in lines if "`test_bench_alone`" in line)       # 3x slower, no baseline: reported
+    assert "+200 %" in alone and "no baseline" in alone and "fails" not in alone
+    assert "| baseline |" in next(line for line in lines if "`test_bench_slow_baseline`" in line)
+    assert RATIO_FACTOR == 2.0
+
+
+def test_new_benchmarks_and_changed_baselines_are_reported_not_judged():
+    from tests.benchmarks.summary import gate
+
+    now = {**REPORT, "benchmarks": REPORT["benchmarks"] + [_bench("test_bench_new", "g", 0.5)]}
+    then = {**REPORT, "benchmarks": [_bench("test_bench_fast", "g", 0.001), _bench("test_bench_alone", "h", 2.5)]}
+    lines, failed = gate(now, then, factor=1.5)      # no baseline then: a 25x "slowdown" is not judged
+    assert failed == []
+    assert "| `test_bench_new` | - | 500 ms | new | 5 (none then) |  |" in lines
+    assert "0.25 (none then)" in next(line for line in lines if "`test_bench_fast`" in line)
+
+
+def test_the_summary_shows_the_gate_against_the_stored_run():
+    md = render(_scaled(REPORT, test_bench_fast=0.05), reference=REPORT, factor=1.5)
+    assert "1 of 1 ratios to the same-run baseline grew by more than x1.5 over the stored run of commit `abcdef0`" in md
+    assert "Medians are reported, not judged" in md
     calm = render(REPORT, reference=REPORT)
-    assert "no median more than 20 % slower than the stored run of commit `abcdef0` (3 compared)" in calm
+    assert "no ratio to the same-run baseline grew by more than x2 over the stored run of commit `abcdef0` " \
+           "(1 judged)" in calm
+
+
+def test_make_bench_exits_1_on_a_grown_ratio_and_0_on_a_slower_machine(tmp_path, capsys):
+    import json
+
+    from tests.benchmarks.bench import judge
+
+    ref, now = tmp_path / "0001_ref.json", tmp_path / "benchmarks.json"
+    ref.write_text(json.dumps(REPORT))
+    now.write_text(json.dumps(_scaled(REPORT, 2.5)))
+    assert judge(now, ref) == 0
+    now.write_text(json.dumps(_scaled(REPORT, test_bench_fast=0.09)))        # ratio 0.25 -> 0.9
+    assert judge(now, ref) == 1 and "**fails**" in capsys.readouterr().out
+
+
+def test_a_ratio_beyond_the_factor_fails_only_when_the_re_run_repeats_it():
+    from tests.benchmarks.summary import confirmed, to_recheck
+
+    first = _scaled(REPORT, test_bench_fast=0.09)                              # x3.6: flagged
+    noise = {"benchmarks": [_bench("test_bench_fast", "g", 0.026), _bench("test_bench_slow_baseline", "g", 0.1)]}
+    again = {"benchmarks": [_bench("test_bench_fast", "g", 0.08), _bench("test_bench_slow_baseline", "g", 0.1)]}
+    assert confirmed(first, noise, REPORT, factor=2) == []
+    assert confirmed(first, again, REPORT, factor=2) == ["test_bench_fast"]
+    assert confirmed(REPORT, again, REPORT, factor=2) == []                   # not flagged the first time
+    withids = {"benchmarks": [{**b, "fullname": f"tests/benchmarks/t.py::{b['name']}"} for b in REPORT["benchmarks"]]}
+    assert to_recheck(withids, ["test_bench_fast"]) == ["tests/benchmarks/t.py::test_bench_fast",
+                                                       "tests/benchmarks/t.py::test_bench_slow_baseline"]

@@ -102,6 +102,7 @@ def test_cache_serves_finished_cases(tmp_path, monkeypatch):
     hit = cache.get(cases[0])
     assert hit is not None and hit.rows == first[0].rows and hit.cached
     monkeypatch.setattr(fingerprint, "code_hash", lambda: "other-code")
+    monkeypatch.setattr(fingerprint, "case_code_hash", lambda entries=(): "other-code")
     assert Cache(tmp_path).get(cases[0]) is None                 # code change invalidates
     monkeypatch.undo()
     monkeypatch.setattr(fingerprint, "key_environment", lambda: {"python": "3.11.7", "numpy": "0.0"})

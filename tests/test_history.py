@@ -11,6 +11,7 @@ import sys
 import textwrap
 from pathlib import Path
 
+import pytest
 
 from jointbench.benchmarks.config import load_study
 from jointbench.benchmarks.harness import fingerprint
@@ -18,7 +19,7 @@ from jointbench.benchmarks.harness.cache import Cache, case_key
 from jointbench.benchmarks.harness.history import History
 from jointbench.benchmarks.runner import expand, run_cases
 from jointbench.benchmarks.study import run_study
-from tests.harness_studies import REPO, tiny_study
+from tests.harness_studies import REPO, tiny_grid_part, tiny_study
 
 
 def test_swapped_cache_entry_is_detected_and_recomputed(tmp_path, capsys):
@@ -87,22 +88,134 @@ def test_put_never_deletes_other_entries(tmp_path, monkeypatch):
     cases = expand(load_study(tiny_study(tmp_path / "cfg", seeds=1)))
     run_cases(cases, Cache(tmp_path / "cache"), serial=True, progress=False)
     monkeypatch.setattr(fingerprint, "code_hash", lambda: "edited-code")
+    monkeypatch.setattr(fingerprint, "case_code_hash", lambda entries=(): "edited-code")
     run_cases(cases, Cache(tmp_path / "cache"), serial=True, progress=False)
     assert len(list((tmp_path / "cache").glob("??/*.json"))) == 2
 
 
 def test_code_hash_covers_what_computes_a_case_and_nothing_else():
-    files = {p.relative_to(REPO).as_posix() for p in fingerprint.case_modules()}
-    assert {"benchmarks/harness/case.py", "benchmarks/metrics.py", "benchmarks/protocols/xu1998.py",
-            "estimators/kbr.py", "estimators/_kbr_solve.py", "sims/backend_ltv.py", "jointbench/schema.py"} <= files
+    shared = {p.relative_to(REPO).as_posix() for p in fingerprint.case_modules()}
+    assert {"benchmarks/harness/case.py", "sims/backend_ltv.py", "jointbench/schema.py",
+            "estimators/__init__.py", "benchmarks/protocols/__init__.py"} <= shared
+    # protocols and estimators are registered lazily: each case's key adds only its own
+    assert not {f for f in shared if f.startswith(("benchmarks/protocols/", "estimators/"))
+                and not f.endswith("__init__.py")}
+    files = {p.relative_to(REPO).as_posix() for p in fingerprint.case_modules(
+        "jointbench.benchmarks.protocols.xu1998", "jointbench.estimators.kbr")}
+    assert shared | {"benchmarks/metrics.py", "benchmarks/protocols/xu1998.py", "estimators/kbr.py",
+                     "estimators/_kbr_solve.py", "estimators/fsewls.py"} <= files   # xu1998 imports fsewls
+    assert not files & {"estimators/skirt.py", "estimators/sds.py", "benchmarks/protocols/westwick2012.py"}
     assert not {f for f in files if f.startswith(("benchmarks/figures/", "benchmarks/harness/nightly"))}
     assert not files & {"benchmarks/report.py", "benchmarks/tables.py", "benchmarks/cli.py", "benchmarks/config.py",
                         "benchmarks/study.py", "benchmarks/runner.py", "benchmarks/harness/cache.py"}
 
 
+def test_a_case_names_its_protocol_and_estimator_modules(tmp_path):
+    cases = expand(load_study(tiny_study(tmp_path, seeds=1, extra_parts={"grid": tiny_grid_part(["sds"])})))
+    assert cases[0].code_modules() == ("jointbench.benchmarks.protocols.generic", "jointbench.estimators.ibk_spectral")
+    assert cases[-1].code_modules() == ("jointbench.benchmarks.protocols.compare", "jointbench.estimators.sds")
+    named = dataclasses.replace(cases[0], params={"estimators_without_noise": {"kbr": {}}})
+    assert "jointbench.estimators.kbr" in named.code_modules()        # made by name in a protocol
+
+
+def test_module_hash_follows_meaning_not_text(tmp_path):
+    a, b, c = (tmp_path / f"{n}.py" for n in "abc")
+    a.write_text('"""Doc."""\nimport math\n\n\ndef f(x):\n    """Twice."""\n    return 2 * x  # double\n')
+    b.write_text('"""Another doc."""\nimport math\n# a comment\ndef f(x):\n\n    return 2 * x\n')
+    c.write_text('"""Doc."""\nimport math\n\n\ndef f(x):\n    """Twice."""\n    return 3 * x  # double\n')
+    assert fingerprint.module_hash(a) == fingerprint.module_hash(b) != fingerprint.module_hash(c)
+
+
+def test_module_facts_are_remembered_by_content_and_a_damaged_memo_is_ignored(tmp_path, monkeypatch):
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
+    monkeypatch.setattr(fingerprint, "_MEMO", {})
+    monkeypatch.setattr(fingerprint, "_MEMO_STATE", {"loaded": False, "dirty": False})
+    fingerprint.forget()
+    mod = tmp_path / "m.py"
+    mod.write_text("import math\nX = 1\n")
+    first = fingerprint.case_code_hash(("jointbench.estimators.kbr",)), fingerprint.module_hash(mod)
+    fingerprint.hash_modules({"m": mod})                                  # writes the memo
+    memo = fingerprint._memo_file()
+    assert memo.is_file() and str(tmp_path / "cache") in str(memo) and len(json.loads(memo.read_text())) > 20
+    memo.write_text("{not json")                                           # damaged: ignored, rewritten
+    monkeypatch.setattr(fingerprint, "_MEMO", {})
+    monkeypatch.setattr(fingerprint, "_MEMO_STATE", {"loaded": False, "dirty": False})
+    fingerprint.forget()
+    assert (fingerprint.case_code_hash(("jointbench.estimators.kbr",)), fingerprint.module_hash(mod)) == first
+    mod.write_text("import math\nX = 2\n")                                # new content, new key
+    fingerprint.forget()
+    assert fingerprint.module_hash(mod) != first[1]
+    fingerprint.forget()
+
+
+@pytest.fixture
+def code_copy(tmp_path, monkeypatch):
+    """A copy of the code packages that the hasher reads instead of the checkout (the running code is
+    the checkout's: only the keys see the copy)."""
+    root = tmp_path / "code"
+    for folder in fingerprint.PACKAGES:
+        shutil.copytree(REPO / folder, root / folder, ignore=shutil.ignore_patterns("__pycache__", "*.pyc"))
+    monkeypatch.setattr(fingerprint, "package_root", lambda package: root / fingerprint.PACKAGE_DIRS[package])
+    fingerprint.forget()
+    yield root
+    fingerprint.forget()
+
+
+def _edit(path: Path, old: str, new: str) -> None:
+    text = path.read_text()
+    assert old in text, f"{path}: {old!r} not found"
+    path.write_text(text.replace(old, new, 1))
+    fingerprint.forget()
+
+
+def _two_estimator_study(folder: Path) -> list:
+    """Cases of ibk_spectral (a fit part and two grid cases) and of sds (two grid cases)."""
+    return expand(load_study(tiny_study(folder, seeds=2, extra_parts={
+        "grid": tiny_grid_part(["ibk_spectral", "sds"], realizations=2)})))
+
+
+def test_a_comment_or_docstring_edit_computes_no_case(tmp_path, code_copy, capsys):
+    """A run after comment, docstring and layout edits of shared, protocol and estimator modules, and
+    code edits of a figure and the report, serves every case from the cache (and says so)."""
+    from jointbench.benchmarks.cli import main
+
+    study = tiny_study(tmp_path / "cfg", seeds=2, extra_parts={
+        "grid": tiny_grid_part(["ibk_spectral", "sds"], realizations=2)})
+    cases = expand(load_study(study))
+    keys = [case_key(c) for c in cases]
+    run = ["run", str(study), "--out", str(tmp_path / "out"), "--serial", "--quiet"]
+    assert main(run) == 0
+    assert "tiny: 6 cases (0 from cache, 6 computed), 0 failed" in capsys.readouterr().out
+    _edit(code_copy / "estimators/ibk_spectral.py", "\nMAX_GROUPS = 20", "\n# a new comment\n\nMAX_GROUPS = 20  # groups")
+    _edit(code_copy / "estimators/sds.py", '"""', '"""A rewritten first line.\n\n')
+    _edit(code_copy / "sims/experiment.py", "\ndef ", "\n# shared code, comment only\ndef ")
+    _edit(code_copy / "benchmarks/protocols/compare.py", "\ndef ", "\n\n\n# a protocol's comment\ndef ")
+    _edit(code_copy / "benchmarks/harness/case.py", "    def code_modules(self)",
+          "    # a comment in the case module\n    def code_modules(self)")
+    for never in ("benchmarks/figures/westwick2012.py", "benchmarks/report.py"):    # code, but never in a key
+        _edit(code_copy / never, "\ndef ", "\n_CHANGED = 1\n\n\ndef ")
+    assert [case_key(c) for c in cases] == keys
+    assert main(run) == 0
+    assert "tiny: 6 cases (6 from cache, 0 computed), 0 failed" in capsys.readouterr().out
+
+
+def test_a_changed_constant_in_one_estimator_recomputes_exactly_its_cases(tmp_path, code_copy):
+    cases = _two_estimator_study(tmp_path / "cfg")
+    keys = [case_key(c) for c in cases]
+    run_cases(cases, Cache(tmp_path / "cache"), serial=True, progress=False)
+    _edit(code_copy / "estimators/ibk_spectral.py", "\nMAX_GROUPS = 20", "\nMAX_GROUPS = 21")
+    changed = [case_key(c) != k for c, k in zip(cases, keys)]
+    assert changed == ["ibk_spectral" in c.estimators for c in cases] and sum(changed) == 4
+    cache = Cache(tmp_path / "cache")
+    again = run_cases(cases, cache, serial=True, progress=False)
+    assert [not r.cached for r in again] == changed and cache.hits == 2 and cache.written == 4
+    _edit(code_copy / "sims/experiment.py", "\ndef ", "\n_SHARED_CHANGE = 1\n\n\ndef ")   # shared code:
+    assert not {case_key(c) for c in cases} & set(keys)                            # every key changes
+
+
 def test_every_module_a_case_loads_is_hashed(tmp_path):
     """The static closure is checked against what a case really imports, in a fresh interpreter that
-    imports only the case module."""
+    imports only the case module: the shared closure and the case's protocol and estimator modules."""
     case = expand(load_study(tiny_study(tmp_path, seeds=1)))[0]
     code = textwrap.dedent("""
         import json, sys
@@ -117,7 +230,7 @@ def test_every_module_a_case_loads_is_hashed(tmp_path):
     loaded = {Path(f).resolve() for f in json.loads(out.stdout)}
     ours = {p for p in loaded if REPO in p.parents and p.parts[len(REPO.parts)] in fingerprint.PACKAGES}
     assert len(ours) > 20
-    missing = ours - set(fingerprint.case_modules())
+    missing = ours - set(fingerprint.case_modules(*case.code_modules()))
     assert not missing, f"loaded by a case but not in the code hash: {sorted(missing)}"
 
 
@@ -166,6 +279,7 @@ def test_history_and_diff_commands(tmp_path, capsys, monkeypatch):
     out = tmp_path / "out"
     run_study(study, out_root=out, serial=True, progress=False)
     monkeypatch.setattr(fingerprint, "code_hash", lambda: "a-new-version")
+    monkeypatch.setattr(fingerprint, "case_code_hash", lambda entries=(): "a-new-version")
     run_study(study, out_root=out, serial=True, progress=False)       # recomputed under new "code"
     with sqlite3.connect(out / "history.sqlite") as db:                # ... which changed one metric
         db.execute("UPDATE results SET value = value + 1 WHERE run_id = 2 AND metric = 'B'")
@@ -192,6 +306,7 @@ def test_cache_prune_keeps_what_recent_runs_used(tmp_path, capsys, monkeypatch):
     out = tmp_path / "out"
     run_study(study, out_root=out, serial=True, progress=False)
     monkeypatch.setattr(fingerprint, "code_hash", lambda: "newer")
+    monkeypatch.setattr(fingerprint, "case_code_hash", lambda entries=(): "newer")
     run_study(study, out_root=out, serial=True, progress=False)
     assert len(list((out / "cache").glob("??/*.json"))) == 4
     assert main(["cache", "prune", "--keep-runs", "1", "--out", str(out)]) == 0

@@ -68,7 +68,7 @@ def test_the_plugin_runs_everywhere_and_an_edit_recomputes_its_cases(plugin, tmp
     assert "sliding_ibk" in listed and "a plugin example" in listed
     study, out = src / "comparison.yaml", tmp_path / "results"
     pool = _jb(env, "run", study, "--out", out, "--workers", "2", "--quiet", cwd=tmp_path)
-    assert "3 cases (0 from cache), 0 failed" in pool.stdout
+    assert "3 cases (0 from cache, 3 computed), 0 failed" in pool.stdout
     first = _numbers(out / "plugin_comparison" / "cases.csv")
     assert set(first["estimator"]) == {"sliding_ibk", "fsewls", "irf2_ls"}
     assert (first["status"] == "ok").all()
@@ -88,7 +88,7 @@ def test_the_plugin_runs_everywhere_and_an_edit_recomputes_its_cases(plugin, tmp
     init.write_text(init.read_text() + "\n# edited: the source hash changes\n")
     _pip_install(src, target)
     again = _jb(env, "run", study, "--out", out, "--workers", "2", "--quiet", cwd=tmp_path)
-    assert "3 cases (2 from cache), 0 failed" in again.stdout
+    assert "3 cases (2 from cache, 1 computed), 0 failed" in again.stdout
     cases = _cases(out)
     assert cases.loc["sliding_ibk", "cached"] == 0 and cases.loc["fsewls", "cached"] == 1
     assert cases.loc["sliding_ibk", "cache_key"] != keys["sliding_ibk"]

@@ -75,7 +75,7 @@ def test_sigkill_at_a_random_point_resumes_without_orphans(tmp_path):
     print(f"kill -9 after {n_kept} of {seeds} cases: workers {list(workers)} gone {time.monotonic() - t0:.2f} s later")
     r = cli("run", study, "--out", out, "--workers", "2", "--quiet", timeout=900)
     assert r.returncode == 0, r.stderr
-    assert re.search(rf"{seeds} cases \({n_kept} from cache\)", r.stdout), (r.stdout, n_kept)
+    assert re.search(rf"{seeds} cases \({n_kept} from cache, {seeds - n_kept} computed\)", r.stdout), (r.stdout, n_kept)
     recorded = history_cases(out)
     case_ids = [c for _, c in recorded]
     assert sorted(case_ids) == sorted(set(case_ids)) and len(case_ids) == seeds, recorded
@@ -117,7 +117,7 @@ def test_interrupt_returns_within_2s_and_keeps_finished_cases(tmp_path, how):
     print(f"{how}: stopped in {took:.2f} s keeping {kept} of {seeds} cases")
     if how.startswith("SIGINT"):               # resuming is the same after either signal: once is enough
         r = cli("run", study, "--out", out, "--workers", "2", "--quiet", timeout=900)
-        assert r.returncode == 0 and f"{seeds} cases ({kept} from cache)" in r.stdout, r.stdout + r.stderr
+        assert r.returncode == 0 and f"{seeds} cases ({kept} from cache, {seeds - kept} computed)" in r.stdout, r.stdout + r.stderr
 
 
 def test_two_concurrent_runs_of_one_study_both_end_well(tmp_path):

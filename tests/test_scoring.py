@@ -199,7 +199,7 @@ def test_cli_summary_line_is_the_headline(tmp_path, capsys, monkeypatch):
                         lambda *a, **k: orig(*a, **{**k, "out_root": tmp_path / "out", "serial": True}))
     assert cli.main(["run", "westwick2012", "--parts", "fig2", "fig4", "--quiet"]) == 0
     out = capsys.readouterr().out.splitlines()
-    assert out[0] == ("westwick2012: 2 cases (0 from cache), 0 failed; reproduction 4 of 4 pass; "
+    assert out[0] == ("westwick2012: 2 cases (0 from cache, 2 computed), 0 failed; reproduction 4 of 4 pass; "
                       "beside them: sanity 3 of 3")
     assert out[1].split()[:3] == ["pass", "reproduction", "W1-h1-idft"]
 

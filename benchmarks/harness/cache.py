@@ -1,7 +1,8 @@
 """Finished cases on disk: ``results/cache/<k[:2]>/<key>.json``, one file per entry.
 
 The key is the SHA-256 of the key material: the case as its protocol sees it (no paths, see
-:meth:`~benchmarks.harness.case.Case.key_material`), the code hash of the modules that compute it and the
+:meth:`~benchmarks.harness.case.Case.key_material`), the code hash of the modules that compute it (its
+protocol's and estimators' closure, :func:`~benchmarks.harness.fingerprint.case_code_hash`), the
 versions of Python, numpy and scipy (:mod:`benchmarks.harness.fingerprint`), and for a case with an
 estimator from a plugin, the plugin's distribution, version and source hash. Each entry carries its key,
 its material and a checksum of its result, and is verified on every read: an entry copied over another
@@ -24,8 +25,8 @@ FORMAT = 1
 
 
 def key_material(case: Case) -> dict:
-    material = {"format": FORMAT, "case": case.key_material(), "code": fingerprint.code_hash(),
-                "env": fingerprint.key_environment()}
+    material = {"format": FORMAT, "case": case.key_material(),
+                "code": fingerprint.case_code_hash(case.code_modules()), "env": fingerprint.key_environment()}
     outside = fingerprint.plugin_hash(case.estimators)     # plugin estimators: their source and version
     if outside:
         material["plugins"] = outside

@@ -2,8 +2,9 @@
 
 ``run_case(case) -> CaseResult`` is a pure function of the case: its numbers depend only on what the
 protocol can see (the :class:`~benchmarks.protocols.Context`: part name, seed, parameters with the
-sweep values, experiment and estimators), on the code this module imports (its import closure,
-:func:`benchmarks.harness.fingerprint.case_modules`) and on the numerical libraries. The cache key is
+sweep values, experiment and estimators), on the code this module imports and its protocol's and
+estimators' modules (their import closure, :meth:`Case.code_modules`,
+:func:`benchmarks.harness.fingerprint.case_code_hash`) and on the numerical libraries. The cache key is
 built from exactly those (:func:`Case.key_material`). Keep this module free of harness imports (config,
 tables, figures, reports): everything it imports is hashed into the key.
 """
@@ -52,6 +53,29 @@ class Case:
         return {"protocol": self.protocol, "part": self.part, "params": self.params, "sweep": self.sweep,
                 "experiment": self.experiment, "estimators": self.estimators, "seed": self.seed,
                 "backend": self.backend}
+
+    def code_modules(self) -> tuple[str, ...]:
+        """The modules that compute this case besides the shared closure of this module: its protocol's
+        and its estimators' (registered lazily, imported on first use), found from the registries without
+        importing them. An estimator is used when it is in ``estimators`` or named in the parameters (a
+        protocol may make one by name, e.g. ``estimators_without_noise``). Its closure is part of the
+        case's key (:func:`benchmarks.harness.fingerprint.case_code_hash`)."""
+        used = set(self.estimators) | {s for s in _strings((self.params, self.sweep)) if s in estimators.REGISTRY}
+        mods = {protocols.REGISTRY.module_of(self.protocol)} | {estimators.REGISTRY.module_of(n) for n in used}
+        return tuple(sorted(m for m in mods if m))
+
+
+def _strings(obj):
+    """Every string among the keys and values of nested mappings and sequences."""
+    if isinstance(obj, str):
+        yield obj
+    elif isinstance(obj, Mapping):
+        for k, v in obj.items():
+            yield from _strings(k)
+            yield from _strings(v)
+    elif isinstance(obj, (list, tuple)):
+        for v in obj:
+            yield from _strings(v)
 
 
 @dataclasses.dataclass

@@ -1,13 +1,22 @@
 """What a number depends on besides its case: the code that computes it, the libraries, the machine.
 
-The code hash covers the **import closure of** :mod:`jointbench.benchmarks.harness.case` (the module that runs a
-case) within this repository, found statically: start from that module; follow every import of a
-project module (``import a.b``, ``from a import b``, relative imports, and imports inside functions);
-a package whose ``__init__`` calls ``import_submodules`` (the registries of protocols, estimators,
-joint models, perturbations) brings in all its modules. Today that is ``jointbench/``, ``sims/``,
-``estimators/``, ``benchmarks/protocols/`` and ``benchmarks/metrics.py``, and never the config loader,
-tables, figures, reports, CLI or this harness: editing a caption or a report does not recompute a case.
-A test checks that every project module a case actually loads is in the closure.
+The code hash follows **meaning**: a module counts by its parsed code (its syntax tree without
+docstrings; comments and layout are never in it, :func:`module_hash`), so editing a comment, a
+docstring or a blank line changes no key. It covers the **import closure** (:func:`closure`) of what
+computes a case, found statically: follow every import of a project module (``import a.b``, ``from a
+import b``, relative imports, and imports inside functions); a package whose ``__init__`` calls
+``import_submodules`` at module level (the registries of joint models, perturbations, backends) brings
+in all its modules. Protocols and estimators are registered lazily (a module is imported when its name
+is first used), so each case's key (:func:`case_code_hash`) covers the shared closure of
+:mod:`jointbench.benchmarks.harness.case` (the core, ``sims/``, the protocol and estimator base
+modules) plus the closures of *its* protocol's and estimators' modules
+(:meth:`~jointbench.benchmarks.harness.case.Case.code_modules`): a change of one estimator recomputes
+only the cases that use it. Never in a key: the config loader, tables, figures, reports, CLI or this
+harness, so editing a caption or a report recomputes nothing. Tests check that every project module a
+case actually loads is in its closure, and that a comment edit keeps every key.
+
+Modules are hashed by their installed names (``jointbench.estimators.kbr``), not their paths, so a
+checkout and an installed wheel of the same code give the same hash.
 
 Library versions that can change a number: Python, numpy, scipy (and mujoco when installed), with the
 processor architecture. The git state (commit, dirty flag) is recorded with each run but is not part of
@@ -66,6 +75,7 @@ RECORDED_LIBRARIES = ("pandas", "matplotlib", "pyyaml", "jinja2", "threadpoolctl
 RESULT_INPUTS = PACKAGES + ("configs", "pyproject.toml")
 
 
+@functools.lru_cache(maxsize=None)
 def _module_file(name: str) -> Path | None:
     parts = name.split(".")
     for n in range(min(2, len(parts)), 0, -1):   # jointbench.sims.x lives in sims/, jointbench.x in jointbench/
@@ -85,9 +95,81 @@ def _module_file(name: str) -> Path | None:
     return None
 
 
-def _imports(name: str, path: Path) -> set[str]:
+#: Version of what :func:`_facts` computes (bump it when the meaning hash or the import facts change):
+#: part of the memo's file name, so an older memo is never read.
+FACTS_FORMAT = 1
+
+
+def _memo_file() -> Path:
+    """Where the facts of module sources are remembered between processes (a user cache, like
+    matplotlib's): ``$XDG_CACHE_HOME/jointbench`` or ``~/.cache/jointbench``, one file per Python version
+    (syntax trees differ between versions)."""
+    root = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
+    return root / "jointbench" / f"code-facts-{FACTS_FORMAT}-py{sys.version_info[0]}{sys.version_info[1]}.json"
+
+
+_MEMO: dict = {}
+_MEMO_STATE = {"loaded": False, "dirty": False}
+
+
+def _memo() -> dict:
+    if not _MEMO_STATE["loaded"]:
+        _MEMO_STATE["loaded"] = True
+        try:
+            data = json.loads(_memo_file().read_text())
+            if isinstance(data, dict):
+                _MEMO.update(data)
+        except (OSError, ValueError):
+            pass                       # absent or unreadable: computed again, written anew
+    return _MEMO
+
+
+def _save_memo(keep: int = 4000) -> None:
+    """Write the memo when it learnt something (the newest ``keep`` entries); never fails a run."""
+    if not _MEMO_STATE["dirty"]:
+        return
+    _MEMO_STATE["dirty"] = False
+    items = list(_MEMO.items())[-keep:]
+    try:
+        from jointbench.files import atomic_write
+
+        text = json.dumps(dict(items), separators=(",", ":"))
+        atomic_write(_memo_file(), lambda t: Path(t).write_text(text))
+    except OSError:
+        pass                           # a read-only home: hashing still works, it is only slower
+
+
+@functools.lru_cache(maxsize=None)
+def _facts(path: Path) -> dict:
+    """What the source at ``path`` means and imports: ``hash`` (:func:`module_hash`), ``imports`` (each
+    import statement as ``[level, module, names]``) and ``eager`` (an ``import_submodules`` call at
+    module level). Keyed by the SHA-256 of the file's bytes, remembered between processes
+    (:func:`_memo_file`): parsing every module of the closure cost 0.2-0.4 CPU-s a process."""
+    raw = Path(path).read_bytes()
+    key = hashlib.sha256(raw).hexdigest()
+    memo = _memo()
+    hit = memo.pop(key, None)
+    if not (isinstance(hit, dict) and {"hash", "imports", "eager"} <= set(hit)):
+        tree = ast.parse(raw.decode("utf-8"), str(path))
+        imports = []
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Import):
+                imports += [[0, a.name, None] for a in node.names]
+            elif isinstance(node, ast.ImportFrom):
+                imports.append([node.level, node.module or "", [a.name for a in node.names]])
+        eager = any(isinstance(st, ast.Expr) and isinstance(st.value, ast.Call)
+                    and getattr(st.value.func, "id", None) == "import_submodules" for st in tree.body)
+        _strip_docstrings(tree.body)
+        hit = {"hash": hashlib.sha256(ast.dump(tree).encode()).hexdigest(), "imports": imports, "eager": eager}
+        _MEMO_STATE["dirty"] = True
+    memo[key] = hit                    # the newest last (what :func:`_save_memo` keeps)
+    return hit
+
+
+@functools.lru_cache(maxsize=None)
+def _imports(name: str, path: Path) -> frozenset[str]:
     """Project modules that module ``name`` (file ``path``) may import."""
-    tree = ast.parse(path.read_text(encoding="utf-8"), str(path))
+    facts = _facts(path)
     package = name if path.name == "__init__.py" else name.rpartition(".")[0]
     out: set[str] = set()
 
@@ -96,33 +178,51 @@ def _imports(name: str, path: Path) -> set[str]:
         for i in range(1, len(bits) + 1):        # importing a.b.c runs a, a.b and a.b.c
             out.add(".".join(bits[:i]))
 
-    for node in ast.walk(tree):
-        if isinstance(node, ast.Import):
-            for a in node.names:
-                add(a.name)
-        elif isinstance(node, ast.ImportFrom):
-            if node.level:
-                base = package.split(".")
-                base = base[: len(base) - node.level + 1]
-                mod = ".".join(base + ([node.module] if node.module else []))
-            else:
-                mod = node.module or ""
-            add(mod)
-            for a in node.names:                 # "from pkg import submodule"
-                out.add(f"{mod}.{a.name}")
-        elif (isinstance(node, ast.Call) and isinstance(node.func, ast.Name)
-              and node.func.id == "import_submodules" and path.name == "__init__.py"):
-            for sub in sorted(path.parent.glob("*.py")):
-                if sub.name != "__init__.py":
-                    out.add(f"{name}.{sub.stem}")
-            for sub in sorted(path.parent.glob("*/__init__.py")):
-                out.add(f"{name}.{sub.parent.name}")
-    return {m for m in out if _module_file(m) is not None}
+    for level, module, names in facts["imports"]:
+        if names is None:                        # import a.b
+            add(module)
+            continue
+        if level:
+            base = package.split(".")
+            base = base[: len(base) - level + 1]
+            module = ".".join(base + ([module] if module else []))
+        add(module)
+        for a in names:                          # "from pkg import submodule"
+            out.add(f"{module}.{a}")
+    if path.name == "__init__.py" and facts["eager"]:   # import_submodules(...) run on import
+        for sub in sorted(path.parent.glob("*.py")):
+            if sub.name != "__init__.py":
+                out.add(f"{name}.{sub.stem}")
+        for sub in sorted(path.parent.glob("*/__init__.py")):
+            out.add(f"{name}.{sub.parent.name}")
+    return frozenset(m for m in out if _module_file(m) is not None)
+
+
+def _strip_docstrings(stmts: list) -> None:
+    """Drop, in place, every statement that is a bare string (docstrings of modules, classes and
+    functions, and string "comments"): such a statement computes nothing. Only statements hold bodies,
+    so only they are visited."""
+    stmts[:] = [st for st in stmts if not (isinstance(st, ast.Expr) and isinstance(st.value, ast.Constant)
+                                           and isinstance(st.value.value, str))]
+    for st in stmts:
+        for field in ("body", "orelse", "finalbody", "handlers", "cases"):
+            sub = getattr(st, field, None)
+            if isinstance(sub, list) and sub:
+                if isinstance(sub[0], ast.stmt):
+                    _strip_docstrings(sub)
+                else:                              # except handlers, match cases: their bodies
+                    for h in sub:
+                        _strip_docstrings(h.body)
+
+
+def module_hash(path: Path) -> str:
+    """SHA-256 of what the module at ``path`` means: the dump of its syntax tree without docstrings
+    (comments, blank lines and line numbers are not in a tree), so only an edit of code changes it."""
+    return _facts(Path(path))["hash"]
 
 
 @functools.lru_cache(maxsize=None)
-def case_modules(entry: str = CASE_ENTRY) -> tuple[Path, ...]:
-    """Files of the import closure of ``entry`` within the repository, sorted."""
+def _closure_of(entry: str) -> tuple[tuple[str, Path], ...]:
     seen: dict[str, Path] = {}
     bits = entry.split(".")
     todo = [".".join(bits[:i]) for i in range(1, len(bits) + 1)]   # its packages run first
@@ -135,17 +235,58 @@ def case_modules(entry: str = CASE_ENTRY) -> tuple[Path, ...]:
             continue
         seen[name] = path
         todo.extend(_imports(name, path) - set(seen))
-    return tuple(sorted(set(seen.values())))
+    return tuple(sorted(seen.items()))
+
+
+def closure(entry_modules) -> dict[str, Path]:
+    """Project modules (name -> file) that importing every module of ``entry_modules`` can run."""
+    out: dict[str, Path] = {}
+    for entry in entry_modules:
+        out.update(_closure_of(entry))
+    return dict(sorted(out.items()))
+
+
+def hash_modules(modules: dict[str, Path]) -> str:
+    """One hash of named modules (:func:`module_hash` of each, by installed name)."""
+    h = hashlib.sha256()
+    for name, path in sorted(modules.items()):
+        h.update(f"{name}\0{module_hash(path)}\0".encode())
+    _save_memo()
+    return h.hexdigest()[:20]
+
+
+def case_modules(*entries: str) -> tuple[Path, ...]:
+    """Files of the closure of the case module and ``entries`` (a case's protocol and estimator modules,
+    :meth:`~jointbench.benchmarks.harness.case.Case.code_modules`), sorted."""
+    return tuple(sorted(set(closure((CASE_ENTRY, *entries)).values())))
+
+
+@functools.lru_cache(maxsize=None)
+def case_code_hash(entries: tuple[str, ...] = ()) -> str:
+    """The code part of a case's key: :func:`hash_modules` of the closure of the case module and
+    ``entries`` (its protocol's and estimators' modules)."""
+    return hash_modules(closure((CASE_ENTRY, *entries)))
+
+
+def _registered_modules() -> tuple[str, ...]:
+    from jointbench import estimators
+    from jointbench.benchmarks import protocols
+
+    return tuple(sorted({m for reg in (estimators.REGISTRY, protocols.REGISTRY) for n in reg.names()
+                         if (m := reg.module_of(n))}))
 
 
 @functools.lru_cache(maxsize=None)
 def code_hash() -> str:
-    """SHA-256 of the sources of :func:`case_modules` (paths relative to the repository)."""
-    h = hashlib.sha256()
-    for p in sorted(case_modules(), key=repo_path):       # repository order, wherever they are installed
-        h.update(repo_path(p).encode() + b"\0")
-        h.update(p.read_bytes() + b"\0")
-    return h.hexdigest()[:20]
+    """Hash of all the code any case can run (the case module and every registered protocol and
+    estimator): recorded with each run and checked on workers."""
+    return case_code_hash(_registered_modules())
+
+
+def forget() -> None:
+    """Forget every cached hash and closure (after the files were edited in this process, e.g. a test)."""
+    for f in (_module_file, _facts, _imports, _closure_of, case_code_hash, code_hash):
+        f.cache_clear()
 
 
 def repo_path(path: Path) -> str:

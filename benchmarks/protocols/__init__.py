@@ -12,7 +12,7 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 
-from jointbench.registry import Registry, import_submodules
+from jointbench.registry import Registry, import_submodules, scan_registrations
 
 
 @dataclasses.dataclass(frozen=True)
@@ -37,7 +37,7 @@ def register(name: str, params: type, *, tags: tuple[str, ...] = (), share: Call
     :class:`Protocol`)."""
 
     def deco(fn):
-        REGISTRY.register(name, tags=tags)(Protocol(name, fn, params, share))
+        REGISTRY.register(name, tags=tags, module=fn.__module__)(Protocol(name, fn, params, share))
         return fn
 
     return deco
@@ -77,4 +77,11 @@ class Context:
         self.curves.append({"curve": name, "series": series, "x": x.tolist(), "y": y.tolist(), **labels})
 
 
-import_submodules(__name__, __path__)
+# Names and tags come from the modules' source; a protocol's module is imported when a case first uses it
+# (``jointbench list`` and the study module start without importing scipy.signal or any protocol).
+REGISTRY.defer(scan_registrations(__name__, __path__))
+
+
+def import_all() -> None:
+    """Import every protocol module (registering everything now rather than on first use)."""
+    import_submodules(__name__, __path__)

@@ -46,31 +46,94 @@ def _baseline(b: dict, members: list[dict]) -> dict | None:
     return max(base, key=lambda m: len(words & set(m["name"].split("_"))))
 
 
-def comparison(report: dict, reference: dict, limit: float = 20.0) -> list[str]:
-    """Markdown lines: every benchmark's median now against ``reference`` (the stored run it was compared
-    with), the change in percent, and whether it is beyond ``limit`` (what fails ``make bench``). The
-    baselines are listed too: code that did not change moving as much says the machine did."""
-    then = {b["name"]: b["stats"]["median"] for b in reference.get("benchmarks", [])}
-    ref = reference.get("commit_info", {}).get("id", "unknown")[:7]
-    rows, flagged = [], []
+#: ``make bench`` fails when a benchmark's median, as a ratio to its same-run baseline, has grown by more
+#: than this factor over the same ratio in the stored run, on the run and again on an immediate re-run of
+#: the flagged benchmarks with their baselines (:func:`confirmed`). Why 2 and a re-run: on this shared
+#: 2-core machine, three back-to-back runs at load 8-12 (2026-12-01) moved the absolute medians of
+#: unchanged code by up to x3.4 (the former 20 % gate on medians raised false alarms in three of five
+#: runs), the same-run ratios by x1.1-x1.6 for most benchmarks but by up to x2.7 for the sub-millisecond
+#: ones whose baselines run few rounds; a factor alone low enough to catch a 2x regression would alarm on
+#: such noise, and noise seldom repeats on the re-run while a regression does. Smaller losses of the fast
+#: paths are guarded by their interleaved ``speedup`` assertions (tests/benchmarks/conftest.py).
+RATIO_FACTOR = 2.0
+
+
+def ratios(report: dict) -> dict[str, tuple[str, float]]:
+    """``benchmark -> (its same-run baseline, median / the baseline's median)``, for the benchmarks that
+    have a baseline in their group (:func:`_baseline`)."""
+    groups: dict[str, list[dict]] = {}
     for b in report.get("benchmarks", []):
-        if b["name"] not in then:
-            continue
-        change = 100 * (b["stats"]["median"] / then[b["name"]] - 1)
-        if change > limit:
-            flagged.append(b["name"])
-        rows.append(f"| `{b['name']}` | {_ms(then[b['name']])} | {_ms(b['stats']['median'])} | {change:+.0f} % | "
-                    f"{'**slower**' if change > limit else ''} |")
-    verdict = (f"{len(flagged)} of {len(rows)} medians more than {limit:g} % slower than the stored run of commit "
-               f"`{ref}` (the run fails `make bench` and is not stored): "
-               + ", ".join(f"`{n}`" for n in flagged) if flagged else
-               f"no median more than {limit:g} % slower than the stored run of commit `{ref}` ({len(rows)} compared)")
-    return ["", f"Against the stored run: {verdict}.", "",
-            "| benchmark | median then | now | change | beyond the limit |", "|---|---|---|---|---|", *rows]
+        groups.setdefault(b.get("group") or b["name"], []).append(b)
+    out = {}
+    for members in groups.values():
+        for b in members:
+            base = _baseline(b, members)
+            if base is not None and base["stats"]["median"] > 0:
+                out[b["name"]] = (base["name"], b["stats"]["median"] / base["stats"]["median"])
+    return out
+
+
+def gate(report: dict, reference: dict, factor: float = RATIO_FACTOR) -> tuple[list[str], list[str]]:
+    """Compare ``report`` with the stored run ``reference``: each benchmark's ratio to its same-run
+    baseline now against the same ratio then. Returns Markdown lines (every benchmark: medians then and
+    now and their change, reported only; the ratios then and now, judged) and the names whose ratio grew
+    by more than ``factor`` (what fails ``make bench``). A benchmark without a baseline, a baseline, or
+    one absent from the reference is reported and not judged."""
+    then_median = {b["name"]: b["stats"]["median"] for b in reference.get("benchmarks", [])}
+    now_ratio, then_ratio = ratios(report), ratios(reference)
+    ref = reference.get("commit_info", {}).get("id", "unknown")[:7]
+    rows, failed, judged = [], [], 0
+    for b in report.get("benchmarks", []):
+        name, median = b["name"], b["stats"]["median"]
+        then = then_median.get(name)
+        change = f"{100 * (median / then - 1):+.0f} %" if then else "new"
+        ratio_now, ratio_then, verdict = now_ratio.get(name), then_ratio.get(name), ""
+        if ratio_now is None:
+            shown = "baseline" if _is_baseline(name) else "no baseline"
+        elif ratio_then is None or ratio_then[0] != ratio_now[0]:
+            shown = f"{ratio_now[1]:.3g} (none then)"
+        else:
+            judged += 1
+            growth = ratio_now[1] / ratio_then[1]
+            shown = f"{ratio_then[1]:.3g} -> {ratio_now[1]:.3g} (x{growth:.2f})"
+            if growth > factor:
+                failed.append(name)
+                verdict = "**fails**"
+        rows.append(f"| `{name}` | {_ms(then) if then else '-'} | {_ms(median)} | {change} | {shown} | {verdict} |")
+    verdict = (f"{len(failed)} of {judged} ratios to the same-run baseline grew by more than x{factor:g} over the "
+               f"stored run of commit `{ref}` (the run fails `make bench` and is not stored): "
+               + ", ".join(f"`{n}`" for n in failed) if failed else
+               f"no ratio to the same-run baseline grew by more than x{factor:g} over the stored run of commit "
+               f"`{ref}` ({judged} judged)")
+    return ["", f"Against the stored run: {verdict}. Medians are reported, not judged (the machine is shared: "
+            "unchanged code moving says the machine did); ratios to the baseline of the same run are judged.", "",
+            "| benchmark | median then | now | change | ratio to its baseline, then -> now | verdict |",
+            "|---|---|---|---|---|---|", *rows], failed
+
+
+def merged(report: dict, recheck: dict) -> dict:
+    """``report`` with the benchmarks that ``recheck`` (a re-run of some of them) measured again replaced
+    by the re-run's."""
+    again = {b["name"]: b for b in recheck.get("benchmarks", [])}
+    return {**report, "benchmarks": [again.get(b["name"], b) for b in report.get("benchmarks", [])]}
+
+
+def confirmed(report: dict, recheck: dict, reference: dict, factor: float = RATIO_FACTOR) -> list[str]:
+    """The benchmarks whose ratio grew beyond ``factor`` both in ``report`` and in ``recheck`` (the re-run
+    of the flagged ones with their baselines): what fails ``make bench``."""
+    first = set(gate(report, reference, factor)[1])
+    return [n for n in gate(merged(report, recheck), reference, factor)[1] if n in first]
+
+
+def to_recheck(report: dict, names: list[str]) -> list[str]:
+    """pytest node ids of the benchmarks ``names`` and of their same-run baselines."""
+    base = {n: b for n, (b, _) in ratios(report).items()}
+    wanted = set(names) | {base[n] for n in names if n in base}
+    return sorted({b.get("fullname", b["name"]) for b in report.get("benchmarks", []) if b["name"] in wanted})
 
 
 def render(report: dict, studies: list[dict] | None = None, load: tuple[str, str] | None = None,
-           reference: dict | None = None, limit: float = 20.0) -> str:
+           reference: dict | None = None, factor: float = RATIO_FACTOR) -> str:
     """Markdown of a pytest-benchmark JSON ``report`` (and the study rows of the same run).
 
     Parameters
@@ -82,7 +145,7 @@ def render(report: dict, studies: list[dict] | None = None, load: tuple[str, str
     load : (str, str), optional
         The 1-minute load average before and after the micro-benchmarks.
     reference : dict, optional
-        The stored run this one was compared with (:func:`comparison`), beyond ``limit`` percent.
+        The stored run this one was compared with (:func:`gate`, ratios grown by more than ``factor``).
     """
     docs = first_sentences()
     commit = report.get("commit_info", {})
@@ -115,7 +178,7 @@ def render(report: dict, studies: list[dict] | None = None, load: tuple[str, str
                          f"{s['rounds']} | {ratio or ('baseline' if _is_baseline(b['name']) else '')} | "
                          f"{f'{inter:g}x faster' if inter is not None else ''} | {other} |")
     if reference is not None:
-        lines += comparison(report, reference, limit)
+        lines += gate(report, reference, factor)[0]
     if studies:
         lines += ["", "Whole studies of `make reproduce`, run one after the other from scratch (no cache) in "
                   "the same `make bench` (2 workers each):", "",
