@@ -1,8 +1,8 @@
 """Modules imported on first use, so that importing the core and ``jointbench.sims`` stays light.
 
 ``scipy.signal`` costs about 0.6 CPU-s to import (it loads ``scipy.stats``), ``scipy.linalg`` 0.2; the
-simulators use them only inside functions, so a process that only reads configs, lists registries or serves cases from the cache
-(the parent of a parallel or fully cached run, ``jointbench list``) never pays for it.
+simulators use them only inside functions, so a process that only reads configs, lists registries or serves
+cases from the cache (the parent of a parallel or fully cached run, ``jointbench list``) never pays for it.
 """
 from __future__ import annotations
 

@@ -186,7 +186,8 @@ def test_a_comment_or_docstring_edit_computes_no_case(tmp_path, code_copy, capsy
     run = ["run", str(study), "--out", str(tmp_path / "out"), "--serial", "--quiet"]
     assert main(run) == 0
     assert "tiny: 6 cases (0 from cache, 6 computed), 0 failed" in capsys.readouterr().out
-    _edit(code_copy / "estimators/ibk_spectral.py", "\nMAX_GROUPS = 20", "\n# a new comment\n\nMAX_GROUPS = 20  # groups")
+    _edit(code_copy / "estimators/ibk_spectral.py", "\nMAX_GROUPS = 20",
+          "\n# a new comment\n\nMAX_GROUPS = 20  # groups")
     _edit(code_copy / "estimators/sds.py", '"""', '"""A rewritten first line.\n\n')
     _edit(code_copy / "sims/experiment.py", "\ndef ", "\n# shared code, comment only\ndef ")
     _edit(code_copy / "benchmarks/protocols/compare.py", "\ndef ", "\n\n\n# a protocol's comment\ndef ")

@@ -117,7 +117,8 @@ def test_interrupt_returns_within_2s_and_keeps_finished_cases(tmp_path, how):
     print(f"{how}: stopped in {took:.2f} s keeping {kept} of {seeds} cases")
     if how.startswith("SIGINT"):               # resuming is the same after either signal: once is enough
         r = cli("run", study, "--out", out, "--workers", "2", "--quiet", timeout=900)
-        assert r.returncode == 0 and f"{seeds} cases ({kept} from cache, {seeds - kept} computed)" in r.stdout, r.stdout + r.stderr
+        done = f"{seeds} cases ({kept} from cache, {seeds - kept} computed)"
+        assert r.returncode == 0 and done in r.stdout, r.stdout + r.stderr
 
 
 def test_two_concurrent_runs_of_one_study_both_end_well(tmp_path):
