@@ -22,7 +22,7 @@ import numpy as np
 import scipy.linalg
 from scipy import signal as sps
 
-from jointbench.errors import ConfigError
+from jointbench.errors import ConfigError, Incompatible
 from jointbench.sims import BACKENDS
 from jointbench.sims.backend import Backend, Response, lti_applies
 
@@ -111,7 +111,7 @@ class LTIBackend(Backend):
         super().check(experiment)
         reason = lti_applies(experiment)
         if reason:
-            raise ConfigError(f"backend 'lti' cannot simulate this experiment: {reason}; use 'ltv' or 'analytic'")
+            raise Incompatible(f"backend 'lti' cannot simulate this experiment: {reason}; use 'ltv' or 'analytic'")
 
     def run(self, joint, apparatus, drive: np.ndarray, voluntary: np.ndarray, fs: float) -> Response:
         """Simulate at ``fs`` Hz.
