@@ -52,16 +52,78 @@ class StrictLoader(yaml.SafeLoader):
         return super().construct_mapping(node, deep=deep)
 
 
+#: limits of a config file, checked before it is parsed: its size (the largest shipped config is under
+#: 100 kB), how deeply its collections nest (the shipped ones nest 8 deep; PyYAML's composer recurses
+#: once per level and ends in RecursionError near 1000) and how many values it holds once every alias is
+#: expanded (a few thousand in the shipped ones; anchors of anchors grow as the power of the fan-out)
+MAX_CONFIG_BYTES = 10_000_000
+MAX_YAML_DEPTH = 100
+MAX_YAML_NODES = 500_000
+
+
+def _yaml_error(exc: yaml.YAMLError) -> str:
+    """A PyYAML error on one line: what and where (PyYAML prints a snippet with a caret below it)."""
+    mark = getattr(exc, "problem_mark", None)
+    what = " ".join(str(x) for x in (getattr(exc, "context", None), getattr(exc, "problem", None)) if x)
+    if mark is None or not what:
+        return " ".join(str(exc).split())
+    return f"line {mark.line + 1}, column {mark.column + 1}: {what}"
+
+
+def _check_size(text: str, path: Path) -> None:
+    """Refuse, from PyYAML's events (no recursion, nothing built), a document nested deeper than
+    :data:`MAX_YAML_DEPTH` or holding more than :data:`MAX_YAML_NODES` values with its aliases expanded
+    (an 'alias bomb': a few lines of anchors of anchors that expand to billions of values)."""
+    sizes: dict[str, int] = {}
+    stack: list[list] = []              # [anchor, expanded size] of each open collection
+    total = 0
+    for ev in yaml.parse(text, Loader=StrictLoader):
+        if isinstance(ev, (yaml.ScalarEvent, yaml.AliasEvent, yaml.CollectionStartEvent)):
+            n = sizes.get(ev.anchor, 1) if isinstance(ev, yaml.AliasEvent) else 1
+            total += n
+            if isinstance(ev, yaml.CollectionStartEvent):
+                stack.append([ev.anchor, 1])
+                if len(stack) > MAX_YAML_DEPTH:
+                    raise ConfigError(f"{path}: line {ev.start_mark.line + 1}: collections nested more than "
+                                      f"{MAX_YAML_DEPTH} deep; a study config needs far fewer levels")
+            else:
+                if isinstance(ev, yaml.ScalarEvent) and ev.anchor:
+                    sizes[ev.anchor] = 1
+                if stack:
+                    stack[-1][1] += n
+            if total > MAX_YAML_NODES:
+                raise ConfigError(f"{path}: line {ev.start_mark.line + 1}: the document expands to more than "
+                                  f"{MAX_YAML_NODES} values (aliases of anchors that hold aliases: an alias bomb?); "
+                                  f"a study config holds a few thousand")
+        elif isinstance(ev, yaml.CollectionEndEvent) and stack:
+            anchor, n = stack.pop()
+            if anchor:
+                sizes[anchor] = n
+            if stack:
+                stack[-1][1] += n
+
+
 def _load_yaml(path: Path) -> Any:
-    """Parse a YAML file strictly (duplicate keys are errors naming the file, key and line)."""
-    if not path.is_file():
-        raise ConfigError(f"{path}: file not found")
+    """Parse a YAML file strictly: duplicate keys are errors naming the file, key and line; the file must
+    be a regular UTF-8 file within the limits above (every refusal is one line naming the file)."""
+    from jointbench.files import decode_text, file_problem
+
+    problem = file_problem(path, MAX_CONFIG_BYTES)
+    if problem is not None:
+        raise ConfigError(f"{path}: {problem}" + ("" if "allowed" not in problem else " for a config file"))
     try:
-        return yaml.load(path.read_text(), Loader=StrictLoader)  # noqa: S506 - a SafeLoader subclass
+        text = decode_text(path.read_bytes(), str(path), ConfigError)
+    except OSError as exc:
+        raise ConfigError(f"{path}: cannot read ({exc.strerror or exc})") from None
+    try:
+        _check_size(text, path)
+        return yaml.load(text, Loader=StrictLoader)  # noqa: S506 - a SafeLoader subclass
     except _DuplicateKey as exc:
         raise ConfigError(f"{path}: {exc}") from None
     except yaml.YAMLError as exc:
-        raise ConfigError(f"{path}: not valid YAML: {exc}") from None
+        raise ConfigError(f"{path}: not valid YAML: {_yaml_error(exc)}") from None
+    except RecursionError:           # a nesting the event check let through (it should not)
+        raise ConfigError(f"{path}: not valid YAML: nested too deeply") from None
 
 
 def _check_keys(data: Mapping, allowed: dict[str, bool], where: str) -> None:
@@ -180,6 +242,7 @@ class Study:
     checks: tuple[Check, ...]
     not_reproduced: tuple[NotReproduced, ...] = ()
     method_swap: MethodSwap | None = None
+    expected_failures: bool = False   # cases are expected to fail: `jointbench run` exits 0 all the same
 
 
 _PART_KEYS = {"protocol": True, "description": True, "params": False, "experiment": False,
@@ -196,6 +259,9 @@ _CHECK_KEYS = {"id": True, "part": True, "description": True, "source": True, "p
                "kind": False, "over": False, "direction": False, "slack": False, "versus": False, "by": False,
                "evidence": True, "reading": False, "free_parameter": False, "tolerance_reason": True,
                "domain": False, "domain_reason": False}
+#: ``expected_failures: true``: the study expects some cases to fail (a study of where methods break down);
+#: without it a run in which any case failed exits non-zero (the exit status tells a scheduler the truth)
+_STUDY_KEYS["expected_failures"] = False
 AGGREGATES = ("median", "mean", "min", "max", "std")
 #: kinds of evidence, in the order the report shows them; the headline counts ``reproduction`` only
 EVIDENCE = ("reproduction", "conditional", "calibrated", "sanity")
@@ -464,6 +530,9 @@ def load_study(path: str | Path, configs_dir: Path = CONFIGS, overrides=()) -> S
         where = f"{path}: readings[{i}]"
         _check_keys(r, {"id": True, "topic": True, "passage": True, "reading": True, "alternatives": False}, where)
         readings.append(Reading(**{k: str(v) for k, v in r.items()}))
+    if not isinstance(data["published"], str) or not data["published"].strip():
+        raise ConfigError(f"{path}: key 'published': expected the path of the published values (e.g. "
+                          f"configs/published/<study>.yaml), got {data['published']!r}")
     pub = Path(data["published"])
     pub = pub if pub.is_absolute() else configs_dir.parent / pub
     checks = load_checks(pub, parts)
@@ -473,7 +542,10 @@ def load_study(path: str | Path, configs_dir: Path = CONFIGS, overrides=()) -> S
         if missing:
             raise ConfigError(f"{pub}: check {c.id}: key 'reading': {missing[0]} is not a reading of {path.name} "
                               f"({', '.join(sorted(known)) or 'none'})")
+    expected = data.get("expected_failures", False)
+    if not isinstance(expected, bool):
+        raise ConfigError(f"{path}: key 'expected_failures': expected true or false, got {expected!r}")
     return Study(id=str(data["study"]), title=str(data["title"]), paper=str(data["paper"]), path=path,
                  parts=parts, readings=tuple(readings), checks=checks,
                  not_reproduced=_not_reproduced(data["not_reproduced"], str(path)),
-                 method_swap=_method_swap(data.get("method_swap"), str(path), parts))
+                 method_swap=_method_swap(data.get("method_swap"), str(path), parts), expected_failures=expected)
