@@ -8,6 +8,9 @@ report, ``results/nightly/index.html``, leads with what changed; ``history.html`
 study's passing checks and key metrics over the recorded nightlies; ``summary.md`` is the same report as
 markdown.
 
+Metrics that are wall-clock times (``wall_clock``, default ``[fit_time_s]``) change on every run: they are
+never a drift, whatever the thresholds (a part's compute time is compared under ``timing``).
+
 A regression (exit status 1): a check flipped from pass to miss, a metric drifted beyond its threshold,
 a case fails that did not, values went missing, a study could not run, or (when ``timing.regression``
 is true) a part's compute time grew beyond ``timing.grow_factor``.
@@ -25,7 +28,7 @@ from jointbench.errors import ConfigError
 
 DEFAULT_CONFIG = CONFIGS / "nightly.yaml"
 _KEYS = {"studies": True, "exclude": False, "use_cache": False, "thresholds": True, "timing": False,
-         "key_checks": False}
+         "key_checks": False, "wall_clock": False}
 _TIMING_KEYS = {"grow_factor": False, "min_seconds": False, "regression": False}
 _THRESHOLD_KEYS = {"metric": True, "abs": False, "rel": False}
 
@@ -88,6 +91,10 @@ def load_config(path: Path = DEFAULT_CONFIG, configs_dir: Path = CONFIGS) -> Nig
     regression = timing.get("regression", False)
     if not isinstance(regression, bool):
         raise ConfigError(f"{path}: timing: key 'regression': expected true or false, got {regression!r}")
+    wall_clock = data.get("wall_clock", list(Rules.wall_clock))
+    if not isinstance(wall_clock, list) or not all(isinstance(w, str) and w for w in wall_clock):
+        raise ConfigError(f"{path}: key 'wall_clock': expected a list of metric names (patterns) that are "
+                          f"wall-clock times, e.g. [fit_time_s]")
     key_checks = data.get("key_checks") or {}
     if not isinstance(key_checks, dict) or not all(isinstance(v, list) and all(isinstance(c, str) for c in v)
                                                    for v in key_checks.values()):
@@ -95,7 +102,8 @@ def load_config(path: Path = DEFAULT_CONFIG, configs_dir: Path = CONFIGS) -> Nig
     return NightlyConfig(
         path=path, studies=tuple(resolved), use_cache=use_cache,
         rules=Rules(tuple(thresholds), _number(timing.get("grow_factor", 1.5), f"{path}: timing", "grow_factor", 1.0),
-                    _number(timing.get("min_seconds", 5.0), f"{path}: timing", "min_seconds"), regression),
+                    _number(timing.get("min_seconds", 5.0), f"{path}: timing", "min_seconds"), regression,
+                    tuple(wall_clock)),
         key_checks={str(k): tuple(v) for k, v in key_checks.items()},
         text_hash=fingerprint.sha(data, 16))
 
