@@ -62,6 +62,31 @@ def atomic_write(path: str | os.PathLike, write: Callable[[str], object], mode: 
             os.unlink(tmp)
 
 
+def atomic_write_set(items: list[tuple[str | os.PathLike, Callable[[str], object]]], mode: int = 0o644) -> None:
+    """:func:`atomic_write` of several files as one set: every temporary is written first, and only when all
+    are complete are they moved into place. A failure (a full disk) removes the temporaries and leaves every
+    old file as it was: never half of the new set beside half of the old one."""
+    temps: list[tuple[str, Path]] = []
+    try:
+        for path, write in items:
+            path = Path(path)
+            try:
+                path.parent.mkdir(parents=True, exist_ok=True)
+                fd, tmp = tempfile.mkstemp(prefix=_tmp_prefix(path), suffix=TMP_SUFFIX, dir=path.parent)
+                os.close(fd)
+                temps.append((tmp, path))
+                write(tmp)
+                os.chmod(tmp, mode)
+            except OSError as exc:
+                raise OutputError(f"{path}: cannot write: {exc.strerror or exc}; no output was replaced") from None
+        for tmp, path in temps:
+            os.replace(tmp, path)
+    finally:
+        for tmp, _ in temps:
+            if os.path.exists(tmp):
+                os.unlink(tmp)
+
+
 def write_text(path: str | os.PathLike, text: str) -> None:
     """:func:`atomic_write` of a UTF-8 text."""
     atomic_write(path, lambda p: Path(p).write_text(text, encoding="utf-8"))
