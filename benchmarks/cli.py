@@ -116,6 +116,8 @@ def _status(args) -> int:
     from jointbench.benchmarks import status
 
     results = Path(args.results) if args.results else None
+    if results is not None and not results.is_dir():
+        raise JointBenchError(f"--results {results}: no such folder (the results folder of `jointbench run`)")
     if args.write_readme:
         readme = Path(args.readme) if args.readme else None
         path, changed = status.write_readme(results, readme)

@@ -424,6 +424,8 @@ def load_checks(path: Path, parts: Mapping[str, Part]) -> tuple[Check, ...]:
     data = _load_yaml(path)
     _check_keys(data, {"study": True, "source": True, "checks": True}, str(path))
     out, seen = [], set()
+    if not isinstance(data["checks"] or [], list):
+        raise ConfigError(f"{path}: key 'checks': expected a list of checks, got {data['checks']!r}")
     for i, c in enumerate(data["checks"] or []):
         where = f"{path}: check {c['id']}" if isinstance(c, Mapping) and "id" in c else f"{path}: checks[{i}]"
         _check_keys(c, _CHECK_KEYS, where)

@@ -26,7 +26,7 @@ from jointbench.benchmarks.harness.cache import Cache, case_key
 from jointbench.benchmarks.harness.history import History
 from jointbench.benchmarks.runner import CaseResult, RunInterrupted, expand, expand_study, group_cases, run_cases
 from jointbench.benchmarks.tables import cases_frame, compare, curves_frame, swap_survival
-from jointbench.errors import ConfigError
+from jointbench.errors import ConfigError, OutputError
 from jointbench.files import atomic_write, replace_as_set, staging_folder, sweep_stale_temps, write_text
 
 HISTORY_FILE = "history.sqlite"
@@ -90,8 +90,10 @@ def _part_reports(study, shown, results, rows, curves, folder) -> dict:
             out[name] = figures.REGISTRY.get(maker)(
                 part, rows[rows["part"] == name], curves[curves["part"] == name] if len(curves) else curves,
                 folder, study.checks)
-        except OSError:           # a full or read-only disk is not a broken plot: the set is not written
+        except OutputError:
             raise
+        except OSError as exc:    # a full or read-only disk is not a broken plot: the set is not written
+            raise OutputError(f"{folder}: cannot write the figures of part {name}: {exc.strerror or exc}") from None
         except Exception as exc:  # noqa: BLE001 - a broken plot must not lose the tables
             out[name] = f"{type(exc).__name__}: {exc}"
             traceback.print_exc()

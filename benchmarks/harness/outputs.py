@@ -36,8 +36,11 @@ def study_folder(root: Path, study_id: str, config: Path | str) -> Path:
     if study_id.lower() in RESERVED:
         raise ConfigError(f"{config}: key 'study': {study_id!r} is a reserved name of the results folder (it holds "
                           f"the harness's own {study_id.lower()}); reserved: {', '.join(RESERVED[:3])}; choose another id")
-    root = Path(root).resolve()
-    folder = (root / study_id).resolve()
+    try:
+        root = Path(root).resolve()
+        folder = (root / study_id).resolve()
+    except (OSError, RuntimeError) as exc:        # a symlink loop
+        raise OutputError(f"{root}: cannot use it as the results folder ({exc})") from None
     if folder.parent != root:
         raise ConfigError(f"{config}: key 'study': {study_id!r} would write outside {root}")
     return folder
