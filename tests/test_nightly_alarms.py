@@ -51,3 +51,12 @@ def test_wall_clock_metrics_are_listed_in_the_shipped_config():
     rules = load_config().rules
     assert rules.is_wall_clock("fit_time_s") and not rules.is_wall_clock("rise_time_s")
     assert Rules().wall_clock == ("fit_time_s",)
+
+
+def test_an_unknown_study_in_the_nightly_config_is_a_config_error(tmp_path):
+    import pytest
+
+    from jointbench.errors import ConfigError
+
+    with pytest.raises(ConfigError, match=r"key 'studies': no study 'nope' \(.*nope\.yaml not found\); known: "):
+        load_config(_config(tmp_path, studies=["nope"]))

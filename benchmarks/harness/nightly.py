@@ -68,6 +68,10 @@ def load_config(path: Path = DEFAULT_CONFIG, configs_dir: Path = CONFIGS) -> Nig
     for s in studies:          # a relative path is relative to the nightly config
         p = Path(s)
         resolved.append(str(p if p.is_absolute() or not p.suffix else (path.parent / p).resolve()))
+        where = Path(resolved[-1]) if p.suffix else configs_dir / "studies" / f"{s}.yaml"
+        if not where.is_file():    # a config error before anything runs, not a study that 'could not run'
+            known = ", ".join(sorted(q.stem for q in (configs_dir / "studies").glob("*.yaml")))
+            raise ConfigError(f"{path}: key 'studies': no study {s!r} ({where} not found); known: {known}")
     use_cache = data.get("use_cache", False)
     if not isinstance(use_cache, bool):
         raise ConfigError(f"{path}: key 'use_cache': expected true or false, got {use_cache!r}")
