@@ -187,3 +187,16 @@ def test_cache_prune_on_a_read_only_cache_is_one_line(tmp_path, monkeypatch):
     with pytest.raises(OutputError, match=r"cache: cannot remove cache entries \(Read-only file system; 0 of 1 "
                                           r"removed\)"):
         prune(tmp_path / "cache", keep=set())
+
+
+def test_a_reader_upgrades_a_version_1_history_once(tmp_path):
+    from jointbench.benchmarks.harness.history import SCHEMA
+
+    path = tmp_path / "history.sqlite"
+    with sqlite3.connect(path) as db:
+        db.executescript(SCHEMA.replace("note TEXT, evidence TEXT, PRIMARY KEY", "note TEXT, PRIMARY KEY"))
+        db.execute("INSERT INTO meta VALUES ('schema_version', '1')")
+    with History(path, create=False) as h:
+        assert h.reader and "evidence" in h.checks(1).columns
+    with sqlite3.connect(path) as db:
+        assert db.execute("SELECT value FROM meta WHERE key = 'schema_version'").fetchone() == ("2",)

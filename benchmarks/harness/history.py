@@ -136,10 +136,12 @@ class History:
             self.db = sqlite3.connect(self.path, timeout=LOCK_WAIT_S, isolation_level=None)
             self.db.row_factory = sqlite3.Row
             self.db.execute(f"PRAGMA busy_timeout = {LOCK_WAIT_S * 1000}")
+            version = SCHEMA_VERSION
             if self.reader:
-                self._check_version(self.db.execute("SELECT value FROM meta WHERE key = 'schema_version'")
-                                    .fetchone() if self._has_meta() else None)
-            else:
+                version = self._check_version(self.db.execute("SELECT value FROM meta WHERE key = "
+                                                              "'schema_version'").fetchone() if self._has_meta() else None)
+                self.reader = version != 1           # a version-1 history is upgraded once, even by a reader
+            if not self.reader:
                 self.db.execute("PRAGMA journal_mode = WAL")
                 self.db.execute("PRAGMA synchronous = NORMAL")
                 self.db.execute("PRAGMA foreign_keys = ON")
@@ -153,6 +155,7 @@ class History:
                     elif self._check_version(row) == 1:
                         self.db.execute("ALTER TABLE checks ADD COLUMN evidence TEXT")
                         self.db.execute("UPDATE meta SET value = ? WHERE key = 'schema_version'", (str(SCHEMA_VERSION),))
+                self.reader = not create
         except sqlite3.Error as exc:
             raise OutputError(f"{self.path}: cannot use the run history: {exc}") from None
         self._mark_crashed()
