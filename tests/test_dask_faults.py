@@ -21,7 +21,8 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from tests.harness_studies import REPO, cache_entries, cli, cli_env, start, tiny_grid_part, tiny_study, wait_for
+from tests.harness_studies import (REPO, cache_entries, cli, cli_env, cli_here, start, tiny_grid_part, tiny_study,
+                                   wait_for)
 
 pytest.importorskip("dask.distributed")
 pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="uses POSIX signals")
@@ -199,7 +200,7 @@ def test_a_worker_joining_later_with_other_libraries_refuses_its_task():
 
 def test_an_unreachable_scheduler_is_one_line_before_anything_runs(tmp_path):
     address = f"tcp://127.0.0.1:{_port()}"
-    r = cli("run", tiny_study(tmp_path / "cfg"), "--out", tmp_path / "out", "--quiet", "--executor", "dask",
+    r = cli_here("run", tiny_study(tmp_path / "cfg"), "--out", tmp_path / "out", "--quiet", "--executor", "dask",
             "--scheduler", address, timeout=120)
     assert r.returncode == 2 and len(_error_lines(r.stderr)) == 1, r.stderr
     assert r.stderr.startswith(f"jointbench: error: --scheduler {address}: cannot reach a Dask scheduler there")
@@ -221,7 +222,7 @@ def test_malformed_scheduler_addresses_are_one_line(address, words):
 
 
 def test_an_empty_scheduler_on_the_command_line_is_refused_not_a_local_cluster(tmp_path):
-    r = cli("run", tiny_study(tmp_path / "cfg"), "--out", tmp_path / "out", "--executor", "dask",
+    r = cli_here("run", tiny_study(tmp_path / "cfg"), "--out", tmp_path / "out", "--executor", "dask",
             "--scheduler", "", timeout=120)
     assert r.returncode == 2 and "an empty address" in r.stderr and len(_error_lines(r.stderr)) == 1, r.stderr
 
@@ -258,7 +259,7 @@ def test_a_server_that_is_not_dask_is_refused_without_reading_it_as_frames(reply
 
 @pytest.mark.parametrize("executor", ["dask", "process"])
 def test_an_absurd_worker_count_is_refused(tmp_path, executor):
-    r = cli("run", tiny_study(tmp_path / "cfg"), "--out", tmp_path / "out", "--quiet", "--executor", executor,
+    r = cli_here("run", tiny_study(tmp_path / "cfg"), "--out", tmp_path / "out", "--quiet", "--executor", executor,
             "--workers", "10000", timeout=120)
     assert r.returncode == 2 and len(_error_lines(r.stderr)) == 1, r.stderr
     assert re.match(r"jointbench: error: --workers 10000: more than 4 worker processes per core", r.stderr)
