@@ -101,6 +101,12 @@ def expand_study(study: Study, parts: Iterable[str] | None = None,
                                   seed=seed, where=part.where, backend=backend or part.backend))
         _, _, exp, ests = parse_inputs(cases[-1])   # validate once per part
         _check_estimators(part, exp, ests)
+    seen: dict = {}
+    for c in cases:                  # two cases under one id would be one row of the history twice
+        if (c.part, c.case_id) in seen:
+            raise ConfigError(f"{c.where}: two cases are named {c.case_id!r} (a sweep or grid value given twice, "
+                              f"e.g. [1, '1']); list each value once")
+        seen[(c.part, c.case_id)] = c
     return cases, skipped
 
 

@@ -140,3 +140,15 @@ def test_nan_budget_cannot_bypass_the_check_from_python(tmp_path):
     with pytest.raises(ConfigError, match="--budget: expected minutes > 0"):
         run_study(_grid(tmp_path), parts=["grid"], out_root=tmp_path / "out", serial=True, progress=False,
                   budget_minutes=float("nan"))
+
+
+def test_two_cases_under_one_name_are_refused_before_the_run(tmp_path):
+    import yaml
+
+    path = tiny_study(tmp_path / "cfg")
+    data = yaml.safe_load(path.read_text())
+    data["parts"]["fit"]["seeds"] = 1
+    data["parts"]["fit"]["sweep"] = {"near_unity": [0.9, "0.9"]}
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    with pytest.raises(ConfigError, match=r"two cases are named .fit-near_unity=0.9-seed0."):
+        expand_study(load_study(path))
