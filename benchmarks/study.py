@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
+import shutil
 import sys
 import time
 import traceback
@@ -271,10 +272,7 @@ def run_study(ref: str | Path, parts: list[str] | None = None, out_root: Path | 
                 if not failed:
                     (folder / "failures.log").unlink(missing_ok=True)
             finally:
-                if stage.exists():
-                    import shutil
-
-                    shutil.rmtree(stage, ignore_errors=True)
+                shutil.rmtree(stage, ignore_errors=True)      # what a failed run staged: never moved
     except KeyboardInterrupt as exc:
         if not recorded:
             history.finish_run(run_id, "interrupted", results, keys, comparison, check_metrics, wall,
