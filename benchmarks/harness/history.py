@@ -99,10 +99,25 @@ def _token_alive(token: str | None) -> bool:
     return not start or _start_time(int(pid)) == start
 
 
-def _why(exc: sqlite3.Error) -> str:
+#: free space below which an SQLite I/O error is reported as a full disk
+LOW_SPACE = 1 << 20
+
+
+def _why(exc: sqlite3.Error, path: Path | None = None) -> str:
+    """SQLite's message, with the cause when it is a full disk (SQLite says 'database or disk is full', or
+    only 'disk I/O error' when its shared-memory file cannot grow)."""
     text = str(exc)
     if "disk" in text and "full" in text:
-        text += " (no space left on the device)"
+        return text + " (no space left on the device)"
+    if path is not None and ("I/O" in text or "disk" in text):
+        import shutil
+
+        try:
+            free = shutil.disk_usage(Path(path).parent).free
+        except OSError:
+            return text
+        if free < LOW_SPACE:
+            text += f" (no space left on the device: {free // 1024} kB free)"
     return text
 
 
@@ -157,7 +172,7 @@ class History:
                         self.db.execute("UPDATE meta SET value = ? WHERE key = 'schema_version'", (str(SCHEMA_VERSION),))
                 self.reader = not create
         except sqlite3.Error as exc:
-            raise OutputError(f"{self.path}: cannot use the run history: {exc}") from None
+            raise OutputError(f"{self.path}: cannot use the run history: {_why(exc, self.path)}") from None
         self._mark_crashed()
 
     def _has_meta(self) -> bool:
@@ -222,12 +237,12 @@ class History:
         try:
             self._begin()
         except sqlite3.Error as exc:
-            raise OutputError(f"{self.path}: cannot write the run history: {_why(exc)}") from None
+            raise OutputError(f"{self.path}: cannot write the run history: {_why(exc, self.path)}") from None
         try:
             yield self.db
         except sqlite3.Error as exc:
             self._rollback()
-            raise OutputError(f"{self.path}: cannot write the run history: {_why(exc)}") from None
+            raise OutputError(f"{self.path}: cannot write the run history: {_why(exc, self.path)}") from None
         except BaseException:
             self._rollback()
             raise
@@ -235,7 +250,7 @@ class History:
             self.db.execute("COMMIT")
         except sqlite3.Error as exc:
             self._rollback()
-            raise OutputError(f"{self.path}: cannot write the run history: {_why(exc)}") from None
+            raise OutputError(f"{self.path}: cannot write the run history: {_why(exc, self.path)}") from None
 
     def _mark_crashed(self) -> None:
         """Runs (and nightlies) still 'running' whose process is gone are 'crashed' (a reader shows them
@@ -245,7 +260,7 @@ class History:
             try:
                 rows = self.db.execute(f"SELECT id, process FROM {table} WHERE status = 'running'").fetchall()
             except sqlite3.Error as exc:
-                raise OutputError(f"{self.path}: cannot read the run history: {_why(exc)}") from None
+                raise OutputError(f"{self.path}: cannot read the run history: {_why(exc, self.path)}") from None
             dead = [r["id"] for r in rows if not _token_alive(r["process"])]
             self._crashed[table] = set(dead)
             if dead and not self.reader:
@@ -335,7 +350,7 @@ class History:
         try:
             return pd.read_sql_query(q, self.db, params=list(params))
         except (sqlite3.Error, pd.errors.DatabaseError) as exc:
-            raise OutputError(f"{self.path}: cannot read the run history: {_why(exc) if isinstance(exc, sqlite3.Error) else ' '.join(str(exc).split())}; "
+            raise OutputError(f"{self.path}: cannot read the run history: {_why(exc, self.path) if isinstance(exc, sqlite3.Error) else ' '.join(str(exc).split())}; "
                               "the file was written by other code or damaged") from None
 
     def runs(self, study: str | None = None, kind: str | None = None, limit: int | None = 50) -> pd.DataFrame:
