@@ -154,7 +154,7 @@ class DaskExecutor(cf.Executor):
             probe_scheduler(scheduler, scheme, host, port)
             try:
                 self.client = Client(scheduler, timeout=CONNECT_TIMEOUT_S)
-            except (OSError, TimeoutError, ValueError) as exc:
+            except Exception as exc:  # noqa: BLE001 - any failure to connect (TLS without a context, ...) is one line
                 raise ConfigError(f"--scheduler {scheduler}: cannot reach a Dask scheduler there "
                                   f"({type(exc).__name__}: {' '.join(str(exc).split())[:200]})") from None
         else:
