@@ -220,7 +220,11 @@ class DaskExecutor(cf.Executor):
                 self.used.add(worker)
                 out.set_result(result)
             except BaseException as exc:  # noqa: BLE001 - the task's error, raised where the result is read
-                out.set_exception(exc)
+                if d.status != "error" and not self._closing:
+                    # the task finished but its result cannot be fetched: the scheduler went away with it
+                    out.set_exception(ExecutorLost(f"lost the scheduler at {self.where}"))
+                else:
+                    out.set_exception(exc)
 
         remote.add_done_callback(done)
         return out

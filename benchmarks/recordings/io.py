@@ -265,13 +265,13 @@ def _read_npz(path: Path) -> dict[str, np.ndarray]:
         for name, (shape, nbytes) in claims.items():
             stored = sizes[name + ".npy"]
             shown = "x".join(map(str, shape)) or "scalar"
-            limits.check_shape(where, f"member '{name}'", shape)
             if nbytes > stored:
                 raise InputError(f"{where}: member '{name}' claims shape {shown} ({_size(nbytes)}), more than the "
                                  f"{_size(stored)} the archive holds for it: the file is corrupt")
             if nbytes > available_memory() // 2:
                 raise InputError(f"{where}: member '{name}' is {_size(nbytes)} ({shown}), more than half the memory "
                                  f"available ({_size(available_memory())}); split the recording")
+            limits.check_shape(where, f"member '{name}'", shape)
         with np.load(path, allow_pickle=False) as data:
             out = {}
             for k in data.files:
