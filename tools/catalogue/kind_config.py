@@ -33,7 +33,7 @@ def _study_text(ws) -> str:
 
 def _encoded(encoding: str, bom: bool = False):
     def setup(ws):
-        text = _study_text(ws).replace("catalogue study", "catalogue study: Müller, Señor")
+        text = _study_text(ws).replace("catalogue study", "catalogue study of Müller and Señor")
         data = text.encode(encoding)
         ws.path("raw.yaml").write_bytes((b"\xef\xbb\xbf" if bom else b"") + data)
     return setup
