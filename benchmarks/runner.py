@@ -261,8 +261,8 @@ def run_cases(cases: list[Case], cache: Cache, workers: int | None = None, seria
         from jointbench.benchmarks.harness.fingerprint import code_hash, key_environment
 
         code = code_hash()
-        extra = (dict(key_environment()), str(cache.folder) if cache.enabled and
-                 getattr(executor, "stores_on_worker", False) else None)
+        extra = (dict(key_environment()), os.path.abspath(cache.folder) if cache.enabled and
+                 getattr(executor, "stores_on_worker", False) else None)   # absolute: a worker has its own cwd
     done_q: queue.SimpleQueue = queue.SimpleQueue()
     inflight: dict = {}
     pending = iter(tasks)
