@@ -186,7 +186,8 @@ def decode_text(data: bytes, where: str, error=ValueError) -> str:
     except UnicodeDecodeError as exc:
         line = data.count(b"\n", 0, exc.start) + 1
         col = exc.start - (data.rfind(b"\n", 0, exc.start) + 1) + 1
-        hint = " (it looks like UTF-16)" if data[1:2] == b"\x00" or data[0:1] == b"\x00" else ""
+        head = data[:400]
+        hint = " (it looks like UTF-16)" if head.count(b"\x00") >= 0.3 * len(head) else ""   # every other byte NUL
         raise error(f"{where}: not UTF-8 text{hint}: byte 0x{data[exc.start]:02x} at line {line}, column {col}; "
                     f"save the file as UTF-8") from None
 
