@@ -42,6 +42,8 @@ help:
 	@echo "make nightly     every paper study against the published values and the previous nightly:"
 	@echo "                 results/nightly/index.html; exit 1 on a regression (NIGHTLY_ARGS=... for options)"
 	@echo "make example-ankle   README worked example on ../shared/data (developers only)"
+	@echo "make catalogue   the catalogue of bad inputs (tools/catalogue/, not part of make test): every case as a"
+	@echo "                 process with a timeout, classified; .catalogue/summary.md (CATALOGUE_ARGS='--kind grid')"
 
 $(STAMP): pyproject.toml
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -145,3 +147,13 @@ example-ankle: $(STAMP)
 
 clean-results:
 	rm -rf results/*/
+
+# The catalogue of bad inputs (issue 20), kept apart from the tests so that it stays an independent measure:
+# careless, hostile and unlucky uses by kind (grids, --set, profiles, history, disks, executors, ...), each
+# run as a subprocess with a timeout and classified clean / unclear / traceback / hang / silent wrong /
+# outputs lost; writes .catalogue/summary.md and cases.csv. Some kinds need unshare -m (full and read-only
+# disks) or Dask. CATALOGUE_ARGS='--kind grid --jobs 1', or '--python OTHER/bin/python' to measure another install.
+CATALOGUE_ARGS ?=
+.PHONY: catalogue
+catalogue: $(STAMP)
+	$(BIN)/python -m tools.catalogue --out .catalogue $(CATALOGUE_ARGS)

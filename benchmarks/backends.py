@@ -91,7 +91,9 @@ def sections(study, comparison: pd.DataFrame, meta: dict) -> list[Section]:
         return []
     folder = Path(folder)
     found = runs(folder)
-    infos = {label: timing(_cases(path)) for label, path in found.items()}
+    stage = meta.get("stage")        # this run's tables, while its outputs are staged (benchmarks/study.py)
+    infos = {label: timing(_cases(Path(stage) if stage is not None and path == folder else path))
+             for label, path in found.items()}
     this = next(label for label, path in found.items() if path == folder)
     if not infos[this]["backends"]:
         return []   # nothing simulated (analytic parts only)

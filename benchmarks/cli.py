@@ -3,7 +3,9 @@
 
 Errors caused by the user (config, data, options, an unwritable results folder) print one line and exit
 with status 2. Ctrl-C (and SIGTERM) stop a run within about a second, keeping every finished case: exit
-status 130 (143 for SIGTERM); run again to resume.
+status 130 (143 for SIGTERM); run again to resume. A run in which a case failed exits 1 (unless its study
+says ``expected_failures: true``); a lost Dask scheduler stops the run with one line and exit status 75,
+keeping every finished case (run again to resume).
 """
 from __future__ import annotations
 
@@ -46,6 +48,16 @@ def positive_int(text: str) -> int:
         raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {text!r}") from None
     if value < 1:
         raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {value}")
+    return value
+
+
+def budget_minutes(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected minutes > 0, got {text!r}") from None
+    if not value > 0:              # NaN as well: it would compare false with every estimate
+        raise argparse.ArgumentTypeError(f"expected minutes > 0, got {text!r}")
     return value
 
 
@@ -97,6 +109,11 @@ def _run(args) -> int:
         print(f"  {r.status:4s}  {r.evidence:12s}  {r.check:18s} reproduced {r.reproduced:.5g}  "
               f"[{r.low:.5g}, {r.high:.5g}]")
     print(f"wrote {run.folder}/report.md, comparison.csv, cases.csv; history run {run.run_id}")
+    if run.failed and not run.study.expected_failures:
+        print(f"jointbench: {len(run.failed)} of {len(run.results)} cases failed (tracebacks in "
+              f"{run.folder / 'failures.log'}); exit 1 (a study whose failures are expected says "
+              f"'expected_failures: true')", file=sys.stderr)
+        return 1
     if args.strict and (len(run.failed) or n_pass < len(comp)):
         return 1
     return 0
@@ -108,6 +125,8 @@ def _status(args) -> int:
     from jointbench.benchmarks import status
 
     results = Path(args.results) if args.results else None
+    if results is not None and not results.is_dir():
+        raise JointBenchError(f"--results {results}: no such folder (the results folder of `jointbench run`)")
     if args.write_readme:
         readme = Path(args.readme) if args.readme else None
         path, changed = status.write_readme(results, readme)
@@ -174,7 +193,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "cluster (a local one, or --scheduler's)")
     p.add_argument("--scheduler", metavar="ADDRESS", default=None,
                    help="with --executor dask: a running Dask scheduler, e.g. tcp://10.0.0.5:8786")
-    p.add_argument("--budget", type=float, metavar="MINUTES", default=None,
+    p.add_argument("--budget", type=budget_minutes, metavar="MINUTES", default=None,
                    help="refuse a comparison grid estimated to take longer (default: its config's budget)")
     p.add_argument("--yes", action="store_true", help="run a grid even when it is estimated over its budget")
     p.set_defaults(func=_run)
@@ -221,6 +240,14 @@ def main(argv: list[str] | None = None) -> int:
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 1
     except KeyboardInterrupt as exc:
+        if getattr(exc, "exit_code", None):        # lost infrastructure (a Dask scheduler): not Ctrl-C
+            run = f" (history run {exc.run_id})" if getattr(exc, "run_id", None) else ""
+            print(f"jointbench: error: {exc.reason}{run}", file=sys.stderr)
+            if argv is None:
+                sys.stdout.flush()
+                sys.stderr.flush()
+                os._exit(exc.exit_code)
+            return exc.exit_code
         sigterm = isinstance(exc, Terminated) or isinstance(exc.__context__, Terminated) or \
             "SIGTERM" in str(getattr(exc, "reason", ""))
         what = "terminated" if sigterm else "interrupted"

@@ -21,53 +21,14 @@ import re
 from pathlib import Path
 from typing import Any, Mapping, Sequence
 
-import yaml
-
 from jointbench.benchmarks import overrides as _overrides
 from jointbench.benchmarks.locate import (CONFIGS, find_file, find_model, load_plugins, model_dirs, search_roots,
                                           study_path)
+# the one YAML reader of configs: strict and within limits (benchmarks/config_yaml.py)
+from jointbench.benchmarks.config_yaml import MAX_YAML_DEPTH, StrictLoader, load_yaml as _load_yaml  # noqa: F401
 from jointbench.errors import ConfigError
 
 
-
-
-class _DuplicateKey(yaml.YAMLError):
-    def __init__(self, key: Any, line: int, first: int):
-        super().__init__(f"line {line}: duplicate key {key!r} (first given on line {first})")
-
-
-class StrictLoader(yaml.SafeLoader):
-    """``yaml.SafeLoader`` that rejects a key given twice in one mapping (PyYAML keeps the last one
-    silently). Keys brought in by a merge (``<<: *anchor``) may be overridden: that is what merges
-    are for."""
-
-    def construct_mapping(self, node, deep=False):
-        if isinstance(node, yaml.MappingNode):
-            seen: dict = {}
-            for key_node, _ in node.value:
-                if key_node.tag == "tag:yaml.org,2002:merge":
-                    continue
-                key = self.construct_object(key_node, deep=True)
-                line = key_node.start_mark.line + 1
-                try:
-                    if key in seen:
-                        raise _DuplicateKey(key, line, seen[key])
-                    seen[key] = line
-                except TypeError:         # an unhashable key: PyYAML reports it itself
-                    continue
-        return super().construct_mapping(node, deep=deep)
-
-
-def _load_yaml(path: Path) -> Any:
-    """Parse a YAML file strictly (duplicate keys are errors naming the file, key and line)."""
-    if not path.is_file():
-        raise ConfigError(f"{path}: file not found")
-    try:
-        return yaml.load(path.read_text(), Loader=StrictLoader)  # noqa: S506 - a SafeLoader subclass
-    except _DuplicateKey as exc:
-        raise ConfigError(f"{path}: {exc}") from None
-    except yaml.YAMLError as exc:
-        raise ConfigError(f"{path}: not valid YAML: {exc}") from None
 
 
 def _check_keys(data: Mapping, allowed: dict[str, bool], where: str) -> None:
@@ -187,6 +148,7 @@ class Study:
     not_reproduced: tuple[NotReproduced, ...] = ()
     method_swap: MethodSwap | None = None
     plugins: tuple[str, ...] = ()      # outside modules with estimators (jointbench.plugins), imported
+    expected_failures: bool = False   # cases are expected to fail: `jointbench run` exits 0 all the same
 
 
 _PART_KEYS = {"protocol": True, "description": True, "params": False, "experiment": False,
@@ -197,7 +159,10 @@ _PART_KEYS = {"protocol": True, "description": True, "params": False, "experimen
 GRID_KEYS = ("scenarios", "variations", "perturbations", "budget")
 REPORT_SECTIONS = ("results", "interpretation")
 _STUDY_KEYS = {"study": True, "title": True, "paper": True, "published": False, "readings": False,
-               "not_reproduced": True, "method_swap": False, "parts": True, "plugins": False}
+               "not_reproduced": True, "method_swap": False, "parts": True, "plugins": False,
+               # true: the study expects some cases to fail (a study of where methods break down); without it
+               # a run in which any case failed exits non-zero (the exit status tells a scheduler the truth)
+               "expected_failures": False}
 _CHECK_KEYS = {"id": True, "part": True, "description": True, "source": True, "published": True,
                "low": False, "high": False, "select": True, "aggregate": False, "if_missed": False,
                "kind": False, "over": False, "direction": False, "slack": False, "versus": False, "by": False,
@@ -370,6 +335,8 @@ def load_checks(path: Path, parts: Mapping[str, Part]) -> tuple[Check, ...]:
     data = _load_yaml(path)
     _check_keys(data, {"study": True, "source": True, "checks": True}, str(path))
     out, seen = [], set()
+    if not isinstance(data["checks"] or [], list):
+        raise ConfigError(f"{path}: key 'checks': expected a list of checks, got {data['checks']!r}")
     for i, c in enumerate(data["checks"] or []):
         where = f"{path}: check {c['id']}" if isinstance(c, Mapping) and "id" in c else f"{path}: checks[{i}]"
         _check_keys(c, _CHECK_KEYS, where)
@@ -482,7 +449,11 @@ def load_study(path: str | Path | Mapping, configs_dir: Path = CONFIGS, override
         where = f"{path}: readings[{i}]"
         _check_keys(r, {"id": True, "topic": True, "passage": True, "reading": True, "alternatives": False}, where)
         readings.append(Reading(**{k: str(v) for k, v in r.items()}))
-    pub = find_file(data["published"], roots, str(path), "published") if data.get("published") else None
+    published = data.get("published")
+    if published is not None and (not isinstance(published, str) or not published.strip()):
+        raise ConfigError(f"{path}: key 'published': expected the path of the published values (e.g. "
+                          f"configs/published/<study>.yaml) or no key at all, got {published!r}")
+    pub = find_file(published, roots, str(path), "published") if published else None
     checks = load_checks(pub, parts) if pub is not None else ()
     known = {r.id for r in readings}
     for c in checks:
@@ -490,7 +461,11 @@ def load_study(path: str | Path | Mapping, configs_dir: Path = CONFIGS, override
         if missing:
             raise ConfigError(f"{pub}: check {c.id}: key 'reading': {missing[0]} is not a reading of {path.name} "
                               f"({', '.join(sorted(known)) or 'none'})")
+    expected = data.get("expected_failures", False)
+    if not isinstance(expected, bool):
+        raise ConfigError(f"{path}: key 'expected_failures': expected true or false, got {expected!r}")
     return Study(id=str(data["study"]), title=str(data["title"]), paper=str(data["paper"]), path=path,
                  parts=parts, readings=tuple(readings), checks=checks,
                  not_reproduced=_not_reproduced(data["not_reproduced"], str(path)),
-                 method_swap=_method_swap(data.get("method_swap"), str(path), parts), plugins=plugin_specs)
+                 method_swap=_method_swap(data.get("method_swap"), str(path), parts), plugins=plugin_specs,
+                 expected_failures=expected)

@@ -30,9 +30,13 @@ combination of its axes, one case per estimator and combination (all R realizati
 
 A combination an estimator cannot run is skipped and reported with the reason: a perturbation it cannot
 identify from (:meth:`estimators.Estimator.supports`: skirt and KBR need a multisine), data it does not
-take (its ``accepts``: an ensemble method given single trials), or an experiment the combination cannot
-build (a rate that does not divide the simulation rate, a model on the wrong apparatus). A name or value
-the grid does not know is a config error naming the axis, the value and what is allowed.
+take (its ``accepts``: an ensemble method given single trials), or valid settings that cannot go together
+(:class:`~jointbench.errors.Incompatible`: a rate that does not divide the simulation rate, a model on the
+wrong apparatus, a backend that cannot simulate the experiment). Any other error in a combination (a
+typo'd key, a negative duration, zero inertia, a profile file that is missing or makes K negative, an
+unstable MuJoCo step) is a config error naming the combination, before anything runs (exit 2). A name or
+value the grid does not know, or a value listed twice (``[1, 1.0]``, ``[100 Hz, 0.1 kHz]``), is a config
+error naming the axis, the value and what is allowed; so is a grid of more than :data:`MAX_COMBINATIONS`.
 """
 from __future__ import annotations
 
@@ -45,7 +49,7 @@ from typing import Any, Callable, Mapping
 
 from jointbench import estimators
 from jointbench import sims
-from jointbench.errors import ConfigError
+from jointbench.errors import ConfigError, Incompatible
 from jointbench.schema import param, parse
 
 #: the axes a grid may have, in the order they appear in case ids
@@ -54,6 +58,9 @@ NATIVE = "native"
 DATA = ("trial", "ensemble")
 #: default budget (minutes) of a grid part without ``budget``
 DEFAULT_BUDGET_MIN = 30.0
+#: most combinations a grid may have: each is built and checked when the study is expanded (about a
+#: millisecond each), before the budget is estimated; the matrix study has 704
+MAX_COMBINATIONS = 20_000
 
 
 @dataclasses.dataclass(frozen=True)
@@ -110,6 +117,17 @@ def _axis_values(grid: Mapping, where: str) -> dict[str, tuple]:
     if "estimator" not in grid:
         raise ConfigError(f"{where}: grid: missing axis 'estimator' (the estimators compared)")
     return {a: tuple(grid[a]) for a in AXES if a in grid}
+
+
+def _no_repeats(axis: str, given, values: list, where: str, unit: str = "") -> None:
+    """Two entries of an axis that mean the same value (``[1, 1.0]``, ``[100 Hz, 0.1 kHz]``) would run the
+    same cases twice under two names: refused."""
+    seen: dict = {}
+    for i, v in enumerate(values):
+        if v in seen:
+            raise ConfigError(f"{where}: grid.{axis}[{i}]: {given[i]!r} is the same value as grid.{axis}"
+                              f"[{seen[v]}] {given[seen[v]]!r} ({v:g}{unit}); list each value once")
+        seen[v] = i
 
 
 def _check_names(axis: str, values: tuple, known, where: str, what: str, native: bool = True) -> None:
@@ -187,6 +205,7 @@ def parse_grid(data: Mapping, experiment: Mapping | None, part_estimators: Mappi
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not (v >= 0 and math.isfinite(v)):
             raise ConfigError(f"{where}: grid.noise[{i}]: expected a number >= 0 (var(noise)/var(torque) on the "
                               f"torque channel; 0 = no noise), got {v!r}")
+    _no_repeats("noise", axes.get("noise", ()), [float(v) for v in axes.get("noise", ())], where)
     fs = []
     for i, v in enumerate(axes.get("fs", ())):
         if v == NATIVE:
@@ -199,6 +218,7 @@ def parse_grid(data: Mapping, experiment: Mapping | None, part_estimators: Mappi
             raise ConfigError(f"{where}: grid.fs[{i}]: expected '{NATIVE}' or a rate > 0 Hz, got {v!r}")
         fs.append(float(x))
     if "fs" in axes:
+        _no_repeats("fs", axes["fs"], fs, where, " Hz")
         axes["fs"] = tuple(fs)
     for i, v in enumerate(axes.get("backend", ())):
         if not isinstance(v, str) or v not in sims.BACKENDS:
@@ -213,6 +233,10 @@ def parse_grid(data: Mapping, experiment: Mapping | None, part_estimators: Mappi
     budget = data.get("budget", DEFAULT_BUDGET_MIN)
     if isinstance(budget, bool) or not isinstance(budget, (int, float)) or not budget > 0:
         raise ConfigError(f"{where}: key 'budget': expected minutes > 0, got {budget!r}")
+    size = math.prod(len(v) for v in axes.values())
+    if size > MAX_COMBINATIONS:
+        raise ConfigError(f"{where}: grid: {' x '.join(f'{len(v)} {a}' for a, v in axes.items())} = {size} "
+                          f"combinations, more than the {MAX_COMBINATIONS} a grid may have; shorten the axes")
     return Grid(axes=axes, scenarios=scenarios, variations=variations, perturbations=perturbations,
                 joints=joints, settings=settings, budget_minutes=float(budget))
 
@@ -294,8 +318,12 @@ def expand_grid(study_id: str, part, backend: str | None = None) -> tuple[list[d
         if key not in built:
             try:
                 built[key] = sims.Experiment.from_mapping(mapping, "the experiment", backend=combo["backend"])
-            except ConfigError as exc:   # this combination cannot be built: skipped, with the reason
+            except Incompatible as exc:  # valid settings that cannot go together: skipped, with the reason
                 built[key] = str(exc)
+            except ConfigError as exc:   # an invalid config: an error before anything runs
+                labels = ", ".join(f"{a}={v}" for a, v in combo.items() if a != "estimator")
+                raise ConfigError(f"{part.where}: the combination {labels}: "
+                                  f"{str(exc).removeprefix('the experiment: ')}") from None
         exp = built[key]
         reason = exp if isinstance(exp, str) else (cls.supports(exp) or _refusal(cls, mode))
         if reason:

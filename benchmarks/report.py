@@ -193,12 +193,13 @@ def _part(study: Study, name: str, rep, folder) -> Section:
 def page(study: Study, comparison: pd.DataFrame, part_reports: dict, failed: list, meta: dict) -> Page:
     """The report as a page of the report model (every section of :func:`model`, in reading order)."""
     m = model(study, comparison, part_reports, failed, meta)
-    folder = meta.get("folder")
+    folder = meta.get("stage") or meta.get("folder")      # where the figures are (being) written
     folder = None if folder is None else Path(folder)
     body: list = [Paragraph(
         f"Study `{study.id}` (paper `{study.paper}`), config `{study.path.name}`. Generated {m['generated']} at "
         f"commit `{m['commit']}` by `{meta['command']}`: {meta['n_cases']} cases ({meta['n_cached']} from cache, "
-        f"{len(failed)} failed), {meta['wall_s']:.1f} s wall time on {meta['workers']} worker(s).")]
+        f"{len(failed)} failed), {meta['wall_s']:.1f} s wall time on "
+        f"{meta.get('ran_on') or str(meta['workers']) + ' worker(s)'}.")]
     if meta["parts"] != list(study.parts):
         lines = [f"This run computed the parts {', '.join(meta['parts'])}"
                  + (f"; the parts {', '.join(meta['from_cache'])} come from the cache of an earlier run with the "
@@ -247,3 +248,17 @@ def write(folder: Path, report: Page) -> tuple[Path, Path]:
     write_text(folder / "report.md", to_markdown(report, folder))
     write_text(folder / "report.html", to_html(report))
     return folder / "report.md", folder / "report.html"
+
+
+def relocate(page: Page, old: Path, new: Path) -> None:
+    """Point the page's figure files under ``old`` (the staging folder of a run) to ``new`` (where the set
+    was moved), so that the page object still finds them (the nightly report inlines them)."""
+    old, new = Path(old), Path(new)
+
+    def walk(body) -> None:
+        for b in body:
+            if isinstance(b, Section):
+                walk(b.body)
+            elif isinstance(b, Figure) and b.path is not None and Path(b.path).is_relative_to(old):
+                object.__setattr__(b, "path", new / Path(b.path).relative_to(old))
+    walk(page.body)

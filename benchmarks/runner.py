@@ -18,7 +18,7 @@ from jointbench.benchmarks import protocols
 from jointbench.benchmarks.config import Part, Study
 from jointbench.benchmarks.harness.cache import Cache
 from jointbench.benchmarks.harness.case import Case, CaseResult, parse_inputs, run_case, run_group
-from jointbench.benchmarks.harness.pool import InlineExecutor, WorkerPool, run_task
+from jointbench.benchmarks.harness.pool import ExecutorLost, InlineExecutor, WorkerMismatch, WorkerPool, run_task
 from jointbench.errors import ConfigError
 from jointbench.schema import parse
 
@@ -36,6 +36,22 @@ class RunInterrupted(KeyboardInterrupt):
     def __init__(self, finished: list[CaseResult], total: int, reason: str = "interrupted"):
         super().__init__(reason)
         self.finished, self.total, self.reason = finished, total, reason
+
+
+class InfrastructureLost(RunInterrupted):
+    """The executor was lost during :func:`run_cases` (a Dask scheduler): no case failed, the run stopped;
+    ``reason`` is the one line to show ("lost the scheduler at ADDRESS after N of M cases; run again to
+    resume"). Exit status :attr:`exit_code` (EX_TEMPFAIL: a temporary failure, worth running again)."""
+
+    exit_code = 75
+
+
+class _Lost(KeyboardInterrupt):
+    """Raised inside the runner's loop to stop it like Ctrl-C does (the cleanup is the same)."""
+
+    def __init__(self, what: str):
+        super().__init__(what)
+        self.what = what
 
 
 def _check_estimators(part: Part, experiment, ests: dict) -> None:
@@ -85,6 +101,12 @@ def expand_study(study: Study, parts: Iterable[str] | None = None,
                                   seed=seed, where=part.where, backend=backend or part.backend))
         _, _, exp, ests = parse_inputs(cases[-1])   # validate once per part
         _check_estimators(part, exp, ests)
+    seen: dict = {}
+    for c in cases:                  # two cases under one id would be one row of the history twice
+        if (c.part, c.case_id) in seen:
+            raise ConfigError(f"{c.where}: two cases are named {c.case_id!r} (a sweep or grid value given twice, "
+                              f"e.g. [1, '1']); list each value once")
+        seen[(c.part, c.case_id)] = c
     return cases, skipped
 
 
@@ -168,7 +190,7 @@ def _stop(executor) -> None:
 
 def run_cases(cases: list[Case], cache: Cache, workers: int | None = None, serial: bool = False,
               progress: bool = True, on_result: Callable[[CaseResult], None] | None = None,
-              executor: cf.Executor | None = None) -> list[CaseResult]:
+              executor: cf.Executor | None = None, info: dict | None = None) -> list[CaseResult]:
     """Run cases (verified cached ones are reused); order is preserved.
 
     Parameters
@@ -183,12 +205,22 @@ def run_cases(cases: list[Case], cache: Cache, workers: int | None = None, seria
     executor
         Any ``concurrent.futures``-style executor to use instead (``submit`` returning futures with
         ``add_done_callback``; ``terminate_workers()`` when it can stop at once). It is not shut down.
+        A future failing with :class:`~benchmarks.harness.pool.ExecutorLost` (a lost Dask scheduler)
+        stops the run (:class:`InfrastructureLost`); one failing with
+        :class:`~benchmarks.harness.pool.WorkerMismatch` (a worker running other code) stops it with
+        that error. Any other failure of a task fails its cases.
+    info
+        Filled with ``workers``: what the cases ran on (for the report), e.g. ``2 worker processes``.
 
     Raises
     ------
     RunInterrupted
         On Ctrl-C or SIGTERM: pending cases are cancelled, the workers terminated, and every case that
         finished is stored before this is raised (within about a second).
+    InfrastructureLost
+        The executor was lost; as on Ctrl-C every finished case is kept (the next run resumes).
+    WorkerMismatch
+        A worker runs other code or libraries (one line); finished cases are kept.
     """
     if workers is not None and workers < 1:
         raise ConfigError(f"workers: need at least 1 process, got {workers}")
@@ -225,22 +257,28 @@ def run_cases(cases: list[Case], cache: Cache, workers: int | None = None, seria
     own = executor is None
     limits = None
     code = None
+    ran_on = "no worker (every case from the cache)" if not tasks else ""
     if own and (serial or workers == 1 or len(tasks) <= 1):
         from threadpoolctl import threadpool_limits
 
         executor, capacity = InlineExecutor(), 1
         limits = threadpool_limits(limits=1)     # as in the workers: same BLAS reductions, same numbers
+        ran_on = ran_on or "1 process (serial)"
     elif own:
         executor = WorkerPool(min(workers, len(tasks)))
         capacity = 2 * min(workers, len(tasks))
+        ran_on = f"{min(workers, len(tasks))} worker processes"
     else:
         capacity = 2 * (getattr(executor, "_max_workers", None) or workers)
     outside = None
+    extra: tuple = ()
     if not isinstance(executor, InlineExecutor):
-        from jointbench.benchmarks.harness.fingerprint import code_hash
+        from jointbench.benchmarks.harness.fingerprint import code_hash, key_environment
 
         code = code_hash()
         outside = _plugin_modules([cases[i] for i in todo])
+        extra = (dict(key_environment()), os.path.abspath(cache.folder) if cache.enabled and
+                 getattr(executor, "stores_on_worker", False) else None)   # absolute: a worker has its own cwd
     done_q: queue.SimpleQueue = queue.SimpleQueue()
     inflight: dict = {}
     pending = iter(tasks)
@@ -252,7 +290,7 @@ def run_cases(cases: list[Case], cache: Cache, workers: int | None = None, seria
                     break
                 batch = [cases[i] for i in group]
                 fut = (executor.submit(run_group, batch) if code is None else
-                       executor.submit(run_task, batch, code, outside))
+                       executor.submit(run_task, batch, code, *extra, outside))
                 inflight[fut] = group
                 fut.add_done_callback(done_q.put)
             if not inflight:
@@ -262,6 +300,11 @@ def run_cases(cases: list[Case], cache: Cache, workers: int | None = None, seria
             except queue.Empty:
                 continue
             group = inflight.pop(fut)
+            error = None if fut.cancelled() else fut.exception()
+            if isinstance(error, ExecutorLost):
+                raise _Lost(str(error))
+            if isinstance(error, WorkerMismatch):
+                raise error
             for i, res in zip(group, _outcomes(fut, [cases[i] for i in group])):
                 finish(i, res)
     except KeyboardInterrupt as exc:
@@ -279,8 +322,15 @@ def run_cases(cases: list[Case], cache: Cache, workers: int | None = None, seria
             pass
         if bar is not None:
             bar.close()
-        raise RunInterrupted([results[i] for i in sorted(results)], len(cases),
-                             getattr(exc, "reason", "interrupted")) from exc
+        finished = [results[i] for i in sorted(results)]
+        if isinstance(exc, _Lost):   # count the cases the workers stored themselves (groups cut short)
+            from jointbench.benchmarks.harness.cache import case_key
+
+            kept = len(finished) + sum(1 for i in todo if i not in results and cache.enabled
+                                       and cache.path(case_key(cases[i])).is_file())
+            raise InfrastructureLost(finished, len(cases), f"{exc.what} after {kept} of {len(cases)} "
+                                     "cases; run again to resume") from None
+        raise RunInterrupted(finished, len(cases), getattr(exc, "reason", "interrupted")) from exc
     except BaseException:
         _stop(executor)
         if bar is not None:
@@ -289,6 +339,9 @@ def run_cases(cases: list[Case], cache: Cache, workers: int | None = None, seria
     finally:
         if limits is not None:
             limits.restore_original_limits()
+    if info is not None:
+        describe = getattr(executor, "describe", None)
+        info["workers"] = ran_on or (describe() if callable(describe) else f"{capacity // 2} worker(s)")
     if own:
         executor.shutdown(wait=True)
     if bar is not None:

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
+import shutil
 import sys
 import time
 import traceback
@@ -27,8 +28,8 @@ from jointbench.benchmarks.harness.cache import Cache, case_key
 from jointbench.benchmarks.harness.history import History
 from jointbench.benchmarks.runner import CaseResult, RunInterrupted, expand, expand_study, group_cases, run_cases
 from jointbench.benchmarks.tables import cases_frame, compare, curves_frame, swap_survival
-from jointbench.errors import ConfigError
-from jointbench.files import atomic_write, sweep_stale_temps, write_text
+from jointbench.errors import ConfigError, OutputError
+from jointbench.files import atomic_write, replace_as_set, staging_folder, sweep_stale_temps, write_text
 
 HISTORY_FILE = "history.sqlite"
 CACHE_FOLDER = "cache"
@@ -93,6 +94,10 @@ def _part_reports(study, shown, results, rows, curves, folder) -> dict:
             out[name] = figures.REGISTRY.get(maker)(
                 part, rows[rows["part"] == name], curves[curves["part"] == name] if len(curves) else curves,
                 folder, study.checks)
+        except OutputError:
+            raise
+        except OSError as exc:    # a full or read-only disk is not a broken plot: the set is not written
+            raise OutputError(f"{folder}: cannot write the figures of part {name}: {exc.strerror or exc}") from None
         except Exception as exc:  # noqa: BLE001 - a broken plot must not lose the tables
             out[name] = f"{type(exc).__name__}: {exc}"
             traceback.print_exc()
@@ -120,6 +125,8 @@ def check_budget(study: Study, cases: list, skipped: list, cache: Cache, workers
         seconds = estimate_seconds(todo, group_cases(todo))
         n_workers = max(1, workers or os.cpu_count() or 1)
         limit = budget_minutes if budget_minutes is not None else part.grid.budget_minutes
+        if not limit > 0:                 # NaN compares false with everything: it must not skip the check
+            raise ConfigError(f"--budget: expected minutes > 0, got {limit!r}")
         wall = seconds / min(n_workers, len(todo)) / 60
         n_skip = sum(1 for s in skipped if s["part"] == name)
         text = (f"{part.where}: {len(mine)} cases ({len(mine) - len(todo)} cached; {n_skip} combinations "
@@ -129,6 +136,20 @@ def check_budget(study: Study, cases: list, skipped: list, cache: Cache, workers
             raise OverBudget(f"{text}: more than the {limit:g}-minute budget. Run with --yes to go on, or make "
                              f"the grid smaller (e.g. --set {name}.params.realizations=3, fewer axis values)")
         print(f"jointbench: {text}", file=sys.stderr)
+
+
+def _record_error(history: History, run_id: int, results: list, keys: dict, exc: BaseException,
+                  wall: float) -> None:
+    """Record a run that failed after its cases (writing its outputs or its history) as ``error``, with
+    its cases when the history takes them; the original error is what the user sees, never a second one
+    from the history (a full disk, the very constraint that failed)."""
+    error = f"{type(exc).__name__}: {exc}"
+    for finished in (results, []):
+        try:
+            history.finish_run(run_id, "error", finished, keys, wall_s=wall, error=error)
+            return
+        except Exception:  # noqa: BLE001 - see the docstring
+            continue
 
 
 def run_study(ref: str | Path, parts: list[str] | None = None, out_root: Path | None = None,
@@ -186,9 +207,10 @@ def run_study(ref: str | Path, parts: list[str] | None = None, out_root: Path | 
     keys = {c.case_id: case_key(c) for c in cases}
     check_metrics = {c.id: str(c.select.get("metric", "")) for c in study.checks}
     t0 = time.perf_counter()
+    ran: dict = {}
     try:
         results = run_cases(cases, cache, workers=workers, serial=serial, progress=progress,
-                            on_result=on_result, executor=executor)
+                            on_result=on_result, executor=executor, info=ran)
     except RunInterrupted as exc:
         history.finish_run(run_id, "interrupted", exc.finished, keys, wall_s=time.perf_counter() - t0,
                            error=exc.reason)
@@ -221,37 +243,50 @@ def run_study(ref: str | Path, parts: list[str] | None = None, out_root: Path | 
     curves = curves_frame(results)
     shown = [p for p in study.parts if p in run_parts or p in from_cache]
     comparison = compare(study.checks, rows, set(shown), commit)
+    recorded = False
     try:
         with outputs.study_lock(folder, f"run {run_id} (pid {os.getpid()})"):
-            atomic_write(folder / "cases.csv", lambda p: rows.to_csv(p, index=False))
-            atomic_write(folder / "curves.csv.gz", lambda p: curves.to_csv(p, index=False, compression="gzip"))
-            atomic_write(folder / "comparison.csv", lambda p: comparison.to_csv(p, index=False))
-            failed = [r for r in results if r.status != "ok"]
-            log = folder / "failures.log"
-            if failed:
-                write_text(log, "\n\n".join(f"== {r.case.case_id}\n{r.detail or r.error}" for r in failed))
-            elif log.exists():
-                log.unlink()
-            part_reports = _part_reports(study, shown, results, rows, curves, folder)
-            meta = {"commit": commit, "command": command or f"jointbench run {study.id}", "n_cases": len(cases),
-                    "n_cached": n_cached, "wall_s": wall, "workers": n_workers, "parts": run_parts,
-                    "from_cache": from_cache, "folder": folder, "backend": backend}
-            swap = study.method_swap
-            if swap is not None and swap.part in shown:
-                meta["method_swap"] = {**swap_survival(study.checks, rows, swap.part, swap.estimators),
-                                       "part": swap.part, "estimators": swap.estimators}
-            page = report.page(study, comparison, part_reports, failed, meta)
-            report.write(folder, page)
+            # The outputs are one set: written into a staging folder beside them, the run recorded, then
+            # moved into place together. A run that fails on the way (a full disk, the history) leaves
+            # the last good set as it was (tests/test_outputs_set.py).
+            stage = staging_folder(folder)
+            try:
+                atomic_write(stage / "cases.csv", lambda p: rows.to_csv(p, index=False))
+                atomic_write(stage / "curves.csv.gz", lambda p: curves.to_csv(p, index=False, compression="gzip"))
+                atomic_write(stage / "comparison.csv", lambda p: comparison.to_csv(p, index=False))
+                failed = [r for r in results if r.status != "ok"]
+                if failed:
+                    write_text(stage / "failures.log",
+                               "\n\n".join(f"== {r.case.case_id}\n{r.detail or r.error}" for r in failed))
+                part_reports = _part_reports(study, shown, results, rows, curves, stage)
+                meta = {"commit": commit, "command": command or f"jointbench run {study.id}", "n_cases": len(cases),
+                        "n_cached": n_cached, "wall_s": wall, "workers": n_workers, "parts": run_parts,
+                        "from_cache": from_cache, "folder": folder, "backend": backend, "stage": stage,
+                        "ran_on": ran.get("workers")}
+                swap = study.method_swap
+                if swap is not None and swap.part in shown:
+                    meta["method_swap"] = {**swap_survival(study.checks, rows, swap.part, swap.estimators),
+                                           "part": swap.part, "estimators": swap.estimators}
+                page = report.page(study, comparison, part_reports, failed, meta)
+                report.write(stage, page)
+                history.finish_run(run_id, "ok", results, keys, comparison, check_metrics, wall)
+                recorded = True
+                replace_as_set(folder, stage)
+                report.relocate(page, stage, folder)
+                if not failed:
+                    (folder / "failures.log").unlink(missing_ok=True)
+            finally:
+                shutil.rmtree(stage, ignore_errors=True)      # what a failed run staged: never moved
     except KeyboardInterrupt as exc:
-        history.finish_run(run_id, "interrupted", results, keys, comparison, check_metrics, wall,
-                           error="interrupted while writing the outputs")
+        if not recorded:
+            history.finish_run(run_id, "interrupted", results, keys, comparison, check_metrics, wall,
+                               error="interrupted while writing the outputs")
         stop = RunInterrupted(results, len(results), "interrupted while writing the outputs")
         stop.run_id = run_id
         raise stop from exc
     except BaseException as exc:
-        history.finish_run(run_id, "error", results, keys, comparison, check_metrics, wall,
-                           error=f"{type(exc).__name__}: {exc}")
+        if not recorded:
+            _record_error(history, run_id, results, keys, exc, wall)
         raise
-    history.finish_run(run_id, "ok", results, keys, comparison, check_metrics, wall)
     history.close()
     return StudyRun(study, folder, results, rows, comparison, run_id, part_reports, wall, root / HISTORY_FILE, page)

@@ -19,3 +19,9 @@ class InputError(JointBenchError, ValueError):
 class OutputError(JointBenchError, OSError):
     """A result or output file cannot be written (read-only folder, full disk, a path outside the
     results folder...)."""
+
+
+class Incompatible(ConfigError):
+    """Two valid settings that cannot go together (a rate that does not divide the simulation rate, a joint
+    with a hand contact on an apparatus without a handle, a backend that cannot simulate the experiment).
+    A comparison grid skips such a combination, with the reason; any other config error stops the run."""

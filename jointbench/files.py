@@ -6,11 +6,14 @@ moves it into place. Temporary names are unique per process (``.NAME.PID.RANDOM.
 writers never collide; the temporary is removed on any exception, KeyboardInterrupt and SIGTERM
 included (the CLI turns SIGTERM into an exception). A process killed with SIGKILL cannot clean up:
 :func:`sweep_stale_temps` removes the temporaries of processes that no longer exist, and the harness
-calls it before it writes into a folder.
+calls it before it writes into a folder. A set of files that belong together (a study's tables, report
+and figures) is written into a staging folder and moved into place as a set (:func:`replace_as_set`).
 """
 from __future__ import annotations
 
 import os
+import shutil
+import stat
 import tempfile
 from pathlib import Path
 from typing import Callable
@@ -59,6 +62,31 @@ def atomic_write(path: str | os.PathLike, write: Callable[[str], object], mode: 
             os.unlink(tmp)
 
 
+def atomic_write_set(items: list[tuple[str | os.PathLike, Callable[[str], object]]], mode: int = 0o644) -> None:
+    """:func:`atomic_write` of several files as one set: every temporary is written first, and only when all
+    are complete are they moved into place. A failure (a full disk) removes the temporaries and leaves every
+    old file as it was: never half of the new set beside half of the old one."""
+    temps: list[tuple[str, Path]] = []
+    try:
+        for path, write in items:
+            path = Path(path)
+            try:
+                path.parent.mkdir(parents=True, exist_ok=True)
+                fd, tmp = tempfile.mkstemp(prefix=_tmp_prefix(path), suffix=TMP_SUFFIX, dir=path.parent)
+                os.close(fd)
+                temps.append((tmp, path))
+                write(tmp)
+                os.chmod(tmp, mode)
+            except OSError as exc:
+                raise OutputError(f"{path}: cannot write: {exc.strerror or exc}; no output was replaced") from None
+        for tmp, path in temps:
+            os.replace(tmp, path)
+    finally:
+        for tmp, _ in temps:
+            if os.path.exists(tmp):
+                os.unlink(tmp)
+
+
 def write_text(path: str | os.PathLike, text: str) -> None:
     """:func:`atomic_write` of a UTF-8 text."""
     atomic_write(path, lambda p: Path(p).write_text(text, encoding="utf-8"))
@@ -83,10 +111,17 @@ def pid_alive(pid: int) -> bool:
         return True
 
 
+def staging_folder(folder: str | os.PathLike, name: str = "outputs") -> Path:
+    """A new empty folder inside ``folder`` to write a set of outputs into before :func:`replace_as_set`
+    (named like a temporary, so that :func:`sweep_stale_temps` removes it if its process dies)."""
+    Path(folder).mkdir(parents=True, exist_ok=True)
+    return Path(tempfile.mkdtemp(prefix=f".{name}.{os.getpid()}.", suffix=TMP_SUFFIX, dir=folder))
+
+
 def sweep_stale_temps(folder: str | os.PathLike, recursive: bool = False) -> list[Path]:
-    """Remove the temporaries of :func:`atomic_write` left in ``folder`` by processes that no longer
-    exist (killed with SIGKILL during a write); those of live processes are kept. Returns the paths
-    removed."""
+    """Remove the temporaries of :func:`atomic_write` (and the staging folders of :func:`staging_folder`)
+    left in ``folder`` by processes that no longer exist (killed with SIGKILL during a write); those of
+    live processes are kept. Returns the paths removed."""
     folder = Path(folder)
     if not folder.is_dir():
         return []
@@ -98,8 +133,77 @@ def sweep_stale_temps(folder: str | os.PathLike, recursive: bool = False) -> lis
         if pid_alive(int(fields[-3])):
             continue
         try:
-            p.unlink()
+            if p.is_dir() and not p.is_symlink():
+                shutil.rmtree(p)          # a staged set of outputs (replace_as_set) never moved into place
+            else:
+                p.unlink()
             removed.append(p)
         except OSError:
             pass
     return removed
+
+
+def file_problem(path: str | os.PathLike, max_bytes: int | None = None) -> str | None:
+    """What makes ``path`` unfit to read as an input file, or None: missing, a folder, not a regular file
+    (a device such as ``/dev/zero``, a FIFO or a socket: reading one may never end), or larger than
+    ``max_bytes``. Symlinks are followed; nothing is opened (a FIFO would block)."""
+    try:
+        st = os.stat(path)
+    except FileNotFoundError:
+        return "file not found"
+    except OSError as exc:
+        return f"cannot be read ({exc.strerror or exc})"
+    mode = st.st_mode
+    if stat.S_ISDIR(mode):
+        return "is a folder, not a file"
+    if not stat.S_ISREG(mode):
+        kind = ("a FIFO (named pipe)" if stat.S_ISFIFO(mode) else "a socket" if stat.S_ISSOCK(mode)
+                else "a device")
+        return f"is {kind}, not a regular file"
+    if max_bytes is not None and st.st_size > max_bytes:
+        return f"is {size_text(st.st_size)}, more than the {size_text(max_bytes)} allowed"
+    return None
+
+
+def size_text(nbytes: int) -> str:
+    """``12.3 MB``-style size (decimal units, as file managers show them)."""
+    for unit, k in (("GB", 1e9), ("MB", 1e6), ("kB", 1e3)):
+        if nbytes >= k:
+            return f"{nbytes / k:.3g} {unit}"
+    return f"{nbytes} bytes"
+
+
+def decode_text(data: bytes, where: str, error=ValueError) -> str:
+    """UTF-8 text (a UTF-8 byte-order mark is dropped); anything else is one line naming ``where``, the
+    encoding it looks like and the place of the first bad byte."""
+    for bom, name in ((b"\xff\xfe\x00\x00", "UTF-32"), (b"\x00\x00\xfe\xff", "UTF-32"),
+                      (b"\xff\xfe", "UTF-16"), (b"\xfe\xff", "UTF-16")):
+        if data.startswith(bom):
+            raise error(f"{where}: the file is {name} text (it starts with a {name} byte-order mark); "
+                        f"save it as UTF-8")
+    try:
+        return data.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = data.count(b"\n", 0, exc.start) + 1
+        col = exc.start - (data.rfind(b"\n", 0, exc.start) + 1) + 1
+        head = data[:400]
+        hint = " (it looks like UTF-16)" if head.count(b"\x00") >= 0.3 * len(head) else ""   # every other byte NUL
+        raise error(f"{where}: not UTF-8 text{hint}: byte 0x{data[exc.start]:02x} at line {line}, column {col}; "
+                    f"save the file as UTF-8") from None
+
+
+def replace_as_set(folder: str | os.PathLike, staged: str | os.PathLike) -> list[Path]:
+    """Move every file of ``staged`` (a folder written beside ``folder``'s files) into ``folder``, replacing
+    files of the same names, then remove ``staged``. Each move is a rename within one file system, which
+    needs no space and cannot fail half-way through a file: a set written completely in ``staged`` goes
+    into place as a whole (or, if the renames are interrupted, every file is still a whole file of one
+    run). Returns the files moved."""
+    folder, staged = Path(folder), Path(staged)
+    moved = []
+    for src in sorted(p for p in staged.rglob("*") if p.is_file()):
+        dest = folder / src.relative_to(staged)
+        dest.parent.mkdir(parents=True, exist_ok=True)
+        os.replace(src, dest)
+        moved.append(dest)
+    shutil.rmtree(staged, ignore_errors=True)
+    return moved

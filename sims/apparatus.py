@@ -14,7 +14,7 @@ from typing import ClassVar, Literal, Mapping
 
 import numpy as np
 
-from jointbench.errors import ConfigError
+from jointbench.errors import ConfigError, Incompatible
 from jointbench.schema import param
 
 
@@ -173,7 +173,7 @@ class Handle:
     def coupling(self, joint=None) -> Coupling:
         contact = getattr(joint, "contact", None)
         if contact is None:
-            raise ConfigError(f"apparatus 'handle' needs a joint model with a contact (k_c, b_c), e.g. "
+            raise Incompatible(f"apparatus 'handle' needs a joint model with a contact (k_c, b_c), e.g. "
                               f"'wrist_contact'; got {type(joint).__name__}")
         k_c, b_c = contact
         return Coupling(g=k_c, g_d=b_c, k_a=k_c, b_a=b_c)

@@ -25,7 +25,7 @@ from typing import Any, ClassVar, Mapping
 
 import numpy as np
 
-from jointbench.errors import ConfigError
+from jointbench.errors import Incompatible
 from jointbench.sims import BACKENDS
 
 
@@ -69,7 +69,7 @@ class Backend:
         """Raise :class:`ConfigError` (message without location) if this backend cannot simulate it."""
         reason = analytic_limits(experiment)
         if reason:
-            raise ConfigError(f"backend '{self.name}' cannot simulate this experiment: {reason}")
+            raise Incompatible(f"backend '{self.name}' cannot simulate this experiment: {reason}")
 
     def respond(self, experiment, drive: np.ndarray, voluntary: np.ndarray,
                 x0: tuple[float, float] = (0.0, 0.0)) -> Response:

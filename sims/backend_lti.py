@@ -21,7 +21,7 @@ from __future__ import annotations
 import numpy as np
 from jointbench.lazy import scipy_linalg, scipy_signal as sps   # imported on first use (0.8 CPU-s)
 
-from jointbench.errors import ConfigError
+from jointbench.errors import ConfigError, Incompatible
 from jointbench.sims import BACKENDS
 from jointbench.sims.backend import Backend, Response, lti_applies
 
@@ -110,7 +110,7 @@ class LTIBackend(Backend):
         super().check(experiment)
         reason = lti_applies(experiment)
         if reason:
-            raise ConfigError(f"backend 'lti' cannot simulate this experiment: {reason}; use 'ltv' or 'analytic'")
+            raise Incompatible(f"backend 'lti' cannot simulate this experiment: {reason}; use 'ltv' or 'analytic'")
 
     def run(self, joint, apparatus, drive: np.ndarray, voluntary: np.ndarray, fs: float) -> Response:
         """Simulate at ``fs`` Hz.

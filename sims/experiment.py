@@ -21,7 +21,7 @@ from typing import Any, Callable, Literal, Mapping
 
 import numpy as np
 
-from jointbench.errors import ConfigError
+from jointbench.errors import ConfigError, Incompatible
 from jointbench.schema import param, parse
 from jointbench.signal import decimate, decimate_fft
 from jointbench.types import Trial, Truth
@@ -256,11 +256,11 @@ class Experiment:
         if self.acquisition.decimation == "fft":
             m = self.duration * fs
             if abs(m - round(m)) > 1e-9 * m:
-                raise ConfigError(f"{w}: acquisition: key 'fs': fft decimation needs a whole number of samples "
+                raise Incompatible(f"{w}: acquisition: key 'fs': fft decimation needs a whole number of samples "
                                   f"in {self.duration:g} s; {fs:g} Hz gives {m:.6g}")
         elif abs(q - round(q)) > 1e-9 * q:
             lo, hi = self.fs_sim / math.ceil(q), self.fs_sim / math.floor(q)
-            raise ConfigError(f"{w}: acquisition: key 'fs': {fs:g} Hz does not divide fs_sim = {self.fs_sim:g} Hz "
+            raise Incompatible(f"{w}: acquisition: key 'fs': {fs:g} Hz does not divide fs_sim = {self.fs_sim:g} Hz "
                               f"(decimation factor {q:.6g} is not a whole number); e.g. {lo:g} or {hi:g} Hz")
         if self.n < 2:
             n_acq = self.n_acquired
@@ -269,12 +269,12 @@ class Experiment:
                               f"need at least 2")
         contact = getattr(self.joint, "contact", None)
         if contact is not None and not getattr(self.apparatus, "angle_is_drive", False):
-            raise ConfigError(f"{w}: key 'apparatus': joint model '{self.joint.model}' has a hand contact and "
+            raise Incompatible(f"{w}: key 'apparatus': joint model '{self.joint.model}' has a hand contact and "
                               f"needs apparatus kind 'handle', got '{self.apparatus.kind}'")
         try:
             self.apparatus.coupling(self.joint)
         except ConfigError as exc:
-            raise ConfigError(f"{w}: key 'apparatus': {exc}") from None
+            raise type(exc)(f"{w}: key 'apparatus': {exc}") from None
         self.perturbation.check(self.fs_sim, self.duration, f"{w}: perturbation")
         self.voluntary.check(self.fs_sim, f"{w}: voluntary")
         self.sensors.check(self.fs_sim, f"{w}: sensors")
@@ -286,7 +286,7 @@ class Experiment:
         try:
             BACKENDS.get(self.backend)().check(self)
         except ConfigError as exc:
-            raise ConfigError(f"{w}: {exc}") from None
+            raise type(exc)(f"{w}: {exc}") from None
 
     # ------------------------------------------------------------------------------------- acquisition
     def acquire(self, x: np.ndarray) -> np.ndarray:

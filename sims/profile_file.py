@@ -42,9 +42,9 @@ class FromFile:
     outside : {'error', 'hold'}
         Before the first and after the last time.
     sha256 : str, optional
-        The file's SHA-256 (hex); when given, a file with other contents is refused. The harness caches
-        finished cases by their config, not by the contents of files it names: pin the contents with this
-        when the file may change.
+        The file's SHA-256 (hex); when given, a file with other contents is refused. Without it an edited
+        file is simply a new input: the harness keys finished cases by the contents of the files they read
+        (:func:`benchmarks.harness.case.input_files`), so an edit is recomputed, never served from the cache.
     """
 
     path: str = param(doc="CSV (header 'time,value') or NPY (n x 2) file; relative to the working directory")
@@ -88,12 +88,23 @@ class FromFile:
         return bool(np.all(self._values == self._values[0]))
 
 
+#: a profile file's limits, checked before it is parsed: its size and rows (a profile is interpolated
+#: where the simulation needs it; a million rows is 1 ms resolution over 17 minutes, longer than any trial)
+MAX_PROFILE_BYTES = 64_000_000
+MAX_PROFILE_ROWS = 1_000_000
+
+
 def _load(path: str, sha256: str | None) -> tuple[np.ndarray, np.ndarray]:
     """``(times, values)`` of a profile file, checked; every error names the file."""
+    from jointbench.files import file_problem
+
     p = Path(path)
-    if not p.is_file():
+    problem = file_problem(p, MAX_PROFILE_BYTES)
+    if problem == "file not found":
         raise ConfigError(f"profile file {path}: not found (relative paths are taken from the working directory "
                           f"{Path.cwd()})")
+    if problem is not None:
+        raise ConfigError(f"profile file {path}: {problem}" + (" for a profile" if "allowed" in problem else ""))
     if sha256 is not None:
         got = hashlib.sha256(p.read_bytes()).hexdigest()
         if got != sha256.strip().lower():
@@ -107,13 +118,16 @@ def _read(resolved: str, mtime_ns: int, shown: str) -> tuple[np.ndarray, np.ndar
     """Parse and check a profile file (cached by path and modification time; arrays read-only)."""
     suffix = Path(resolved).suffix.lower()
     if suffix == ".npy":
-        try:
-            data = np.load(resolved, allow_pickle=False)
-        except (ValueError, OSError) as exc:
+        try:                           # mapped, not read: a header claiming more than the file holds fails here
+            data = np.load(resolved, allow_pickle=False, mmap_mode="r")
+        except (ValueError, OSError, EOFError) as exc:
             raise ConfigError(f"profile file {shown}: not a readable .npy array ({exc})") from None
         if data.ndim != 2 or data.shape[1] != 2 or not np.issubdtype(data.dtype, np.number):
             raise ConfigError(f"profile file {shown}: expected a numeric array of shape (n, 2) (time, value), "
                               f"got {data.dtype} {data.shape}")
+        if data.shape[0] > MAX_PROFILE_ROWS:
+            raise ConfigError(f"profile file {shown}: {data.shape[0]} rows, more than the {MAX_PROFILE_ROWS} a "
+                              f"profile may have; resample it")
         t, v = np.array(data[:, 0], float), np.array(data[:, 1], float)
     elif suffix == ".csv":
         t, v = _read_csv(resolved, shown)
@@ -137,9 +151,18 @@ def _read(resolved: str, mtime_ns: int, shown: str) -> tuple[np.ndarray, np.ndar
 
 
 def _read_csv(path: str, shown: str) -> tuple[np.ndarray, np.ndarray]:
-    with open(path, newline="", encoding="utf-8") as fh:
-        rows = [(i, r) for i, r in enumerate(csv.reader(fh), start=1)
-                if r and any(c.strip() for c in r) and not r[0].lstrip().startswith("#")]
+    import io
+
+    from jointbench.files import decode_text
+
+    data = Path(path).read_bytes()
+    n_lines = data.count(b"\n")
+    if n_lines > MAX_PROFILE_ROWS + 1000:
+        raise ConfigError(f"profile file {shown}: {n_lines} lines, more than the {MAX_PROFILE_ROWS} rows a profile "
+                          f"may have; resample it")
+    text = decode_text(data, f"profile file {shown}", ConfigError)
+    rows = [(i, r) for i, r in enumerate(csv.reader(io.StringIO(text, newline="")), start=1)
+            if r and any(c.strip() for c in r) and not r[0].lstrip().startswith("#")]
     if not rows:
         raise ConfigError(f"profile file {shown}: empty; expected a header 'time,value' and rows")
     line, header = rows[0]

@@ -69,6 +69,24 @@ def cli(*args, timeout: float = 300, **kw) -> subprocess.CompletedProcess:
                           capture_output=True, text=True, timeout=timeout, env=cli_env(), **kw)
 
 
+def cli_here(*args, timeout: float | None = None) -> subprocess.CompletedProcess:
+    """``jointbench ARGS`` in this process (no interpreter start-up): return code, stdout and stderr as
+    :func:`cli` gives them, for commands that need no process of their own (no signals, no workers;
+    ``timeout`` is accepted for symmetry with :func:`cli` and not enforced)."""
+    import contextlib
+    import io
+
+    from jointbench.benchmarks.cli import main
+
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        try:
+            code = main([str(a) for a in args])
+        except SystemExit as exc:                  # argparse's usage errors
+            code = exc.code if isinstance(exc.code, int) else 2
+    return subprocess.CompletedProcess(list(args), code, out.getvalue(), err.getvalue())
+
+
 def start(*args, log: Path, prefix: list[str] | None = None) -> subprocess.Popen:
     """``jointbench ARGS`` in the background, in its own session (its own process group, as a
     terminal's foreground job), stdout and stderr to ``log``."""

@@ -66,7 +66,7 @@ class Cache:
         key = fingerprint.sha(material)
         p = self.path(key)
         if not p.is_file():
-            return None
+            return None                      # absent (a folder, a FIFO or a device there is replaced by put)
         problem = None
         try:
             entry = json.loads(p.read_text())
@@ -80,7 +80,9 @@ class Cache:
                 problem = "its material differs from this case's"
             elif fingerprint.sha(entry.get("result")) != entry.get("checksum"):
                 problem = "its result does not match its checksum (edited or damaged)"
-        except (OSError, ValueError, TypeError, KeyError) as exc:
+            else:
+                problem = _result_problem(entry["result"])
+        except (OSError, ValueError, TypeError, KeyError, RecursionError) as exc:
             problem = f"unreadable ({type(exc).__name__}: {exc})"
         if problem is not None:
             self.rejected += 1
@@ -109,15 +111,38 @@ class Cache:
         self.written += 1
 
 
+def _result_problem(r) -> str | None:
+    """What is wrong with the types of a stored result (a forged entry whose checksum was recomputed), or None."""
+    if not isinstance(r, dict):
+        return f"its result is a {type(r).__name__}, not a mapping"
+    if not isinstance(r.get("status"), str):
+        return "its result has no status"
+    for key in ("rows", "curves"):
+        v = r.get(key)
+        if not isinstance(v, list) or not all(isinstance(x, dict) for x in v):
+            return f"its result's {key!r} is not a list of rows"
+    if isinstance(r.get("wall_time_s"), bool) or not isinstance(r.get("wall_time_s"), (int, float)):
+        return "its result's wall time is not a number"
+    if not all(isinstance(row.get("metric"), str) for row in r["rows"]):
+        return "a row of its result has no metric"
+    return None
+
+
 def entries(folder: Path) -> Iterable[Path]:
     return sorted(Path(folder).glob("??/*.json"))
 
 
 def prune(folder: Path, keep: set[str], dry_run: bool = False) -> list[Path]:
     """Delete the entries whose key is not in ``keep`` (and stale temporaries); returns them."""
+    from jointbench.errors import OutputError
+
     sweep_stale_temps(folder, recursive=True)
     gone = [p for p in entries(folder) if p.stem not in keep]
     if not dry_run:
-        for p in gone:
-            p.unlink(missing_ok=True)
+        for i, p in enumerate(gone):
+            try:
+                p.unlink(missing_ok=True)
+            except OSError as exc:
+                raise OutputError(f"{folder}: cannot remove cache entries ({exc.strerror or exc}; {i} of "
+                                  f"{len(gone)} removed); make the cache writable, or run without prune") from None
     return gone

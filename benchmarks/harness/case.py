@@ -49,10 +49,16 @@ class Case:
         return f"{self.part}{sw}-seed{self.seed}"
 
     def key_material(self) -> dict:
-        """What the protocol sees: every field but ``study`` and ``where`` (no paths)."""
-        return {"protocol": self.protocol, "part": self.part, "params": self.params, "sweep": self.sweep,
-                "experiment": self.experiment, "estimators": self.estimators, "seed": self.seed,
-                "backend": self.backend}
+        """What the protocol sees: every field but ``study`` and ``where`` (no paths), and the contents
+        (SHA-256) of every input file the case reads (:func:`input_files`): an edited profile CSV is a new
+        case, whether or not the config pins its ``sha256``."""
+        material = {"protocol": self.protocol, "part": self.part, "params": self.params, "sweep": self.sweep,
+                    "experiment": self.experiment, "estimators": self.estimators, "seed": self.seed,
+                    "backend": self.backend}
+        files = input_files(self)
+        if files:
+            material["inputs"] = [[name, content_hash(name)] for name in files]
+        return material
 
     def code_modules(self) -> tuple[str, ...]:
         """The modules that compute this case besides the shared closure of this module: its protocol's
@@ -102,6 +108,56 @@ class CaseResult:
         return cls(**d)
 
 
+def input_files(case: Case) -> list[str]:
+    """The files a case reads, as its config names them: every ``{shape: file, path: ...}`` profile of its
+    experiment and parameters (:mod:`sims.profile_file`), sorted, each once."""
+    found: set[str] = set()
+
+    def walk(obj) -> None:
+        if isinstance(obj, Mapping):
+            if obj.get("shape") == "file" and isinstance(obj.get("path"), str):
+                found.add(obj["path"])
+            for v in obj.values():
+                walk(v)
+        elif isinstance(obj, (list, tuple)):
+            for v in obj:
+                walk(v)
+
+    walk([case.experiment, case.params, case.sweep])
+    return sorted(found)
+
+
+_HASHES: dict = {}
+
+
+def content_hash(path: str) -> str:
+    """SHA-256 of a file's contents ('missing' or 'unreadable: ...' when it cannot be read), remembered by
+    its size and modification time (a case's key is asked for several times per run)."""
+    import hashlib
+    import os
+    import stat
+
+    try:
+        st = os.stat(path)
+    except OSError:
+        return "missing"
+    if not stat.S_ISREG(st.st_mode):
+        return "not a regular file"            # a FIFO or a device: never opened (it could block)
+    stamp = (os.path.abspath(path), st.st_size, st.st_mtime_ns, st.st_ino)
+    got = _HASHES.get(stamp)
+    if got is None:
+        h = hashlib.sha256()
+        try:
+            with open(path, "rb") as f:
+                for block in iter(lambda: f.read(1 << 20), b""):
+                    h.update(block)
+            got = h.hexdigest()
+        except OSError as exc:
+            got = f"unreadable: {exc.strerror}"
+        _HASHES[stamp] = got
+    return got
+
+
 def parse_inputs(case: Case):
     """The protocol, parsed parameters, experiment and estimators of a case (raises ConfigError)."""
     proto = protocols.REGISTRY.get(case.protocol)
@@ -133,12 +189,18 @@ def run_case(case: Case) -> CaseResult:
                           error=f"{type(exc).__name__}: {exc}", detail=traceback.format_exc())
 
 
-def run_group(cases: list[Case]) -> list[CaseResult]:
+def run_group(cases: list[Case], on_result=None) -> list[CaseResult]:
     """Cases scheduled together (one task of an executor): each response they share is simulated once
     (one :func:`sims.reuse.reuse_responses` block around them all); every number is what
-    :func:`run_case` gives for each case alone (tests/test_reuse.py)."""
+    :func:`run_case` gives for each case alone (tests/test_reuse.py). ``on_result`` is called with each
+    result as it finishes (a worker stores it at once: a lost scheduler loses no finished case)."""
+    out = []
     with reuse.reuse_responses():
-        return [run_case(c) for c in cases]
+        for c in cases:
+            out.append(run_case(c))
+            if on_result is not None:
+                on_result(out[-1])
+    return out
 
 
 _ONE_THREAD: list = []

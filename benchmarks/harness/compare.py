@@ -37,6 +37,12 @@ class Rules:
     grow_factor: float = 1.5
     min_seconds: float = 5.0
     timing_is_regression: bool = False
+    #: metrics that are wall-clock times (fnmatch patterns): they change on every run, so they never drift
+    #: (a part's compute time is compared under ``timing``)
+    wall_clock: tuple[str, ...] = ("fit_time_s",)
+
+    def is_wall_clock(self, metric: str) -> bool:
+        return any(fnmatch.fnmatchcase(metric, p) for p in self.wall_clock)
 
     def threshold(self, metric: str) -> Threshold:
         for t in self.thresholds:
@@ -150,6 +156,7 @@ def _drift(history: History, a: int, b: int, rules: Rules):
                 .groupby("part")[["only_before", "only_after"]].sum().astype(int).reset_index())
     coverage = coverage[(coverage["only_before"] > 0) | (coverage["only_after"] > 0)].reset_index(drop=True)
     both = m[m["_merge"] == "both"].copy()
+    both = both[[not rules.is_wall_clock(str(mt)) for mt in both["metric"]]]
     x, y = both["value_before"].to_numpy(float), both["value_after"].to_numpy(float)
     limit = np.empty(len(both))
     for metric, idx in both.groupby("metric").indices.items():

@@ -23,6 +23,7 @@ import math
 import os
 import socket
 import sqlite3
+import sys
 from pathlib import Path
 from typing import Iterable
 
@@ -62,6 +63,10 @@ CREATE TABLE IF NOT EXISTS checks (
 CREATE INDEX IF NOT EXISTS runs_study ON runs(study, id);
 """
 FINAL = ("ok", "interrupted", "error")
+#: seconds a writer waits for another process's write transaction (it says so at once)
+LOCK_WAIT_S = 60
+#: run ids are SQLite integers
+MAX_RUN_ID = 2 ** 63 - 1
 
 
 def now() -> str:
@@ -94,6 +99,28 @@ def _token_alive(token: str | None) -> bool:
     return not start or _start_time(int(pid)) == start
 
 
+#: free space below which an SQLite I/O error is reported as a full disk
+LOW_SPACE = 1 << 20
+
+
+def _why(exc: sqlite3.Error, path: Path | None = None) -> str:
+    """SQLite's message, with the cause when it is a full disk (SQLite says 'database or disk is full', or
+    only 'disk I/O error' when its shared-memory file cannot grow)."""
+    text = str(exc)
+    if "disk" in text and "full" in text:
+        return text + " (no space left on the device)"
+    if path is not None and ("I/O" in text or "disk" in text):
+        import shutil
+
+        try:
+            free = shutil.disk_usage(Path(path).parent).free
+        except OSError:
+            return text
+        if free < LOW_SPACE:
+            text += f" (no space left on the device: {free // 1024} kB free)"
+    return text
+
+
 def _num(v) -> float | None:
     try:
         v = float(v)
@@ -103,36 +130,69 @@ def _num(v) -> float | None:
 
 
 class History:
-    """One history file. Every method opens its own short transaction."""
+    """One history file. Every method opens its own short transaction.
+
+    ``create=False`` opens it to read (``jointbench history``, ``diff``): nothing is written, so a reader
+    never waits behind another process's write. A writer that finds the history locked by another
+    process says so at once, then waits up to :data:`LOCK_WAIT_S` (:meth:`_tx`)."""
 
     def __init__(self, path: Path, create: bool = True):
+        from jointbench.files import file_problem
+
         self.path = Path(path)
-        if not create and not self.path.is_file():
+        self.reader = not create
+        problem = file_problem(self.path)
+        if problem == "file not found" and not create:
             raise ConfigError(f"{self.path}: no run history yet (it is written by `jointbench run` and "
                               "`jointbench nightly`)")
+        if problem is not None and problem != "file not found":
+            raise OutputError(f"{self.path}: cannot use the run history: it {problem}")
         try:
-            self.db = sqlite3.connect(self.path, timeout=60, isolation_level=None)
+            self.db = sqlite3.connect(self.path, timeout=LOCK_WAIT_S, isolation_level=None)
             self.db.row_factory = sqlite3.Row
-            self.db.execute("PRAGMA busy_timeout = 60000")
-            self.db.execute("PRAGMA journal_mode = WAL")
-            self.db.execute("PRAGMA synchronous = NORMAL")
-            self.db.execute("PRAGMA foreign_keys = ON")
-            with self._tx():
-                for stmt in SCHEMA.split(";"):
-                    if stmt.strip():
-                        self.db.execute(stmt)
-                row = self.db.execute("SELECT value FROM meta WHERE key = 'schema_version'").fetchone()
-                if row is None:
-                    self.db.execute("INSERT INTO meta VALUES ('schema_version', ?)", (str(SCHEMA_VERSION),))
-                elif int(row[0]) == 1:
-                    self.db.execute("ALTER TABLE checks ADD COLUMN evidence TEXT")
-                    self.db.execute("UPDATE meta SET value = ? WHERE key = 'schema_version'", (str(SCHEMA_VERSION),))
-                elif int(row[0]) != SCHEMA_VERSION:
-                    raise ConfigError(f"{self.path}: history schema version {row[0]}, this code reads "
-                                      f"{SCHEMA_VERSION}")
-        except sqlite3.DatabaseError as exc:
-            raise OutputError(f"{self.path}: cannot use the run history: {exc}") from None
+            self.db.execute(f"PRAGMA busy_timeout = {LOCK_WAIT_S * 1000}")
+            version = SCHEMA_VERSION
+            if self.reader:
+                version = self._check_version(self.db.execute("SELECT value FROM meta WHERE key = "
+                                                              "'schema_version'").fetchone() if self._has_meta() else None)
+                self.reader = version != 1           # a version-1 history is upgraded once, even by a reader
+            if not self.reader:
+                self.db.execute("PRAGMA journal_mode = WAL")
+                self.db.execute("PRAGMA synchronous = NORMAL")
+                self.db.execute("PRAGMA foreign_keys = ON")
+                with self._tx():
+                    for stmt in SCHEMA.split(";"):
+                        if stmt.strip():
+                            self.db.execute(stmt)
+                    row = self.db.execute("SELECT value FROM meta WHERE key = 'schema_version'").fetchone()
+                    if row is None:
+                        self.db.execute("INSERT INTO meta VALUES ('schema_version', ?)", (str(SCHEMA_VERSION),))
+                    elif self._check_version(row) == 1:
+                        self.db.execute("ALTER TABLE checks ADD COLUMN evidence TEXT")
+                        self.db.execute("UPDATE meta SET value = ? WHERE key = 'schema_version'", (str(SCHEMA_VERSION),))
+                self.reader = not create
+        except sqlite3.Error as exc:
+            raise OutputError(f"{self.path}: cannot use the run history: {_why(exc, self.path)}") from None
         self._mark_crashed()
+
+    def _has_meta(self) -> bool:
+        return self.db.execute("SELECT 1 FROM sqlite_master WHERE type = 'table' AND name = 'meta'").fetchone() \
+            is not None
+
+    def _check_version(self, row) -> int:
+        """The schema version of ``row`` (1 or this code's); any other is a one-line error."""
+        if row is None:
+            if self.reader and not self._has_meta():
+                raise OutputError(f"{self.path}: not a run history of jointbench (no 'meta' table)")
+            return SCHEMA_VERSION
+        try:
+            version = int(row[0])
+        except (TypeError, ValueError):
+            version = None
+        if version not in (1, SCHEMA_VERSION):
+            raise ConfigError(f"{self.path}: history schema version {row[0]!r}, this code reads {SCHEMA_VERSION} "
+                              f"(and upgrades 1); the file was written by other code or edited")
+        return version
 
     def close(self) -> None:
         self.db.close()
@@ -143,30 +203,67 @@ class History:
     def __exit__(self, *exc):
         self.close()
 
-    @contextlib.contextmanager
-    def _tx(self):
-        """BEGIN IMMEDIATE ... COMMIT, rolled back on any exception (KeyboardInterrupt included)."""
+    def _begin(self) -> None:
+        """BEGIN IMMEDIATE; when another process holds the write lock, say so at once, then wait."""
+        self.db.execute("PRAGMA busy_timeout = 0")
         try:
             self.db.execute("BEGIN IMMEDIATE")
-        except sqlite3.DatabaseError as exc:
-            raise OutputError(f"{self.path}: cannot write the run history: {exc}") from None
+            return
+        except sqlite3.OperationalError as exc:
+            if "locked" not in str(exc) and "busy" not in str(exc):
+                raise
+        finally:
+            self.db.execute(f"PRAGMA busy_timeout = {LOCK_WAIT_S * 1000}")
+        print(f"jointbench: {self.path}: another process is writing the run history (a run or nightly "
+              f"recording its results, or `jointbench cache prune`); waiting up to {LOCK_WAIT_S} s for it",
+              file=sys.stderr, flush=True)
+        self.db.execute("BEGIN IMMEDIATE")
+
+    def _rollback(self) -> None:
+        """ROLLBACK if a transaction is still open (SQLite ends it itself on some errors, a full disk
+        among them: a second ROLLBACK would say 'no transaction is active' and hide the first error)."""
+        if self.db.in_transaction:
+            try:
+                self.db.execute("ROLLBACK")
+            except sqlite3.Error:
+                pass
+
+    @contextlib.contextmanager
+    def _tx(self):
+        """BEGIN IMMEDIATE ... COMMIT, rolled back on any exception (KeyboardInterrupt included); every
+        SQLite error is one line naming the history and the cause."""
+        if self.reader:
+            raise OutputError(f"{self.path}: opened to read; cannot write the run history")
+        try:
+            self._begin()
+        except sqlite3.Error as exc:
+            raise OutputError(f"{self.path}: cannot write the run history: {_why(exc, self.path)}") from None
         try:
             yield self.db
+        except sqlite3.Error as exc:
+            self._rollback()
+            raise OutputError(f"{self.path}: cannot write the run history: {_why(exc, self.path)}") from None
         except BaseException:
-            self.db.execute("ROLLBACK")
+            self._rollback()
             raise
         try:
             self.db.execute("COMMIT")
-        except sqlite3.DatabaseError as exc:
-            self.db.execute("ROLLBACK")
-            raise OutputError(f"{self.path}: cannot write the run history: {exc}") from None
+        except sqlite3.Error as exc:
+            self._rollback()
+            raise OutputError(f"{self.path}: cannot write the run history: {_why(exc, self.path)}") from None
 
     def _mark_crashed(self) -> None:
-        """Runs (and nightlies) still 'running' whose process is gone are 'crashed'."""
+        """Runs (and nightlies) still 'running' whose process is gone are 'crashed' (a reader shows them
+        so without writing it down)."""
+        self._crashed: dict[str, set] = {}
         for table in ("runs", "nightlies"):
-            rows = self.db.execute(f"SELECT id, process FROM {table} WHERE status = 'running'").fetchall()
+            try:
+                rows = self.db.execute(f"SELECT id, process FROM {table} WHERE status = 'running'").fetchall()
+            except sqlite3.Error as exc:
+                raise OutputError(f"{self.path}: cannot read the run history: {_why(exc, self.path)}") from None
             dead = [r["id"] for r in rows if not _token_alive(r["process"])]
-            if dead:
+            self._crashed[table] = set(dead)
+            if dead and not self.reader:
                 try:
                     with self._tx():
                         self.db.executemany(f"UPDATE {table} SET status = 'crashed' WHERE id = ? AND "
@@ -248,6 +345,14 @@ class History:
                             (status, now(), verdict, json.dumps(summary, default=str), nightly_id))
 
     # ------------------------------------------------------------------ reading
+    def _query(self, q: str, db=None, params=()) -> pd.DataFrame:
+        """A query as a table; a damaged or foreign history is one line, not a traceback."""
+        try:
+            return pd.read_sql_query(q, self.db, params=list(params))
+        except (sqlite3.Error, pd.errors.DatabaseError) as exc:
+            raise OutputError(f"{self.path}: cannot read the run history: {_why(exc, self.path) if isinstance(exc, sqlite3.Error) else ' '.join(str(exc).split())}; "
+                              "the file was written by other code or damaged") from None
+
     def runs(self, study: str | None = None, kind: str | None = None, limit: int | None = 50) -> pd.DataFrame:
         q = ("SELECT r.id, r.kind, r.nightly_id, r.study, r.parts, r.started, r.ended, r.status, r.commit_id, "
              "r.dirty, r.n_cases, r.n_done, r.n_failed, r.n_cached, r.wall_s, "
@@ -263,27 +368,38 @@ class History:
         q += " ORDER BY r.id DESC"
         if limit:
             q += f" LIMIT {int(limit)}"
-        return pd.read_sql_query(q, self.db, params=args)
+        runs = self._query(q, self.db, params=args)
+        dead = self._crashed.get("runs", set())
+        if dead and len(runs):
+            runs.loc[runs["id"].isin(dead) & (runs["status"] == "running"), "status"] = "crashed"
+        return runs
 
     def run(self, run_id: int) -> dict:
-        row = self.db.execute("SELECT * FROM runs WHERE id = ?", (run_id,)).fetchone()
+        row = (self.db.execute("SELECT * FROM runs WHERE id = ?", (run_id,)).fetchone()
+               if 0 < run_id <= MAX_RUN_ID else None)
         if row is None:
             last = self.db.execute("SELECT MAX(id) FROM runs").fetchone()[0]
             raise ConfigError(f"{self.path}: no run {run_id}" + (f" (runs 1 to {last})" if last else " (empty)"))
         d = dict(row)
-        d["parts"] = json.loads(d["parts"])
-        d["environment"] = json.loads(d["environment"])
+        if d["status"] == "running" and d["id"] in self._crashed.get("runs", ()):
+            d["status"] = "crashed"
+        for key in ("parts", "environment"):
+            try:
+                d[key] = json.loads(d[key])
+            except (TypeError, ValueError) as exc:
+                raise OutputError(f"{self.path}: run {run_id}: its {key!r} is not JSON ({exc}); the history was "
+                                  f"edited or damaged") from None
         return d
 
     def cases(self, run_id: int) -> pd.DataFrame:
-        return pd.read_sql_query("SELECT * FROM cases WHERE run_id = ? ORDER BY rowid", self.db, params=[run_id])
+        return self._query("SELECT * FROM cases WHERE run_id = ? ORDER BY rowid", self.db, params=[run_id])
 
     def checks(self, run_id: int) -> pd.DataFrame:
-        return pd.read_sql_query("SELECT * FROM checks WHERE run_id = ? ORDER BY rowid", self.db, params=[run_id])
+        return self._query("SELECT * FROM checks WHERE run_id = ? ORDER BY rowid", self.db, params=[run_id])
 
     def rows(self, run_id: int) -> pd.DataFrame:
         """The tidy rows of a run (one per metric per case), labels as columns."""
-        df = pd.read_sql_query(
+        df = self._query(
             "SELECT r.case_id, c.part, c.seed, r.estimator, r.metric, r.value, r.labels, c.wall_time_s, "
             "c.cached FROM results r JOIN cases c ON c.run_id = r.run_id AND c.case_id = r.case_id "
             "WHERE r.run_id = ? ORDER BY r.rowid", self.db, params=[run_id])
@@ -292,7 +408,7 @@ class History:
 
     def nightlies(self, limit: int | None = None) -> pd.DataFrame:
         q = "SELECT * FROM nightlies ORDER BY id DESC" + (f" LIMIT {int(limit)}" if limit else "")
-        return pd.read_sql_query(q, self.db)
+        return self._query(q, self.db)
 
     def nightly_runs(self, nightly_id: int) -> dict[str, int]:
         """study -> run id of a nightly (the last run of each study in it)."""

@@ -8,6 +8,9 @@ report, ``results/nightly/index.html``, leads with what changed; ``history.html`
 study's passing checks and key metrics over the recorded nightlies; ``summary.md`` is the same report as
 markdown.
 
+Metrics that are wall-clock times (``wall_clock``, default ``[fit_time_s]``) change on every run: they are
+never a drift, whatever the thresholds (a part's compute time is compared under ``timing``).
+
 A regression (exit status 1): a check flipped from pass to miss, a metric drifted beyond its threshold,
 a case fails that did not, values went missing, a study could not run, or (when ``timing.regression``
 is true) a part's compute time grew beyond ``timing.grow_factor``.
@@ -25,7 +28,7 @@ from jointbench.errors import ConfigError
 
 DEFAULT_CONFIG = CONFIGS / "nightly.yaml"
 _KEYS = {"studies": True, "exclude": False, "use_cache": False, "thresholds": True, "timing": False,
-         "key_checks": False}
+         "key_checks": False, "wall_clock": False}
 _TIMING_KEYS = {"grow_factor": False, "min_seconds": False, "regression": False}
 _THRESHOLD_KEYS = {"metric": True, "abs": False, "rel": False}
 
@@ -65,6 +68,10 @@ def load_config(path: Path = DEFAULT_CONFIG, configs_dir: Path = CONFIGS) -> Nig
     for s in studies:          # a relative path is relative to the nightly config
         p = Path(s)
         resolved.append(str(p if p.is_absolute() or not p.suffix else (path.parent / p).resolve()))
+        where = Path(resolved[-1]) if p.suffix else configs_dir / "studies" / f"{s}.yaml"
+        if not where.is_file():    # a config error before anything runs, not a study that 'could not run'
+            known = ", ".join(sorted(q.stem for q in (configs_dir / "studies").glob("*.yaml")))
+            raise ConfigError(f"{path}: key 'studies': no study {s!r} ({where} not found); known: {known}")
     use_cache = data.get("use_cache", False)
     if not isinstance(use_cache, bool):
         raise ConfigError(f"{path}: key 'use_cache': expected true or false, got {use_cache!r}")
@@ -88,6 +95,10 @@ def load_config(path: Path = DEFAULT_CONFIG, configs_dir: Path = CONFIGS) -> Nig
     regression = timing.get("regression", False)
     if not isinstance(regression, bool):
         raise ConfigError(f"{path}: timing: key 'regression': expected true or false, got {regression!r}")
+    wall_clock = data.get("wall_clock", list(Rules.wall_clock))
+    if not isinstance(wall_clock, list) or not all(isinstance(w, str) and w for w in wall_clock):
+        raise ConfigError(f"{path}: key 'wall_clock': expected a list of metric names (patterns) that are "
+                          f"wall-clock times, e.g. [fit_time_s]")
     key_checks = data.get("key_checks") or {}
     if not isinstance(key_checks, dict) or not all(isinstance(v, list) and all(isinstance(c, str) for c in v)
                                                    for v in key_checks.values()):
@@ -95,7 +106,8 @@ def load_config(path: Path = DEFAULT_CONFIG, configs_dir: Path = CONFIGS) -> Nig
     return NightlyConfig(
         path=path, studies=tuple(resolved), use_cache=use_cache,
         rules=Rules(tuple(thresholds), _number(timing.get("grow_factor", 1.5), f"{path}: timing", "grow_factor", 1.0),
-                    _number(timing.get("min_seconds", 5.0), f"{path}: timing", "min_seconds"), regression),
+                    _number(timing.get("min_seconds", 5.0), f"{path}: timing", "min_seconds"), regression,
+                    tuple(wall_clock)),
         key_checks={str(k): tuple(v) for k, v in key_checks.items()},
         text_hash=fingerprint.sha(data, 16))
 

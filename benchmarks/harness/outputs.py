@@ -1,7 +1,8 @@
 """Where a study writes: ``<results>/<study>/``, checked before any case runs, locked while written.
 
 - The study id names a folder: it must be a plain name, and the folder must lie inside the results
-  folder (a config saying ``study: ../../x`` is refused, naming the file and key).
+  folder (a config saying ``study: ../../x`` is refused, naming the file and key); the harness's own
+  names there (``cache``, ``nightly``, ``history.sqlite``) are refused too.
 - The folders must be writable: a read-only ``results/`` is one line (exit 2), before hours of work.
 - Two runs of one study may run at once (cases and cache entries are written atomically under unique
   names); each writes its outputs under an exclusive lock of the study folder, so every set of
@@ -21,6 +22,10 @@ from pathlib import Path
 from jointbench.errors import ConfigError, OutputError
 
 STUDY_ID = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,99}")
+#: names in the results folder that belong to the harness (the case cache, the nightly pages, the run
+#: history and its SQLite companions), compared without case (macOS and Windows fold it)
+RESERVED = ("cache", "nightly", "history.sqlite", "history.sqlite-wal", "history.sqlite-shm",
+            "history.sqlite-journal")
 
 
 def study_folder(root: Path, study_id: str, config: Path | str) -> Path:
@@ -28,8 +33,14 @@ def study_folder(root: Path, study_id: str, config: Path | str) -> Path:
     if not STUDY_ID.fullmatch(study_id) or ".." in study_id:
         raise ConfigError(f"{config}: key 'study': {study_id!r} is not a plain name (letters, digits, '_', "
                           f"'-', '.'; no '..'): it names the results folder <results>/<study>")
-    root = Path(root).resolve()
-    folder = (root / study_id).resolve()
+    if study_id.lower() in RESERVED:
+        raise ConfigError(f"{config}: key 'study': {study_id!r} is a reserved name of the results folder (it holds "
+                          f"the harness's own {study_id.lower()}); reserved: {', '.join(RESERVED[:3])}; choose another id")
+    try:
+        root = Path(root).resolve()
+        folder = (root / study_id).resolve()
+    except (OSError, RuntimeError) as exc:        # a symlink loop
+        raise OutputError(f"{root}: cannot use it as the results folder ({exc})") from None
     if folder.parent != root:
         raise ConfigError(f"{config}: key 'study': {study_id!r} would write outside {root}")
     return folder

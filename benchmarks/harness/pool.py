@@ -29,13 +29,26 @@ import threading
 import time
 
 from jointbench.benchmarks.harness.case import one_blas_thread, run_group
-from jointbench.errors import ConfigError
+from jointbench.errors import ConfigError, JointBenchError
 
 #: the executors :func:`make_executor` builds (``jointbench run --executor``)
 EXECUTORS = ("process", "serial", "dask")
 
 PR_SET_PDEATHSIG = 1
 WATCHDOG_PERIOD_S = 0.5
+#: most worker processes per core a run may ask for (``--workers 10000`` is a typo, not a plan: a pool or
+#: a local Dask cluster of that size would exhaust the machine before it answered)
+MAX_WORKERS_PER_CORE = 4
+
+
+class ExecutorLost(RuntimeError):
+    """The executor can no longer run tasks (its Dask scheduler is gone): lost infrastructure, not a failed
+    case. The runner stops the run, keeps every finished case and says to run again to resume."""
+
+
+class WorkerMismatch(JointBenchError, RuntimeError):
+    """A worker runs other code or other numerical libraries than the run: its numbers would be cached
+    under this code's keys. Refused, in one line."""
 
 
 def _die_with(parent: int) -> None:
@@ -104,32 +117,82 @@ class InlineExecutor(cf.Executor):
         return fut
 
 
-def run_task(cases: list, code_hash: str | None = None, plugins: dict | None = None) -> list:
+def worker_identity() -> dict:
+    """What must be equal on every worker of a run: the code hash and the key environment (Python, numpy,
+    scipy versions) that cache keys are made of (:mod:`benchmarks.harness.fingerprint`)."""
+    from jointbench.benchmarks.harness.fingerprint import code_hash, key_environment
+
+    return {"code": code_hash(), "env": dict(key_environment())}
+
+
+def identity_problem(run: dict, worker: dict, who: str) -> str | None:
+    """One line saying how ``worker``'s identity differs from the run's, or None."""
+    if worker.get("code") != run.get("code"):
+        return (f"{who} runs other code (code hash {worker.get('code')}, the run's {run.get('code')}): install "
+                f"the same checkout on every worker")
+    theirs, mine = worker.get("env") or {}, run.get("env") or {}
+    diff = [f"{k} {theirs.get(k)} (the run's {mine.get(k)})" for k in sorted(set(mine) | set(theirs))
+            if theirs.get(k) != mine.get(k)]
+    if diff:
+        return (f"{who} runs other library versions: {', '.join(diff)}; install the same versions on every "
+                f"worker (they change the numbers)")
+    return None
+
+
+def _import_plugins(plugins: dict, who: str) -> None:
+    """Import the outside modules the cases' estimators come from (a Dask worker has not imported them) and
+    refuse when their source differs from the parent's (``{module: [folder, {estimator: hash}]}``)."""
+    from jointbench import plugins as _plugins
+    from jointbench.benchmarks.harness.fingerprint import plugin_hash
+
+    _plugins.ensure({m: folder for m, (folder, _) in plugins.items()})
+    for module, (_, hashes) in plugins.items():
+        here = plugin_hash(hashes)
+        if here != hashes:
+            raise WorkerMismatch(f"{who} runs other code of plugin {module} ({here}, the run's {hashes}): install "
+                                 f"the same plugin on every worker")
+
+
+def run_task(cases: list, code_hash: str | None = None, env: dict | None = None,
+             cache_dir: str | None = None, plugins: dict | None = None) -> list:
     """What a worker runs: one group of cases (:func:`~benchmarks.harness.case.run_group`) with one BLAS
-    thread. ``code_hash`` is the parent's: a worker that runs other code (a remote Dask worker on another
-    checkout) refuses, instead of computing numbers of other code that would be cached under this code's
-    keys. ``plugins`` (``{module: [folder, {estimator: hash}]}``, from
+    thread. ``code_hash`` and ``env`` are the run's: a worker that runs other code or other libraries (a
+    remote Dask worker on another checkout) refuses (:class:`WorkerMismatch`), instead of computing
+    numbers that would be cached under this code's keys. With ``cache_dir`` (an existing folder on this
+    worker: one machine, or a shared file system) each case is stored in the cache as it finishes, so
+    nothing finished is lost with the scheduler. ``plugins`` (from
     :func:`~benchmarks.harness.fingerprint.plugin_requirements` and ``plugin_hash``): the outside modules
-    the cases' estimators come from, imported here first (a Dask worker has not imported them), and
-    refused when their source differs from the parent's."""
+    the cases' estimators come from, imported here first and refused when their source differs."""
     one_blas_thread()
     if code_hash is not None:
-        from jointbench.benchmarks.harness.fingerprint import code_hash as here
+        here = worker_identity()
+        run = {"code": code_hash, "env": env if env is not None else here["env"]}
+        problem = identity_problem(run, here, f"worker {os.uname().nodename}:{os.getpid()}")
+        if problem:
+            raise WorkerMismatch(problem)
+    on_result = None
+    if cache_dir is not None and os.path.isdir(cache_dir):
+        from jointbench.benchmarks.harness.cache import Cache
 
-        if here() != code_hash:
-            raise RuntimeError(f"worker {os.uname().nodename}:{os.getpid()} runs other code (code hash "
-                               f"{here()}, the run's {code_hash}): install the same checkout on every worker")
+        cache = Cache(cache_dir, warn=lambda msg: None)
+
+        def on_result(res) -> None:
+            try:
+                cache.put(res)
+            except OSError:        # a full or read-only cache here: the run's own process stores it
+                pass
     if plugins:
-        from jointbench import plugins as _plugins
-        from jointbench.benchmarks.harness.fingerprint import plugin_hash
+        _import_plugins(plugins, f"worker {os.uname().nodename}:{os.getpid()}")
+    return run_group(cases, on_result)
 
-        _plugins.ensure({m: folder for m, (folder, _) in plugins.items()})
-        for module, (_, hashes) in plugins.items():
-            here = plugin_hash(hashes)
-            if here != hashes:
-                raise RuntimeError(f"worker {os.uname().nodename}:{os.getpid()} runs other code of plugin "
-                                   f"{module} ({here}, the run's {hashes}): install the same plugin on every worker")
-    return run_group(cases)
+
+def check_workers(kind: str, workers: int | None) -> None:
+    """Refuse a worker count that would exhaust the machine (one line, before anything starts)."""
+    cores = os.cpu_count() or 1
+    if workers is not None and kind in ("process", "dask") and workers > MAX_WORKERS_PER_CORE * cores:
+        raise ConfigError(f"--workers {workers}: more than {MAX_WORKERS_PER_CORE} worker processes per core "
+                          f"({MAX_WORKERS_PER_CORE * cores} on this machine's {cores} cores); for more, run "
+                          f"`dask worker` processes on other machines and give --scheduler")
 
 
 def make_executor(kind: str, workers: int | None = None, scheduler: str | None = None):
@@ -140,6 +203,7 @@ def make_executor(kind: str, workers: int | None = None, scheduler: str | None =
         raise ConfigError(f"--executor: unknown executor {kind!r}; known: {', '.join(EXECUTORS)}")
     if scheduler is not None and kind != "dask":
         raise ConfigError(f"--scheduler applies to --executor dask, not {kind!r}")
+    check_workers(kind, workers if scheduler is None else None)
     if kind == "serial":
         return InlineExecutor()
     if kind == "dask":

@@ -31,7 +31,7 @@ from jointbench.benchmarks.recordings.fitting import Fit as Outcome
 from jointbench.benchmarks.recordings.fitting import compute as _compute
 from jointbench.benchmarks.recordings.fitting import estimator_from, fit, prediction_of, prediction_vaf  # noqa: F401
 from jointbench.errors import ConfigError
-from jointbench.files import atomic_write
+from jointbench.files import atomic_write_set
 
 if TYPE_CHECKING:  # pragma: no cover
     from jointbench.benchmarks.recordings.io import Source
@@ -199,7 +199,8 @@ def prediction_frame(trials: list, predictions: list):
 
 
 def write_outputs(out: Path, plot: Path | None, o: Outcome) -> list[tuple[Path, int | None, list[str] | None]]:
-    """Write every output (atomically each); nothing is written before :func:`compute` has succeeded."""
+    """Write every output as one set (:func:`jointbench.files.atomic_write_set`); nothing is written before
+    :func:`compute` has succeeded."""
     written = [(out, len(o.frame), list(o.frame.columns))]
     tables = [(out, o.frame)]
     if o.response is not None:
@@ -209,11 +210,11 @@ def write_outputs(out: Path, plot: Path | None, o: Outcome) -> list[tuple[Path, 
     pred = prediction_frame(o.trials, o.predictions)
     tables.append((prediction_path(out), pred))
     written.append((prediction_path(out), len(pred), list(pred.columns)))
-    for path, table in tables:
-        atomic_write(path, lambda p, table=table: table.to_csv(p, index=False))
+    items = [(path, lambda p, table=table: table.to_csv(p, index=False)) for path, table in tables]
     if plot is not None and o.figure is not None:
-        atomic_write(plot, lambda p: Path(p).write_bytes(o.figure))
+        items.append((plot, lambda p: Path(p).write_bytes(o.figure)))
         written.append((plot, None, None))
+    atomic_write_set(items)         # all or nothing: a full disk leaves the last good set as it was
     return written
 
 

@@ -20,6 +20,8 @@ The angle is taken as the imposed signal (``Trial.imposed == "angle"``). Every p
 MATLAB files of versions 4 to 7.2 are read with :func:`scipy.io.loadmat`, version 7.3 (HDF5) with
 ``h5py`` (an extra: ``pip install 'jointbench[hdf5]'``). An NPZ member is loaded only after its header's
 claimed size has been checked against the bytes stored and the memory available.
+Limits (a regular file, samples per channel) are checked before anything is loaded:
+:mod:`benchmarks.recordings.io_limits`.
 """
 from __future__ import annotations
 
@@ -31,6 +33,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
+from jointbench.benchmarks.recordings import io_limits as limits
 from jointbench.errors import InputError
 from jointbench.types import Trial
 
@@ -168,6 +171,7 @@ def _read_csv(path: Path) -> dict[str, np.ndarray]:
     import pandas as pd
 
     where = str(path)
+    limits.check_csv(path)
     try:
         df = pd.read_csv(path, comment="#", skipinitialspace=True, dtype=str, keep_default_na=False)
     except pd.errors.EmptyDataError:
@@ -246,6 +250,7 @@ def _read_npz(path: Path) -> dict[str, np.ndarray]:
     allocation (a corrupt or hostile header can claim hundreds of GiB).
     """
     where = str(path)
+    limits.check_file(path)
     try:
         with zipfile.ZipFile(path) as zf:
             sizes = {i.filename: i.file_size for i in zf.infolist()}
@@ -266,6 +271,7 @@ def _read_npz(path: Path) -> dict[str, np.ndarray]:
             if nbytes > available_memory() // 2:
                 raise InputError(f"{where}: member '{name}' is {_size(nbytes)} ({shown}), more than half the memory "
                                  f"available ({_size(available_memory())}); split the recording")
+            limits.check_shape(where, f"member '{name}'", shape)
         with np.load(path, allow_pickle=False) as data:
             out = {}
             for k in data.files:
@@ -299,6 +305,7 @@ def _read_mat(path: Path) -> dict[str, np.ndarray]:
     from scipy import io as sio
 
     where = str(path)
+    limits.check_file(path)
     try:
         data = sio.loadmat(path)
     except NotImplementedError:        # version 7.3: HDF5
@@ -334,6 +341,7 @@ def _read_mat73(path: Path) -> dict[str, np.ndarray]:
                     out[name] = np.array([], dtype=object)
                     continue
                 nbytes = int(np.prod(obj.shape, dtype=object)) * obj.dtype.itemsize
+                limits.check_shape(where, f"variable '{name}'", obj.shape)
                 if nbytes > available_memory() // 2:
                     raise InputError(f"{where}: variable '{name}' is {_size(nbytes)}, more than half the memory "
                                      f"available; split the recording")
