@@ -165,9 +165,11 @@ def test_a_lost_worker_is_survived_with_identical_rows_and_the_report_says_so(tm
     p.wait(600)
     log = (tmp_path / "run.log").read_text()
     assert p.returncode == 0, log
-    pd.testing.assert_frame_equal(_numbers(out / "tiny" / "cases.csv"), _numbers(tmp_path / "serial" / "tiny" / "cases.csv"))
+    pd.testing.assert_frame_equal(_numbers(out / "tiny" / "cases.csv"),
+                                  _numbers(tmp_path / "serial" / "tiny" / "cases.csv"))
     head = next(par for par in (out / "tiny" / "report.md").read_text().split("\n\n") if "wall time on" in par)
-    assert re.search(r"wall time on \d Dask worker\(s\) \(tcp://\S+\); 1 of the 2 seen were lost during the run", head), head
+    lost = r"wall time on \d Dask worker\(s\) \(tcp://\S+\); 1 of the 2 seen were lost during the run"
+    assert re.search(lost, head), head
     assert "on 2 worker(s)" not in head
 
 

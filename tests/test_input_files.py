@@ -62,7 +62,8 @@ def test_the_key_holds_the_contents_of_each_input_file_by_its_configured_name(tm
 @pytest.mark.parametrize("make, words", [
     (lambda p: os.symlink("/dev/zero", p), "is a device, not a regular file"),
     (lambda p: os.mkfifo(p), "is a FIFO (named pipe), not a regular file"),
-    (lambda p: p.write_bytes("time,value\n# Müller\n0,1\n9,2\n".encode("latin-1")), "not UTF-8 text: byte 0xfc at line 2"),
+    (lambda p: p.write_bytes("time,value\n# Müller\n0,1\n9,2\n".encode("latin-1")),
+     "not UTF-8 text: byte 0xfc at line 2"),
 ])
 def test_a_hostile_profile_file_is_one_line(tmp_path, make, words):
     from jointbench.sims.profile_file import FromFile

@@ -153,8 +153,9 @@ class History:
             self.db.execute(f"PRAGMA busy_timeout = {LOCK_WAIT_S * 1000}")
             version = SCHEMA_VERSION
             if self.reader:
-                version = self._check_version(self.db.execute("SELECT value FROM meta WHERE key = "
-                                                              "'schema_version'").fetchone() if self._has_meta() else None)
+                row = (self.db.execute("SELECT value FROM meta WHERE key = 'schema_version'").fetchone()
+                       if self._has_meta() else None)
+                version = self._check_version(row)
                 self.reader = version != 1           # a version-1 history is upgraded once, even by a reader
             if not self.reader:
                 self.db.execute("PRAGMA journal_mode = WAL")
@@ -169,7 +170,8 @@ class History:
                         self.db.execute("INSERT INTO meta VALUES ('schema_version', ?)", (str(SCHEMA_VERSION),))
                     elif self._check_version(row) == 1:
                         self.db.execute("ALTER TABLE checks ADD COLUMN evidence TEXT")
-                        self.db.execute("UPDATE meta SET value = ? WHERE key = 'schema_version'", (str(SCHEMA_VERSION),))
+                        self.db.execute("UPDATE meta SET value = ? WHERE key = 'schema_version'",
+                                        (str(SCHEMA_VERSION),))
                 self.reader = not create
         except sqlite3.Error as exc:
             raise OutputError(f"{self.path}: cannot use the run history: {_why(exc, self.path)}") from None
@@ -350,7 +352,8 @@ class History:
         try:
             return pd.read_sql_query(q, self.db, params=list(params))
         except (sqlite3.Error, pd.errors.DatabaseError) as exc:
-            raise OutputError(f"{self.path}: cannot read the run history: {_why(exc, self.path) if isinstance(exc, sqlite3.Error) else ' '.join(str(exc).split())}; "
+            why = _why(exc, self.path) if isinstance(exc, sqlite3.Error) else " ".join(str(exc).split())
+            raise OutputError(f"{self.path}: cannot read the run history: {why}; "
                               "the file was written by other code or damaged") from None
 
     def runs(self, study: str | None = None, kind: str | None = None, limit: int | None = 50) -> pd.DataFrame:

@@ -34,8 +34,9 @@ def study_folder(root: Path, study_id: str, config: Path | str) -> Path:
         raise ConfigError(f"{config}: key 'study': {study_id!r} is not a plain name (letters, digits, '_', "
                           f"'-', '.'; no '..'): it names the results folder <results>/<study>")
     if study_id.lower() in RESERVED:
-        raise ConfigError(f"{config}: key 'study': {study_id!r} is a reserved name of the results folder (it holds "
-                          f"the harness's own {study_id.lower()}); reserved: {', '.join(RESERVED[:3])}; choose another id")
+        raise ConfigError(f"{config}: key 'study': {study_id!r} is a reserved name of the results folder (it "
+                          f"holds the harness's own {study_id.lower()}); reserved: {', '.join(RESERVED[:3])}; "
+                          f"choose another id")
     try:
         root = Path(root).resolve()
         folder = (root / study_id).resolve()

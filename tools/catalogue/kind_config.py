@@ -105,7 +105,8 @@ def _pub(value):
     return edit
 
 
-s_yaml = (lambda ws: ["run", ws.path("configs", "s.yaml"), "--out", ws.out, "--quiet"])
+def s_yaml(ws):
+    return (["run", ws.path("configs", "s.yaml"), "--out", ws.out, "--quiet"])
 case(kind, "published: 123", setup=_edited(_pub(123)), args=s_yaml, names=r"published")
 case(kind, "published: a list", setup=_edited(_pub(["a.yaml", "b.yaml"])), args=s_yaml, names=r"published")
 case(kind, "published: a mapping", setup=_edited(_pub({"x": 1})), args=s_yaml, names=r"published")

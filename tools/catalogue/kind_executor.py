@@ -94,7 +94,7 @@ def _lost_scheduler(group=False):
         sched2, address2 = scheduler(ws, "scheduler2.log")
         worker(ws, address2, "worker2.log")
         again = ws.jb(*_args(ws, "--executor", "dask", "--scheduler", address2, "--yes"), timeout=600)
-        if again.rc != 0 or f"({kept} from cache)" not in again.stdout and "from cache" not in again.stdout:
+        if again.rc != 0 or f"({kept} from cache" not in again.stdout and "from cache" not in again.stdout:
             o.problem = f"the next run did not resume ({again.rc}): {(again.stdout + again.stderr)[-200:]}"
         if o.rc != 0:
             try:

@@ -2,7 +2,6 @@
 combination a skip; duplicate values; sizes; ``--budget``; and ``--set`` overrides."""
 from __future__ import annotations
 
-import copy
 
 from tools.catalogue import fixtures as fx
 from tools.catalogue.core import case

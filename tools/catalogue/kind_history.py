@@ -27,7 +27,8 @@ def _edit(sql, runs=1):
     return setup
 
 
-H = (lambda *more: (lambda ws: ["history", *more, "--out", ws.out]))
+def H(*more):
+    return ((lambda ws: ["history", *more, "--out", ws.out]))
 kind = "history"
 case(kind, "a run's parts not JSON", setup=_edit("UPDATE runs SET parts = 'not json'"), args=H("1"),
      names=r"history\.sqlite")

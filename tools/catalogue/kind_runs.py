@@ -80,7 +80,8 @@ def _forged_row_type(entry):
     return entry
 
 
-recomputed = (lambda ws, o: None if "(0 from cache)" in o.stdout else "a damaged entry was served: "
+def recomputed(ws, o):
+    return (None if "(0 from cache" in o.stdout else "a damaged entry was served: "
               + (o.stdout.splitlines() or [""])[0])
 kind = "cache"
 for name, mutate in [("a JSON list", lambda p: p.write_text("[1, 2]")),
