@@ -187,10 +187,9 @@ class TVParallelCascade(EnsembleEstimator):
         N, R, LI = XI.shape
         M = Ph.shape[1]
         L = W - d + 1
-        B = rx.basis(V, s, scale)                                   # (n, R, p)
+        B = rx.basis(V, s, scale)                                   # (n, R, p): not centred (see _reflex)
         p = B.shape[-1]
-        offset = B[first:last].reshape(-1, p).mean(axis=0)
-        B = B - offset
+        offset = np.zeros(p)
         XR = np.stack([rx.lag_matrix(B[:, r], d, L) for r in range(R)], axis=1)[first:last]   # (N, R, p, L)
         a, h, g = np.ones(p), np.zeros(L), np.ones(N)
         tqR = np.zeros_like(Yv)
@@ -211,23 +210,30 @@ class TVParallelCascade(EnsembleEstimator):
     def _reflex(self, XR, Y, Ph, a, h, g, start: bool):
         """The reflex pathway ``g(t) sum_k h(k) N_a(v(t - d - k))`` fitted to ``Y`` (rows x R): alternately
         the cascade given the gain (normal equations of the products, :func:`estimators._reflex.hammerstein`)
-        and the gain on the time basis given the cascade; returns ``a, h, g, output``."""
+        and the gain on the time basis given the cascade; returns ``a, h, g, output``.
+
+        The nonlinearity's output is not centred before the gain: a rectified velocity has a mean, and a
+        varying gain turns it into a slow torque (the reflex tone follows the gain), which is part of the
+        pathway. Each realization's regressors are centred instead (the torque's mean is removed)."""
         s = self.settings
         N, R, p, L = XR.shape
+
+        def centred(X):
+            return X - X.mean(axis=0, keepdims=True)
+
         prev = np.inf
         for _ in range(10 if not start else 20):
-            Xg = (XR * g[:, None, None, None]).reshape(N * R, p * L)
+            Xg = centred(XR * g[:, None, None, None]).reshape(N * R, p * L)
             G, b = Xg.T @ Xg, Xg.T @ Y.reshape(N * R)
             a, h = rx.hammerstein(G, b, p, L)
             z = np.einsum("trpl,p,l->tr", XR, a, h)                  # the cascade's output, gain 1
-            Z = z[:, :, None] * Ph[:, None, :]                       # (N, R, M)
-            Zf = Z.reshape(N * R, -1)
+            Zf = centred(z[:, :, None] * Ph[:, None, :]).reshape(N * R, -1)
             e = rx.solve_normal(Zf.T @ Zf, Zf.T @ Y.reshape(N * R), s.rcond)
             g = Ph @ e
             mean_g = float(np.mean(g))
             if mean_g != 0:                                          # the cascade carries the mean gain
                 g, h = g / mean_g, h * mean_g
-            out = g[:, None] * np.einsum("trpl,p,l->tr", XR, a, h)
+            out = centred(g[:, None] * np.einsum("trpl,p,l->tr", XR, a, h))
             rss = float(np.sum((Y - out) ** 2))
             if prev - rss <= 1e-9 * max(rss, 1e-300):
                 break

@@ -59,7 +59,8 @@ class StretchReflex:
     ----------
     gain : float or profile
         G(t), N·m·s/rad (torque per rad/s of rectified delayed velocity), >= 0 at all times; 0 = no reflex
-        torque (the pathway is still simulated, by the same path).
+        torque (the pathway is still simulated, by the same path). A constant may carry its unit
+        (``5 N.m.s/rad``); a profile's numbers are plain (N·m·s/rad).
     delay : float
         Reflex loop delay delta (s), at least one simulation step.
     nonlinearity : {'half_wave', 'none'}
@@ -84,7 +85,12 @@ class StretchReflex:
     def __post_init__(self):
         if self.gain is None:
             raise ConfigError("missing required key 'gain' (N.m.s/rad; 0 for a pathway without torque)")
-        object.__setattr__(self, "gain", parse_profile(self.gain, "key 'gain'"))
+        gain = self.gain
+        if isinstance(gain, str):         # a constant with its unit, e.g. '5 N.m.s/rad'
+            from jointbench.schema import _number
+
+            gain = _number(gain, "N.m.s/rad", "reflex", "gain", False)
+        object.__setattr__(self, "gain", parse_profile(gain, "key 'gain'"))
         if not self.gain.minimum >= 0:
             raise ConfigError(f"key 'gain': the profile reaches {self.gain.minimum:g}; a reflex gain must stay >= 0 "
                               f"(the pathway's sign is set by 'stretch')")
