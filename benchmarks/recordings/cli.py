@@ -28,6 +28,7 @@ from typing import TYPE_CHECKING, Sequence
 
 from jointbench.benchmarks.recordings.checks import (check_information, check_magnitudes, check_memory, crop_gated,
                                           crop_window, decimate_trial, gate_hint, parse_window)
+from jointbench.benchmarks.recordings import schedule
 from jointbench.errors import ConfigError, InputError
 from jointbench.files import atomic_write
 
@@ -85,6 +86,13 @@ def add_parser(subparsers) -> None:
     p.add_argument("--plot", metavar="FIG.png", help="also draw the estimate (.png, .pdf or .svg)")
     p.add_argument("--list", action="store_true",
                    help="list the estimators (and with --estimator its settings) and exit")
+    p.add_argument("--schedule", metavar="NAME",
+                   help="scheduling variable of a parameter-varying estimator (pv_irf): angle_slow (the angle "
+                        "low-passed), angle, or a column (CSV) / array (NPZ, .mat) of the input; prints K at "
+                        "chosen values with intervals")
+    p.add_argument("--at", metavar="V1,V2,...",
+                   help="with --schedule: the scheduling values to print K at (default: 5 over the range visited); "
+                        "write --at=-0.3,0,0.2 when the first is negative")
     p.set_defaults(func=run)
 
 
@@ -116,7 +124,11 @@ def run(args: argparse.Namespace) -> int:
     if args.fs is not None and not (args.fs == args.fs and 0 < args.fs < float("inf")):
         raise ConfigError(f"--fs: must be a finite rate > 0 Hz, got {args.fs}")
     window = parse_window(args.window) if args.window else None
-    estimator = make_estimator(args.estimator, args.settings)
+    at = schedule.parse_at(args.at) if getattr(args, "at", None) else None
+    if at is not None and not getattr(args, "schedule", None):
+        raise ConfigError("--at: needs --schedule (the scheduling variable the values belong to)")
+    estimator = (schedule.make_scheduled(args.estimator, args.settings, args.schedule)
+                 if getattr(args, "schedule", None) else make_estimator(args.estimator, args.settings))
 
     from jointbench.benchmarks.recordings import io
 
@@ -130,10 +142,14 @@ def run(args: argparse.Namespace) -> int:
     ensemble = args.ensemble or (len(sources) > 1 and "ensemble" in estimator.accepts
                                  and not {"trial", "pooled"} & estimator.accepts)
     records = io_ensemble.read_records(sources, fs=args.fs, ensemble=ensemble)
+    if getattr(args, "schedule", None):
+        records = schedule.attach(records, sources, args.schedule)
     outcome = compute(estimator, list(records), torque_sign=args.torque_sign, decimate=args.decimate,
                       window=window, plot=plot, ensemble=records.name if isinstance(records, Ensemble) else None)
     written = write_outputs(out, plot, outcome)
     print(summary_text(args.estimator, estimator.settings, outcome, written, torque_sign=args.torque_sign))
+    if getattr(args, "schedule", None):
+        print(schedule.stiffness_text(outcome.estimate, at))
     return 0
 
 
