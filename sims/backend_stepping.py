@@ -40,7 +40,7 @@ from scipy import signal as sps
 from jointbench.errors import ConfigError
 from jointbench.sims import BACKENDS
 from jointbench.sims.backend import Backend, Response
-from jointbench.sims.backend_ltv import step_coefficients
+from jointbench.sims.backend_ltv import step_weights
 from jointbench.sims.reflex_stretch import ReflexStepper
 
 #: longest window (steps) when no reflex delay bounds it
@@ -124,15 +124,10 @@ class SteppingBackend(Backend):
         c = apparatus.coupling(joint)
         h = 1.0 / fs
         n = len(d)
-        t = np.arange(n) * h
-        Im, Bm, Km = joint.coefficients_at(t[:-1] + h / 2)
-        p = -(Km + c.k_a) / Im
-        q = -(Bm + c.b_a) / Im
-        (ea, eb), (j1a, j1b), (j2a, j2b) = step_coefficients(p, q, h)
-        E = (ea, eb, p * eb, ea + q * eb)
+        t, Im, p, q, E, (J1_01, J1_11, J2_01, J2_11) = step_weights(joint, c, n, h)
         # v_k = a w_k + b w_k+1 per state component (backend ltv: columns 1 of J1 and J2 / I)
-        a0, b0 = (j1b - j2b / h) / Im, j2b / h / Im
-        a1, b1 = ((j1a + q * j1b) - (j2a + q * j2b) / h) / Im, (j2a + q * j2b) / h / Im
+        a0, b0 = (J1_01 - J2_01 / h) / Im, J2_01 / h / Im
+        a1, b1 = (J1_11 - J2_11 / h) / Im, J2_11 / h / Im
         w_lin, d_dot = c.drive_input(d, fs)
         w_lin = w_lin + tv
         theta, vel = np.empty(n), np.empty(n)
