@@ -255,7 +255,7 @@ def test_each_registered_estimator(tmp_path, rec, capsys, name):
         inputs = ["-i", save_npz(tmp_path / "ms.npz", data)]
     else:
         data = synthetic()
-        one_record = "pooled" not in estimators.REGISTRY.get(name).accepts    # e.g. parallel_cascade, pv_irf
+        one_record = estimators.REGISTRY.get(name).accepts == {"trial"}    # parallel_cascade, pv_irf
         inputs = ["-i", rec] if one_record else ["-i", rec, "-i", rec]
     assert cli(["-e", name, *inputs, "-o", out, "--plot", tmp_path / "f.png",
                 *SYNTHETIC_SETTINGS.get(name, [])]) == 0
