@@ -16,7 +16,8 @@ PAPER_STUDIES := westwick2012 xu1998 vanderuit2018_table1
 .PHONY: help venv test lint test-slow bench bench-save bench-studies reproduce westwick2012 westwick2012-fig2 westwick2012-fig3 \
         westwick2012-fig4 westwick2012-fig5 westwick2012-fig6 westwick2012-table1 westwick2012-fig7 \
         westwick2012-fig8 xu1998 xu1998-fig2 xu1998-fig3 xu1998-calibration vanderuit2018-table1 \
-        vanderuit2018-table2 apparatus matrix reproduce-mujoco example-ankle clean-results nightly chromium
+        vanderuit2018-table2 apparatus matrix reproduce-mujoco example-ankle clean-results nightly chromium \
+        reflex lpv example-reflex
 
 help:
 	@echo "make reproduce   run every implemented paper study (results/<study>/report.md)"
@@ -44,6 +45,11 @@ help:
 	@echo "make example-ankle   README worked example on ../shared/data (developers only)"
 	@echo "make catalogue   the catalogue of bad inputs (tools/catalogue/, not part of make test): every case as a"
 	@echo "                 process with a timeout, classified; .catalogue/summary.md (CATALOGUE_ARGS='--kind grid')"
+	@echo "make reflex      every stiffness estimator against an unmodelled stretch reflex, and the parallel"
+	@echo "                 cascade's separation of it (results/reflex/; a comparison study)"
+	@echo "make lpv         K(theta) from one trial with a slow movement: pv_irf against FSEWLS mapped"
+	@echo "                 through theta (results/lpv/; a comparison study)"
+	@echo "make example-reflex  the parallel cascade on the REKLAB ankle recordings (docs/reflex_example.md; developers only)"
 
 $(STAMP): pyproject.toml
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -157,3 +163,14 @@ CATALOGUE_ARGS ?=
 .PHONY: catalogue
 catalogue: $(STAMP)
 	$(BIN)/python -m tools.catalogue --out .catalogue $(CATALOGUE_ARGS)
+# Reflexes and position-dependent stiffness (issue 21): comparison studies (no published values).
+reflex: $(STAMP)
+	$(RUN) reflex
+lpv: $(STAMP)
+	$(RUN) lpv
+
+# The parallel cascade on the real ankle recordings (needs ../shared beside the checkout).
+example-reflex: $(STAMP)
+	@test -f $(SHARED)/data/reklab-ankle/ankle_stationary.npz || \
+	    { echo "$(SHARED)/data/reklab-ankle not found (developers' checkout only)"; exit 2; }
+	$(BIN)/python docs/reflex_example.py $(SHARED)/data/reklab-ankle/ankle_stationary.npz docs

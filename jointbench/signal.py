@@ -65,7 +65,8 @@ def resample_trial(trial: Trial, fs_new: float, cutoff: float = 0.8) -> Trial:
     a = decimate(trial.angle, q, cutoff)
     return Trial(time=trial.time[0] + np.arange(len(a)) / fs_new, angle=a,
                  torque=decimate(trial.torque, q, cutoff), fs=fs_new, imposed=trial.imposed,
-                 truth=truth, name=trial.name)
+                 truth=truth, name=trial.name,
+                 channels={k: decimate(v, q, cutoff) for k, v in getattr(trial, "channels", {}).items()})
 
 
 def trim(trial: Trial, start_s: float, end_s: float) -> Trial:

@@ -154,6 +154,9 @@ class Trial:
         Ground truth when simulated.
     name : str
         Label used in messages and outputs.
+    channels : mapping of str to ndarray
+        Further recorded channels on the same time base (e.g. a scheduling variable such as EMG or a
+        slow position for a parameter-varying fit), name -> one value per sample; empty by default.
     """
 
     time: np.ndarray
@@ -163,6 +166,7 @@ class Trial:
     imposed: Imposed = "angle"
     truth: Truth | None = None
     name: str = "trial"
+    channels: Mapping[str, np.ndarray] = dataclasses.field(default_factory=dict)
 
     def __post_init__(self):
         where = f"trial '{self.name}'"
@@ -188,14 +192,22 @@ class Trial:
         object.__setattr__(self, "angle", a)
         object.__setattr__(self, "torque", y)
         object.__setattr__(self, "fs", float(self.fs))
+        if self.channels:
+            chans = {}
+            for key, x in dict(self.channels).items():
+                c = _as_series(f"channel {key}", x, where)
+                if len(c) != len(t):
+                    raise InputError(f"{where}: channel '{key}' has {len(c)} samples, the trial {len(t)}")
+                chans[str(key)] = c
+            object.__setattr__(self, "channels", chans)
 
     @classmethod
     def from_arrays(cls, angle, torque, fs: float, t0: float = 0.0, imposed: Imposed = "angle",
-                    truth: Truth | None = None, name: str = "trial") -> "Trial":
+                    truth: Truth | None = None, name: str = "trial", channels: Mapping | None = None) -> "Trial":
         """Build a trial with a uniform time base starting at ``t0``."""
         n = np.size(angle)
         return cls(time=t0 + np.arange(n) / fs, angle=angle, torque=torque, fs=fs, imposed=imposed,
-                   truth=truth, name=name)
+                   truth=truth, name=name, channels=dict(channels or {}))
 
     @property
     def n(self) -> int:

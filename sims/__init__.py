@@ -15,10 +15,11 @@ JOINTS = Registry("joint model")
 PERTURBATIONS = Registry("perturbation")
 BACKENDS = Registry("simulation backend")
 PROFILES = Registry("time-variation profile")
+REFLEXES = Registry("reflex pathway")
 
 # `simulate` and `Experiment` are defined in sims/experiment.py and re-exported here.
 import_submodules(__name__, __path__)
 
 from jointbench.sims.experiment import Experiment, simulate  # noqa: E402
 
-__all__ = ["BACKENDS", "Experiment", "JOINTS", "PERTURBATIONS", "PROFILES", "simulate"]
+__all__ = ["BACKENDS", "Experiment", "JOINTS", "PERTURBATIONS", "PROFILES", "REFLEXES", "simulate"]

@@ -15,8 +15,9 @@ physics. A backend is a class registered in :data:`sims.BACKENDS` that derives :
   ``trial.truth.signals``. The parameters (I, B, K) and the frozen transfer function of the truth come
   from the joint model and the apparatus' linear coupling, the same for every backend.
 
-Registered: ``analytic`` (the default: ``lti`` when it applies, else ``ltv``), ``lti``, ``ltv`` and
-``mujoco`` (a physics engine; imported only when used).
+Registered: ``analytic`` (the default: ``lti`` when it applies, else ``ltv``; ``stepping`` for a
+nonlinear plant: a reflex pathway, a stiffness that depends on the angle), ``lti``, ``ltv``, ``stepping``
+and ``mujoco`` (a physics engine; imported only when used).
 """
 from __future__ import annotations
 
@@ -46,6 +47,10 @@ class Response:
         drive signal for an ideal handle, else the limb's angle.
     extra : mapping
         Further noise-free signals at the simulation rate (name -> array), added to the truth's signals.
+    torque_parts : mapping
+        Parts of the impedance torque (name -> array, e.g. ``intrinsic_torque`` and ``reflex_torque`` of
+        a joint with a reflex pathway): the truth's signals, through the torque sensor's filter like the
+        torque they add up to.
     """
 
     angle: np.ndarray
@@ -55,6 +60,18 @@ class Response:
     torque_impedance: np.ndarray
     angle_measured: np.ndarray | None = None
     extra: Mapping[str, np.ndarray] = dataclasses.field(default_factory=dict)
+    torque_parts: Mapping[str, np.ndarray] = dataclasses.field(default_factory=dict)
+
+
+def nonlinear_parts(experiment) -> str:
+    """What makes the plant nonlinear ('' when nothing): a reflex pathway, a state-dependent joint. Such an
+    experiment needs a backend with a time-stepping path (``analytic`` chooses ``stepping``)."""
+    parts = []
+    if getattr(experiment, "reflex", None) is not None:
+        parts.append("a reflex pathway")
+    if getattr(experiment.joint, "nonlinear", False):
+        parts.append(f"joint model '{experiment.joint.model}' (its coefficients depend on the angle)")
+    return " and ".join(parts)
 
 
 class Backend:
@@ -64,12 +81,18 @@ class Backend:
     """
 
     name: ClassVar[str] = ""
+    #: whether the backend integrates a nonlinear plant (:func:`nonlinear_parts`) by time stepping
+    steps: ClassVar[bool] = False
 
     def check(self, experiment) -> None:
         """Raise :class:`ConfigError` (message without location) if this backend cannot simulate it."""
         reason = analytic_limits(experiment)
         if reason:
             raise Incompatible(f"backend '{self.name}' cannot simulate this experiment: {reason}")
+        nonlinear = nonlinear_parts(experiment)
+        if nonlinear and not self.steps:
+            raise Incompatible(f"backend '{self.name}' integrates a linear plant; this experiment has {nonlinear}: "
+                               f"use 'analytic' (it then steps in time, backend 'stepping') or 'mujoco'")
 
     def respond(self, experiment, drive: np.ndarray, voluntary: np.ndarray,
                 x0: tuple[float, float] = (0.0, 0.0)) -> Response:
@@ -114,9 +137,13 @@ class AnalyticBackend(Backend):
     linear coupling; neither models gravity or a handle's own dynamics."""
 
     name: ClassVar[str] = "analytic"
+    steps: ClassVar[bool] = True
 
     def chosen(self, experiment) -> str:
-        """The analytic backend that simulates ``experiment``: 'lti' or 'ltv'."""
+        """The analytic backend that simulates ``experiment``: 'lti' or 'ltv', or 'stepping' for a
+        nonlinear plant (:func:`nonlinear_parts`)."""
+        if nonlinear_parts(experiment):
+            return "stepping"
         return "ltv" if lti_applies(experiment) else "lti"
 
     def respond(self, experiment, drive, voluntary, x0=(0.0, 0.0)) -> Response:

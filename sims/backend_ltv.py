@@ -155,6 +155,20 @@ def affine_recursion(E, v0: np.ndarray, v1: np.ndarray, x0: tuple[float, float])
     return out_x, out_y
 
 
+def step_weights(joint, coupling, n: int, h: float):
+    """The per-step pieces of the exponential midpoint rule for ``n`` samples at step ``h`` (shared with the
+    time-stepping path, :mod:`sims.backend_stepping`): the sample times ``t``, the inertia at the steps'
+    midpoints ``Im``, ``p``, ``q`` of ``A = [[0, 1], [p, q]]``, the transition ``E`` (4 components) and
+    column 1 of J1 and J2 ``(J1_01, J1_11, J2_01, J2_11)`` (``(c0 I + c1 A)[:, 1] = (c1, c0 + q c1)``)."""
+    t = np.arange(n) * h
+    Im, Bm, Km = joint.coefficients_at(t[:-1] + h / 2)
+    p = -(Km + coupling.k_a) / Im
+    q = -(Bm + coupling.b_a) / Im
+    (ea, eb), (j1a, j1b), (j2a, j2b) = step_coefficients(p, q, h)
+    E = (ea, eb, p * eb, ea + q * eb)
+    return t, Im, p, q, E, (j1b, j1a + q * j1b, j2b, j2a + q * j2b)
+
+
 @BACKENDS.register("ltv")
 class LTVBackend(Backend):
     """Time-varying joint + apparatus, exponential midpoint rule with a first-order hold of the inputs.
@@ -195,20 +209,13 @@ class LTVBackend(Backend):
         c = apparatus.coupling(joint)
         h = 1.0 / fs
         n = len(d)
-        t = np.arange(n) * h
-        Im, Bm, Km = joint.coefficients_at(t[:-1] + h / 2)
-        p = -(Km + c.k_a) / Im
-        q = -(Bm + c.b_a) / Im
-        (ea, eb), (j1a, j1b), (j2a, j2b) = step_coefficients(p, q, h)
+        t, Im, p, q, E, (J1_01, J1_11, J2_01, J2_11) = step_weights(joint, c, n, h)
         w, d_dot = c.drive_input(d, fs)
         w = w + tv                           # the whole input, held linearly over each step
         inv_i = 1.0 / Im
-        # v_k = (J1 - J2/h) b w_k + (J2/h) b w_k+1, with b = [0, 1/I]: only column 1 of J1, J2 matters,
-        # (c0 I + c1 A)[:, 1] = (c1, c0 + q c1)
-        J1_01, J1_11, J2_01, J2_11 = j1b, j1a + q * j1b, j2b, j2a + q * j2b
+        # v_k = (J1 - J2/h) b w_k + (J2/h) b w_k+1, with b = [0, 1/I]: only column 1 of J1, J2 matters
         c0 = (J1_01 - J2_01 / h) * w[:-1] + J2_01 / h * w[1:]
         c1 = (J1_11 - J2_11 / h) * w[:-1] + J2_11 / h * w[1:]
-        E = (ea, eb, p * eb, ea + q * eb)
         theta, vel = affine_recursion(E, c0 * inv_i, c1 * inv_i, (float(x0[0]), float(x0[1])))
         I, B, K = joint.coefficients_at(t)
         t_a = c.torque(d, d_dot, theta, vel)

@@ -60,7 +60,7 @@ import numpy as np
 from jointbench.errors import ConfigError
 from jointbench.sims import BACKENDS
 from jointbench.sims.apparatus import derivative
-from jointbench.sims.backend import Backend, Response
+from jointbench.sims.backend import Backend, Response, nonlinear_parts
 from jointbench.sims.backend_mujoco_models import CONTROLS, HandleServo, build, mjcf_module
 
 _LOG = logging.getLogger(__name__)
@@ -137,7 +137,7 @@ def _worst_controls(exp, nu: int, names: tuple[str, ...]) -> np.ndarray:
     t = np.linspace(0.0, exp.duration, 4001)
     _, B, K = exp.joint.coefficients_at(t)
     ctrl = np.zeros(nu)
-    ctrl[names.index("stiffness")] = float(np.max(K))
+    ctrl[names.index("stiffness")] = max(float(np.max(K)), getattr(exp.joint, "stiffness_range", (0, 0))[1])
     ctrl[names.index("damping")] = float(np.min(B))
     return ctrl
 
@@ -198,8 +198,9 @@ class MujocoBackend(Backend):
     """The MuJoCo physics engine (see the module docstring).
 
     Supports every joint model (``second_order``, ``time_varying`` on a torque drive or position servo;
-    ``wrist_contact`` on a handle), gravity (:class:`sims.gravity.Gravity`) and a handle with its own
-    inertia and servo; not a varying inertia.
+    ``wrist_contact`` on a handle; ``position_dependent``), gravity (:class:`sims.gravity.Gravity`), a handle
+    with its own inertia and servo, and a reflex pathway (:mod:`sims.backend_mujoco_stepping`); not a
+    varying inertia.
     """
 
     name: ClassVar[str] = "mujoco"
@@ -223,6 +224,8 @@ class MujocoBackend(Backend):
         names = CONTROLS[exp.apparatus.kind]
         ctrl = _worst_controls(exp, model.nu, names)
         h = 1.0 / exp.fs_sim
+        if exp.reflex is not None:
+            exp.reflex.check(exp.fs_sim, exp.duration, "joint: reflex")
         rho = spectral_radius(model, ctrl, h)
         if rho > 1 + _STABLE_TOL:
             raise ConfigError(f"backend 'mujoco': the step 1/fs_sim = {h:.4g} s is unstable for this model "
@@ -268,8 +271,16 @@ class MujocoBackend(Backend):
         spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
         s0 = np.empty(mujoco.mj_stateSize(model, spec))
         mujoco.mj_getState(model, data, s0, spec)
-        state, sensordata = rollout.rollout(model, data, s0, ctrl[None])
-        state, sensordata = state[0], sensordata[0]
+        n_extra = 0.0
+        if nonlinear_parts(exp):   # a reflex or an angle-dependent joint: window by window (backend_mujoco_stepping)
+            from jointbench.sims.backend_mujoco_stepping import rollout_nonlinear
+
+            state, sensordata, R, Tr = rollout_nonlinear(mujoco, model, data, s0, ctrl, exp,
+                                                         CONTROLS[exp.apparatus.kind].index("voluntary"))
+            n_extra = R + Tr
+        else:
+            state, sensordata = rollout.rollout(model, data, s0, ctrl[None])
+            state, sensordata = state[0], sensordata[0]
         self._raise_if_diverged(exp, model, data, state)
         nq, nv = model.nq, model.nv
         q = np.concatenate([s0[None, 1:1 + nq], state[:-1, 1:1 + nq]])     # at the steps' starts
@@ -282,7 +293,7 @@ class MujocoBackend(Backend):
         sensor = {name: sensordata[:, model.sensor(name).adr[0]] for name in ("angle", "torque", "handle_angle")
                   if _has_sensor(model, name)}
         tau_g = exp.gravity.torque(theta) if exp.gravity is not None else np.zeros(n)
-        impedance = I * acc + B * v1 + K * theta      # the forces of the step, damping implicit
+        impedance = I * acc + B * v1 + K * theta + n_extra   # the forces of the step, damping implicit
         extra = {}
         if exp.gravity is not None:
             extra = {"gravity_torque": tau_g, "gravity_stiffness": exp.gravity.stiffness(theta)}
@@ -296,9 +307,10 @@ class MujocoBackend(Backend):
                 d_dot = derivative(d, h)
                 measured += c.g_d * (d_dot - ctrl_mid(d_dot)) - c.b_a * (0.5 * (v0 + v1) - v0)
             angle_measured = None
+        parts = {"intrinsic_torque": impedance - Tr, "reflex_torque": Tr} if exp.reflex is not None else {}
         return Response(angle=np.array(sensor["angle"]), velocity=0.5 * (v0 + v1), acceleration=acc,
                         torque_measured=measured, torque_impedance=impedance, angle_measured=angle_measured,
-                        extra=extra)
+                        extra=extra, torque_parts=parts)
 
     def _raise_if_diverged(self, exp, model, data, state: np.ndarray) -> None:
         """MuJoCo resets a diverging simulation to its initial state with only a warning: fail loudly."""
@@ -315,8 +327,10 @@ class MujocoBackend(Backend):
         names = ", ".join(k.replace("mjWARN_", "") for k in bad) or "non-finite state"
         ctrl = _worst_controls(exp, model.nu, CONTROLS[exp.apparatus.kind])
         h_max = largest_stable_step(model, ctrl, 1.0 / exp.fs_sim)
+        loop = ("; or the reflex loop itself is unstable (delayed velocity feedback: lower the reflex gain)"
+                if getattr(exp, "reflex", None) is not None else "")
         raise SimulationDiverged(f"{exp.where}: backend 'mujoco': the simulation diverged{when} ({names}); "
-                                 f"{_step_message(exp, h_max)}")
+                                 f"{_step_message(exp, h_max)}{loop}")
 
 
 def ctrl_mid(x: np.ndarray) -> np.ndarray:

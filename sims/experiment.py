@@ -24,10 +24,11 @@ import numpy as np
 from jointbench.errors import ConfigError, Incompatible
 from jointbench.schema import param, parse
 from jointbench.signal import decimate, decimate_fft
-from jointbench.types import Trial, Truth
-from jointbench.sims import BACKENDS, JOINTS, PERTURBATIONS
+from jointbench.types import Trial
+from jointbench.sims import BACKENDS, JOINTS, PERTURBATIONS, REFLEXES
 from jointbench.sims import backend as _backend
 from jointbench.sims import reuse as _reuse
+from jointbench.sims import truth as _truth
 from jointbench.sims.apparatus import APPARATUS_KINDS, Apparatus, PositionServo
 from jointbench.sims.backend import Response  # noqa: F401 - re-exported (backends import it from here too)
 from jointbench.sims.gravity import Gravity
@@ -126,6 +127,9 @@ class Experiment:
         Detrend, decimation and trim; default: detrend, no decimation, no trim.
     gravity : Gravity or None
         Gravity on the limb segment (:mod:`sims.gravity`); default none. Physics backends only.
+    reflex : object or None
+        A reflex pathway of :data:`sims.REFLEXES` (the ``reflex`` key of the joint's mapping, e.g.
+        :class:`sims.reflex_stretch.StretchReflex`); default none. Its torque adds to the joint's.
     backend : str
         The simulation backend (:data:`sims.BACKENDS`), default ``"analytic"``; set by the study part.
     where : str
@@ -147,6 +151,7 @@ class Experiment:
     gravity: Gravity | None = None
     backend: str = "analytic"
     where: str = dataclasses.field(default="experiment", compare=False, repr=False)
+    reflex: Any = None
 
     def __post_init__(self):
         self._validate()
@@ -183,9 +188,15 @@ class Experiment:
             if key not in mapping:
                 raise ConfigError(f"{where}: missing required key {key!r}")
         timing = parse(_Timing, {k: mapping[k] for k in ("fs_sim", "duration")}, where)
+        joint, reflex = mapping["joint"], None
+        if isinstance(joint, Mapping) and "reflex" in joint:   # a reflex pathway on any joint model
+            joint = {k: v for k, v in joint.items() if k != "reflex"}
+            reflex = _parse_tagged(mapping["joint"]["reflex"], "pathway", REFLEXES.names(), REFLEXES.get,
+                                   "reflex pathway", f"{where}: joint: reflex", default="stretch")
         return cls(
-            joint=_parse_tagged(mapping["joint"], "model", JOINTS.names(), JOINTS.get, "joint model",
+            joint=_parse_tagged(joint, "model", JOINTS.names(), JOINTS.get, "joint model",
                                 f"{where}: joint"),
+            reflex=reflex,
             perturbation=_parse_tagged(mapping["perturbation"], "kind", PERTURBATIONS.names(),
                                        PERTURBATIONS.get, "perturbation", f"{where}: perturbation"),
             apparatus=_parse_tagged(mapping.get("apparatus"), "kind", list(APPARATUS_KINDS),
@@ -280,6 +291,8 @@ class Experiment:
         self.sensors.check(self.fs_sim, f"{w}: sensors")
         if self.gravity is not None:
             self.gravity.check(float(np.min(self.joint.coefficients_at(np.zeros(1))[0])), w)
+        if self.reflex is not None:
+            self.reflex.check(self.fs_sim, self.duration, f"{w}: joint: reflex")
         if not isinstance(self.backend, str) or self.backend not in BACKENDS:
             raise ConfigError(f"{w}: key 'backend': unknown simulation backend {self.backend!r}; "
                               f"known: {', '.join(BACKENDS.names())}")
@@ -350,21 +363,6 @@ def _streams(seed: int | np.random.SeedSequence, replicate: int,
         noise = np.random.SeedSequence(ss.entropy, spawn_key=tuple(ss.spawn_key) + (1000 + replicate,))
         children[2:4] = noise.spawn(2)
     return dict(zip(STREAMS, (np.random.default_rng(c) for c in children)))
-
-
-def _truth(exp: Experiment, signals: dict[str, np.ndarray]) -> Truth:
-    """Parameters at the acquired sample times and the frozen input -> output transfer function."""
-    t = exp.acquired_times()
-    I, B, K = exp.joint.coefficients_at(t)
-    Z = np.column_stack([I, B, K])
-    if exp.joint.time_invariant:
-        I, B, K = float(I[0]), float(B[0]), float(K[0])
-        Z = Z[:1]
-    num, den = exp.apparatus.coupling(exp.joint).frozen_response(Z, exp.apparatus.imposed,
-                                                                 exp.apparatus.angle_is_drive)
-    if exp.joint.time_invariant:
-        num, den = num[0], den[0]
-    return Truth(I=I, B=B, K=K, signals=signals, num=num, den=den)
 
 
 def simulate(experiment: Experiment, seed: int | np.random.SeedSequence, backend: str | Any | None = None, *,
@@ -469,11 +467,12 @@ def simulate(experiment: Experiment, seed: int | np.random.SeedSequence, backend
         angle, angle_clean = _measure(exp.sensors.angle, exp.sensors.angle.filtered(angle_true, fs),
                                       rng["angle_noise"], exp.acquire, fs)
         # one pass of the torque sensor's filter over the measured, impedance and voluntary torques
-        torques = exp.sensors.torque.filtered(np.column_stack([resp.torque_measured, resp.torque_impedance, tv]),
-                                              fs)
+        parts = dict(resp.torque_parts)       # e.g. intrinsic and reflex torque: through the same filter
+        torques = exp.sensors.torque.filtered(np.column_stack([resp.torque_measured, resp.torque_impedance, tv,
+                                                               *parts.values()]), fs)
         torque, _ = _measure(exp.sensors.torque, torques[:, 0], rng["torque_noise"], exp.acquire, fs)
         active = exp.voluntary.active or exp.gravity is not None
-        truth_torques = exp.acquire(torques[:, 1:] if active else torques[:, 1])
+        truth_torques = exp.acquire(torques[:, 1:3] if active else torques[:, 1])
         signals = {
             "angle": angle_clean,
             "torque": np.ascontiguousarray(truth_torques[:, 0]) if active else truth_torques,
@@ -486,8 +485,9 @@ def simulate(experiment: Experiment, seed: int | np.random.SeedSequence, backend
             names = list(resp.extra)
             acquired = exp.acquire(np.column_stack([resp.extra[k] for k in names]))
             signals.update({k: np.ascontiguousarray(acquired[:, i]) for i, k in enumerate(names)})
-        return Trial.from_arrays(angle, torque, exp.fs, imposed=exp.apparatus.imposed, truth=_truth(exp, signals),
-                                 name=name), reused
+        signals.update(_truth.part_signals(exp, list(parts), torques[:, 3:]))   # reflex, scheduling variable
+        return Trial.from_arrays(angle, torque, exp.fs, imposed=exp.apparatus.imposed,
+                                 truth=_truth.truth(exp, signals, resp.angle), name=name), reused
 
     (trial, reused), whole = _reuse.lookup_trial(_reuse.trial_key(key, exp, replicate, name), acquire)
     _backend._record(getattr(runner, "name", "") or type(runner).__name__, time.perf_counter() - t_start,

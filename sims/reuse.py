@@ -25,7 +25,8 @@ from typing import Any, Callable
 import numpy as np
 
 #: the fields of an Experiment that decide its response (everything but sensors, acquisition and 'where')
-RESPONSE_FIELDS = ("joint", "perturbation", "apparatus", "voluntary", "gravity", "fs_sim", "duration", "backend")
+RESPONSE_FIELDS = ("joint", "perturbation", "apparatus", "voluntary", "gravity", "fs_sim", "duration", "reflex",
+                   "backend")
 
 _MEMOS: list["ResponseMemo"] = []
 

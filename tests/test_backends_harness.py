@@ -32,7 +32,7 @@ def test_part_backend_key_reaches_the_cases(tmp_path):
 
 @pytest.mark.parametrize("edit, message", [
     (lambda d: d["parts"]["fig6"].update(backend="bullet"),
-     r"parts\.fig6: key 'backend': unknown simulation backend 'bullet'; known: analytic, lti, ltv, mujoco$"),
+     r"parts\.fig6: key 'backend': unknown simulation backend 'bullet'; known: analytic, lti, ltv, mujoco, stepping$"),
     (lambda d: d["parts"]["fig6"]["experiment"].update(gravity={"mass": 1.5, "com_distance": 0.2}),
      r"parts\.fig6: experiment: backend 'analytic' cannot simulate this experiment: gravity .* use backend 'mujoco'$"),
     (lambda d: d["parts"]["fig6"].update(backend="mujoco") or d["parts"]["fig6"]["experiment"].update(
@@ -50,7 +50,7 @@ def test_cli_rejects_an_unknown_backend(capsys):
     assert cli.main(["run", "westwick2012", "--backend", "bullet", "--parts", "fig2"]) == 2
     err = capsys.readouterr().err.strip()
     assert err == ("jointbench: error: option --backend: unknown simulation backend 'bullet'; known: "
-                   "analytic, lti, ltv, mujoco")
+                   "analytic, lti, ltv, mujoco, stepping")
 
 
 def test_run_folders():

@@ -255,7 +255,8 @@ def test_each_registered_estimator(tmp_path, rec, capsys, name):
         inputs = ["-i", save_npz(tmp_path / "ms.npz", data)]
     else:
         data = synthetic()
-        inputs = ["-i", rec, "-i", rec]
+        one_record = estimators.REGISTRY.get(name).accepts == {"trial"}    # parallel_cascade, pv_irf
+        inputs = ["-i", rec] if one_record else ["-i", rec, "-i", rec]
     assert cli(["-e", name, *inputs, "-o", out, "--plot", tmp_path / "f.png",
                 *SYNTHETIC_SETTINGS.get(name, [])]) == 0
     frame = pd.read_csv(out)

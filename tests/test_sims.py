@@ -340,7 +340,7 @@ def test_torque_drive_trial():
 
 def test_unknown_backend_and_missing_seed():
     e = Experiment.from_mapping(SPEC)
-    with pytest.raises(ConfigError, match="unknown simulation backend 'bullet'; known: analytic, lti, ltv, mujoco"):
+    with pytest.raises(ConfigError, match="unknown simulation backend 'bullet'; known: analytic, lti, ltv, mujoco, stepping"):
         simulate(e, 0, backend="bullet")
     with pytest.raises(TypeError, match="seed"):
         simulate(e, None)

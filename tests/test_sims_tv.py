@@ -361,12 +361,17 @@ JOINT_CASES = {
                      "apparatus": {"kind": "position_servo"}},
     "time_varying": {"joint": XU["joint"], "apparatus": {"kind": "torque_drive"}},
     "wrist_contact": {"joint": WRIST["joint"], "apparatus": {"kind": "handle"}},
+    "position_dependent": {"joint": {"model": "position_dependent", "I": 0.015, "B": 0.8,
+                                     "K": {"polynomial": [100, 150, 200]}, "angle_range": [-0.6, 0.4]},
+                           "apparatus": {"kind": "position_servo"}},
 }
 PERTURBATION_CASES = {
     "filtered_noise": {"kind": "filtered_noise", "cutoff": "10 Hz", "rms": "0.02 rad"},
     "prbs": {"kind": "prbs", "amplitude": 0.02, "clock": "10 ms"},
     "multisine": {"kind": "multisine", "quiet": "0.5 s", "period": "2 s", "f_min": "0.5 Hz", "spacing": "1.5 Hz"},
     "pralds": {"kind": "pralds", "rms": "0.02 rad", "quiet": "0.5 s"},
+    "moving": {"kind": "moving", "movement": {"shape": "sine", "mean": 0, "amplitude": 0.1, "frequency": "0.5 Hz"},
+               "perturbation": {"kind": "filtered_noise", "cutoff": "10 Hz", "rms": "0.01 rad"}, "fade": "0.5 s"},
 }
 
 

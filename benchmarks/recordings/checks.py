@@ -77,7 +77,8 @@ def _slice(trial, i0: int, i1: int):
     from jointbench.types import Trial
 
     return Trial(time=trial.time[i0:i1], angle=trial.angle[i0:i1], torque=trial.torque[i0:i1], fs=trial.fs,
-                 imposed=trial.imposed, name=trial.name)
+                 imposed=trial.imposed, name=trial.name,
+                 channels={k: v[i0:i1] for k, v in getattr(trial, "channels", {}).items()})
 
 
 def as_window(value, names: Names = PYTHON) -> tuple[float | None, float | None]:

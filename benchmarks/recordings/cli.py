@@ -26,6 +26,7 @@ import os
 from pathlib import Path
 from typing import TYPE_CHECKING, Sequence
 
+from jointbench.benchmarks.recordings import schedule
 from jointbench.benchmarks.recordings.checks import CLI, decimate_trial, parse_window  # noqa: F401 - public
 from jointbench.benchmarks.recordings.fitting import Fit as Outcome
 from jointbench.benchmarks.recordings.fitting import compute as _compute
@@ -89,6 +90,13 @@ def add_parser(subparsers) -> None:
     p.add_argument("--plugin", action="append", metavar="MODULE",
                    help="import an outside estimator first: a module name or the path of a .py file; repeatable "
                         "(installed plugins with a 'jointbench.estimators' entry point need none)")
+    p.add_argument("--schedule", metavar="NAME",
+                   help="scheduling variable of a parameter-varying estimator (pv_irf): angle_slow (the angle "
+                        "low-passed), angle, or a column (CSV) / array (NPZ, .mat) of the input; prints K at "
+                        "chosen values with intervals")
+    p.add_argument("--at", metavar="V1,V2,...",
+                   help="with --schedule: the scheduling values to print K at (default: 5 over the range visited); "
+                        "write --at=-0.3,0,0.2 when the first is negative")
     p.set_defaults(func=run)
 
 
@@ -111,7 +119,11 @@ def run(args: argparse.Namespace) -> int:
     if args.fs is not None and not (args.fs == args.fs and 0 < args.fs < float("inf")):
         raise ConfigError(f"--fs: must be a finite rate > 0 Hz, got {args.fs}")
     window = parse_window(args.window) if args.window else None
-    estimator = make_estimator(args.estimator, args.settings)
+    at = schedule.parse_at(args.at) if getattr(args, "at", None) else None
+    if at is not None and not getattr(args, "schedule", None):
+        raise ConfigError("--at: needs --schedule (the scheduling variable the values belong to)")
+    estimator = (schedule.make_scheduled(args.estimator, args.settings, args.schedule)
+                 if getattr(args, "schedule", None) else make_estimator(args.estimator, args.settings))
 
     from jointbench.benchmarks.recordings import io
 
@@ -125,6 +137,8 @@ def run(args: argparse.Namespace) -> int:
     ensemble = args.ensemble or (len(sources) > 1 and "ensemble" in estimator.accepts
                                  and not {"trial", "pooled"} & estimator.accepts)
     records = io_ensemble.read_records(sources, fs=args.fs, ensemble=ensemble)
+    if getattr(args, "schedule", None):
+        records = schedule.attach(records, sources, args.schedule)
     from jointbench import api
 
     outcome = api.fit(estimator, records, torque_sign=args.torque_sign, decimate=args.decimate, window=window,
@@ -132,6 +146,8 @@ def run(args: argparse.Namespace) -> int:
                       names=CLI)
     written = write_outputs(out, plot, outcome)
     print(summary_text(args.estimator, estimator.settings, outcome, written, torque_sign=args.torque_sign))
+    if getattr(args, "schedule", None):
+        print(schedule.stiffness_text(outcome.estimate, at))
     return 0
 
 
