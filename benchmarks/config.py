@@ -450,7 +450,7 @@ def load_study(path: str | Path | Mapping, configs_dir: Path = CONFIGS, override
         _check_keys(r, {"id": True, "topic": True, "passage": True, "reading": True, "alternatives": False}, where)
         readings.append(Reading(**{k: str(v) for k, v in r.items()}))
     published = data.get("published")
-    if published is not None and (not isinstance(published, str) or not published.strip()):
+    if "published" in data and (not isinstance(published, str) or not published.strip()):
         raise ConfigError(f"{path}: key 'published': expected the path of the published values (e.g. "
                           f"configs/published/<study>.yaml) or no key at all, got {published!r}")
     pub = find_file(published, roots, str(path), "published") if published else None

@@ -138,7 +138,8 @@ def page(table: pd.DataFrame, figure_name: str) -> str:
         markdown(table),
         "",
         f"The reflex pathway was kept in {len(kept)} of the {len(table)} fits. Per record, the nonlinearity with the "
-        "highest total VAF: " + "; ".join(f"{r['record']}: {r['reflex nonlinearity']} (reflex VAF {r['VAF reflex (%)']} %, "
+        "highest total VAF: " + "; ".join(f"{r['record']}: {r['reflex nonlinearity']} "
+                                           f"(reflex VAF {r['VAF reflex (%)']} %, "
                                             f"intrinsic K {r['intrinsic K (N·m/rad)'].split(' ')[0]} against the "
                                             f"two-sided IRF's {r['two-sided IRF K (N·m/rad)'].split(' ')[0]})"
                                             for _, r in best.iterrows()) + ".",

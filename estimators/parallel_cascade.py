@@ -7,7 +7,8 @@ import numpy as np
 
 from jointbench.estimators import Estimator, register
 from jointbench.estimators import _reflex as rx
-from jointbench.estimators._twosided import (LagSettings, check_lengths, estimate_irf, fit_irf, irf_intervals, lag_samples,
+from jointbench.estimators._twosided import (LagSettings, check_lengths, estimate_irf, fit_irf, irf_intervals,
+                                             lag_samples,
                                                 mdl_pseudo_inverse)
 from jointbench.estimate import IRFEstimate, Prediction
 from jointbench.errors import InputError

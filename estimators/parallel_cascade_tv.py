@@ -10,7 +10,8 @@ from numpy.lib.stride_tricks import sliding_window_view
 
 from jointbench.estimators import register
 from jointbench.estimators import _reflex as rx
-from jointbench.estimators._tvirf import EnsembleEstimator, TVLagSettings, centred, gram_stack, lag_samples, one_blas_thread
+from jointbench.estimators._tvirf import (EnsembleEstimator, TVLagSettings, centred, gram_stack, lag_samples,
+                                          one_blas_thread)
 from jointbench.estimators.guarin import BasisKind, time_basis
 from jointbench.ensemble import Ensemble
 from jointbench.errors import InputError
@@ -82,7 +83,8 @@ class TVParallelCascade(EnsembleEstimator):
     within the reflex pathway between its gain and its cascade (each linear given the other), until the
     total VAF improves by less than ``tolerance``. The delay (unless fixed) is chosen first, by the joint
     fit of both pathways over every realization (:meth:`_delay`), then once more with the gain the first
-    cascade found (and the cascade refitted if the delay changes). :class:`estimators.guarin.Guarin`'s ``reflex: true`` fits a fixed rectifier and a
+    cascade found (and the cascade refitted if the delay changes). :class:`estimators.guarin.Guarin`'s
+    ``reflex: true`` fits a fixed rectifier and a
     TV reflex IRF in one linear problem instead: the shortcut this estimator completes.
 
     Parameters

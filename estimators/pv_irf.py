@@ -1,4 +1,5 @@
-"""Parameter-varying IRF: a two-sided IRF whose coefficients are polynomials of a scheduling variable (LPV, one trial)."""
+"""Parameter-varying IRF: a two-sided IRF whose coefficients are polynomials of a scheduling variable
+(LPV, one trial)."""
 from __future__ import annotations
 
 import dataclasses
@@ -219,7 +220,8 @@ class PVIRF(Estimator):
         lag_before: float = param(0.04, unit="s", ge=0, doc="anticipatory lags down to -M1")
         lag_after: float = param(0.04, unit="s", ge=0, doc="causal lags up to M2")
         schedule: str = param("angle_slow", doc="scheduling variable: 'angle_slow', 'angle' or a channel of the trial")
-        slow_cutoff: float = param(0.5, unit="Hz", gt=0, doc="cutoff of the slow angle (zero-phase low-pass); above the "
+        slow_cutoff: float = param(0.5, unit="Hz", gt=0,
+                                doc="cutoff of the slow angle (zero-phase low-pass); above the "
                                                               "movement, below the perturbation")
         n_basis: int = param(4, ge=1, le=20, doc="Chebyshev polynomials of the schedule (degree 0 ... n_basis - 1)")
         offset: bool = param(True, doc="also expand an offset f(sigma) (the elastic torque of the slow movement)")
@@ -240,7 +242,8 @@ class PVIRF(Estimator):
         span = hi - lo
         if not span >= s.min_span * reference or span <= 0:
             pct = 100.0 * span / reference if reference > 0 else 0.0
-            raise InputError(f"{self.name}: the scheduling variable spans {pct:.2g} % of its range; a parameter-varying "
+            raise InputError(f"{self.name}: the scheduling variable spans {pct:.2g} % of its range; "
+                             f"a parameter-varying "
                              f"fit needs movement ({what} of record '{tr.name}')")
         M, L = s.n_basis, m1 + m2 + 1
         N = n - m1 - m2

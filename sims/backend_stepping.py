@@ -35,7 +35,7 @@ from __future__ import annotations
 from typing import ClassVar
 
 import numpy as np
-from scipy import signal as sps
+from jointbench.lazy import scipy_signal as sps
 
 from jointbench.errors import ConfigError
 from jointbench.sims import BACKENDS

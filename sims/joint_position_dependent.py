@@ -190,7 +190,8 @@ class PositionDependentJoint:
         rng = None
         if self.angle_range is not None:
             if len(self.angle_range) != 2 or not self.angle_range[0] < self.angle_range[1]:
-                raise ConfigError(f"key 'angle_range': expected [lo, hi] with lo < hi (rad), got {list(self.angle_range)}")
+                raise ConfigError(f"key 'angle_range': expected [lo, hi] with lo < hi (rad), "
+                                  f"got {list(self.angle_range)}")
             rng = (float(self.angle_range[0]), float(self.angle_range[1]))
         K = AngleFunction.parse(self.K, "K", rng)
         object.__setattr__(self, "K", K)
@@ -199,7 +200,8 @@ class PositionDependentJoint:
         rng = (float(self.angle_range[0]), float(self.angle_range[1]))
         k_lo, _ = K.extremes()
         if not k_lo > 0:
-            raise ConfigError(f"key 'K': K(theta) reaches {k_lo:g} N.m/rad over angle_range {list(rng)}; it must stay > 0")
+            raise ConfigError(f"key 'K': K(theta) reaches {k_lo:g} N.m/rad over angle_range {list(rng)}; "
+                              f"it must stay > 0")
         if self.B is not None:
             B = AngleFunction.parse(self.B, "B", rng)
             object.__setattr__(self, "B", B)

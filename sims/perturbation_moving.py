@@ -6,7 +6,7 @@ pilot trial: -0.41 ... 0.20 rad of slow ankle movement with a random perturbatio
 
     perturbation:
       kind: moving
-      movement: {shape: sine, mean: -0.105, amplitude: 0.305, frequency: 0.05 Hz}     # rad (profiles take plain numbers)
+      movement: {shape: sine, mean: -0.105, amplitude: 0.305, frequency: 0.05 Hz}   # rad (plain numbers)
       perturbation: {kind: pralds, rms: 0.02 rad, min_hold: 20 ms, max_hold: 200 ms, smoothing: 20 Hz}
       fade: 1 s
 

@@ -42,7 +42,7 @@ import math
 from typing import Any, ClassVar, Literal
 
 import numpy as np
-from scipy import signal as sps
+from jointbench.lazy import scipy_signal as sps
 
 from jointbench.errors import ConfigError
 from jointbench.schema import param

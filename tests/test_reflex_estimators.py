@@ -81,7 +81,8 @@ def test_known_reflex_delay_and_vaf_are_recovered(nonlinearity):
     assert irf.stiffness(0.0) - 120.0 > 10.0
     assert np.isclose(pc.predict(u), pc.intrinsic_torque(u) + pc.reflex_torque(u)).all()
     frame = pc.response_frame()
-    assert set(frame["pathway"]) == {"intrinsic", "reflex"} and frame.query("pathway == 'reflex'")["lag"].min() == pc.reflex_delay
+    assert set(frame["pathway"]) == {"intrinsic", "reflex"}
+    assert frame.query("pathway == 'reflex'")["lag"].min() == pc.reflex_delay
     if nonlinearity == "polynomial":   # the estimated nonlinearity is rectifier-like: stretch passes, shortening not
         v = np.linspace(0, 0.8, 9)
         nl = pc.nonlinearity
@@ -98,7 +99,8 @@ def test_prediction_and_summary():
 
 
 @pytest.mark.parametrize("settings, match", [
-    ({"delay": 0.6}, "the reflex delay \\(600 ms\\) is not shorter than the reflex lag window \\(reflex_window = 500 ms"),
+    ({"delay": 0.6},
+     "the reflex delay \\(600 ms\\) is not shorter than the reflex lag window \\(reflex_window = 500 ms"),
     ({"delay_max": 0.5}, "not shorter than the reflex lag window"),
     ({"delay_min": 0.08, "delay_max": 0.05}, "delay_min = 0.08 s is above delay_max"),
 ])

@@ -32,7 +32,8 @@ def experiment(joint=ANKLE, reflex=None, apparatus=None, perturbation=PRALDS, fs
     j = dict(joint)
     if reflex is not None:
         j["reflex"] = reflex
-    return Experiment.from_mapping({"joint": j, "apparatus": apparatus or {"kind": "position_servo", "stiffness": 30000},
+    return Experiment.from_mapping({"joint": j,
+                                    "apparatus": apparatus or {"kind": "position_servo", "stiffness": 30000},
                                     "perturbation": perturbation, "fs_sim": fs_sim, "duration": duration,
                                     "acquisition": acquisition or {"detrend": False}}, "test", backend=backend)
 
@@ -201,7 +202,8 @@ def test_bad_reflex_is_one_line(reflex, match):
 
 def test_linear_backends_refuse_a_nonlinear_plant():
     for name in ("lti", "ltv"):
-        with pytest.raises(ConfigError, match=f"backend '{name}' integrates a linear plant; this experiment has a reflex"):
+        msg = f"backend '{name}' integrates a linear plant; this experiment has a reflex"
+        with pytest.raises(ConfigError, match=msg):
             experiment(reflex={"gain": 1}, backend=name)
     with pytest.raises(ConfigError, match="position_dependent"):
         experiment(joint=PD_ANKLE, backend="ltv")

@@ -340,7 +340,8 @@ def test_torque_drive_trial():
 
 def test_unknown_backend_and_missing_seed():
     e = Experiment.from_mapping(SPEC)
-    with pytest.raises(ConfigError, match="unknown simulation backend 'bullet'; known: analytic, lti, ltv, mujoco, stepping"):
+    msg = "unknown simulation backend 'bullet'; known: analytic, lti, ltv, mujoco, stepping"
+    with pytest.raises(ConfigError, match=msg):
         simulate(e, 0, backend="bullet")
     with pytest.raises(TypeError, match="seed"):
         simulate(e, None)

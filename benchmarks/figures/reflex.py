@@ -62,7 +62,8 @@ def separation_table(rows: pd.DataFrame) -> pd.DataFrame:
         return pd.DataFrame()
     t = sel.groupby(["estimator", "variation", "gain", "metric"])["value"].mean().unstack("metric").reset_index()
     names = {"vaf_reflex": "reflex VAF (%)", "vaf_reflex_true": "true reflex VAF (%)",
-             "separation_intrinsic": "intrinsic torque VAF vs truth (%)", "separation_reflex": "reflex torque VAF vs truth (%)",
+             "separation_intrinsic": "intrinsic torque VAF vs truth (%)",
+             "separation_reflex": "reflex torque VAF vs truth (%)",
              "delay_error_samples": "delay error (samples)", "reflex_kept": "reflex kept (fraction)",
              "bias_mean_pct": "K bias (%)"}
     t = t.rename(columns=names)

@@ -122,7 +122,7 @@ def run(args: argparse.Namespace) -> int:
     at = schedule.parse_at(args.at) if getattr(args, "at", None) else None
     if at is not None and not getattr(args, "schedule", None):
         raise ConfigError("--at: needs --schedule (the scheduling variable the values belong to)")
-    estimator = (schedule.make_scheduled(args.estimator, args.settings, args.schedule)
+    estimator = (schedule.make_scheduled(args.estimator, args.settings, args.schedule, make_estimator)
                  if getattr(args, "schedule", None) else make_estimator(args.estimator, args.settings))
 
     from jointbench.benchmarks.recordings import io

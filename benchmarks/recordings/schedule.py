@@ -29,10 +29,12 @@ def parse_at(text: str) -> np.ndarray:
     return values
 
 
-def make_scheduled(name: str, assignments: Sequence[str], schedule: str):
-    """The estimator with ``schedule=NAME`` added to its settings; refused when it takes no schedule."""
+def make_scheduled(name: str, assignments: Sequence[str], schedule: str, make_estimator):
+    """The estimator with ``schedule=NAME`` added to its settings; refused when it takes no schedule.
+
+    ``make_estimator(name, assignments)`` builds it (the caller's, so that errors name the caller's flags).
+    """
     from jointbench import estimators
-    from jointbench.benchmarks.recordings.cli import make_estimator
 
     cls = estimators.REGISTRY.get(name)
     import dataclasses
