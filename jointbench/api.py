@@ -78,14 +78,23 @@ def load_plugin(ref: str):
 
 # ---------------------------------------------------------------------------------------------- fitting
 def read(path: str | Path | Sequence[str | Path], *, array: str | None = None, fs: float | None = None,
-         ensemble: bool = False):
+         ensemble: bool = False, schedule: str | None = None):
     """Read records (CSV, NPZ, MATLAB ``.mat``; ``FILE:ARRAY`` picks an N x 2 array) as ``jointbench
     estimate --input`` does: a list of :class:`~jointbench.types.Trial`, or an
-    :class:`~jointbench.ensemble.Ensemble` (a file with 2-D angle and torque, or ``ensemble=True``)."""
-    from jointbench.benchmarks.recordings import io, io_ensemble
+    :class:`~jointbench.ensemble.Ensemble` (a file with 2-D angle and torque, or ``ensemble=True``).
+
+    ``schedule`` names a recorded scheduling variable (a CSV column, an NPZ/.mat array) to read beside the
+    angle and torque into each trial's ``channels`` (``jointbench estimate --schedule``); the names derived
+    from the angle (``angle_slow``, ``angle``) need no column."""
+    from jointbench.benchmarks.recordings import checks, io, io_ensemble
+    from jointbench.benchmarks.recordings import schedule as sched
 
     paths = [path] if isinstance(path, (str, Path)) else list(path)
-    return io_ensemble.read_records([io.parse_source(str(p), array) for p in paths], fs=fs, ensemble=ensemble)
+    sources = [io.parse_source(str(p), array) for p in paths]
+    records = io_ensemble.read_records(sources, fs=fs, ensemble=ensemble)
+    if schedule:
+        records = sched.attach(records, sources, schedule, checks.PYTHON)
+    return records
 
 
 def _records(data, angle, torque, fs, time, array, name: str, names):
@@ -127,7 +136,7 @@ def _records(data, angle, torque, fs, time, array, name: str, names):
 def fit(estimator, data=None, *, angle=None, torque=None, fs: float | None = None, time=None,
         settings: Mapping[str, Any] | None = None, decimate: int = 1, window=None, torque_sign: int = 1,
         ensemble: bool | None = None, array: str | None = None, name: str = "record",
-        figure: str | None = None, names=None) -> "Fit":
+        figure: str | None = None, schedule: str | None = None, names=None) -> "Fit":
     """Fit ``estimator`` through the checked pipeline of ``jointbench estimate`` (same steps, same numbers).
 
     Parameters
@@ -152,6 +161,11 @@ def fit(estimator, data=None, *, angle=None, torque=None, fs: float | None = Non
         estimator takes ensembles only).
     figure : {'png', 'pdf', 'svg'}, optional
         Also draw the estimate (``Fit.figure``, bytes); ``Fit.plot(path)`` draws it later.
+    schedule : str, optional
+        The scheduling variable of a parameter-varying estimator (``pv_irf``): ``angle_slow`` or ``angle``
+        (derived from the angle), or a recorded channel (read from file paths as :func:`read` does, or a
+        trial's ``channels``); ``fit.estimate.stiffness_at(values)`` and ``stiffness_band(values)`` then give
+        K at chosen values (``jointbench estimate --schedule NAME --at V1,V2``).
     names : optional
         How errors name the arguments (``jointbench estimate`` passes its flags).
 
@@ -171,6 +185,17 @@ def fit(estimator, data=None, *, angle=None, torque=None, fs: float | None = Non
     from jointbench.benchmarks.recordings import checks, fitting
 
     names = names or checks.PYTHON
+    if schedule is not None:
+        from jointbench.benchmarks.recordings import schedule as sched
+
+        if not isinstance(estimator, str):
+            raise ConfigError("fit: schedule= applies to an estimator given by name; give a built one its "
+                              "schedule setting instead")
+        sched.check_schedulable(estimator, names)
+        settings = {**(settings or {}), "schedule": schedule}
+        if isinstance(data, (str, Path)) or (isinstance(data, (list, tuple)) and data
+                                             and all(isinstance(d, (str, Path)) for d in data)):
+            data = read(data, array=array, fs=fs, schedule=schedule)
     if isinstance(estimator, str):
         est = fitting.estimator_from(estimator, settings, names)
     elif isinstance(estimator, reg.Estimator):

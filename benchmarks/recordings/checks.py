@@ -43,7 +43,8 @@ class Names:
 
 PYTHON = Names()
 CLI = Names((("window", "--window"), ("decimate", "--decimate"), ("settings", "--set"),
-             ("torque_sign", "--torque-sign"), ("fs", "--fs"), ("ensemble", "--ensemble")))
+             ("torque_sign", "--torque-sign"), ("fs", "--fs"), ("ensemble", "--ensemble"),
+             ("schedule", "--schedule"), ("at", "--at")))
 
 
 def parse_window(text: str, names: Names = CLI) -> tuple[float | None, float | None]:

@@ -29,21 +29,31 @@ def parse_at(text: str) -> np.ndarray:
     return values
 
 
+def check_schedulable(name: str, names=None) -> None:
+    """Refuse an estimator that takes no ``schedule`` setting (one line naming the parameter-varying ones)."""
+    import dataclasses
+
+    from jointbench import estimators
+
+    cls = estimators.REGISTRY.get(name)
+    if "schedule" not in {f.name for f in dataclasses.fields(cls.Settings)}:
+        takes = [n for n in estimators.REGISTRY.names("lpv")]
+        raise ConfigError(f"{_flag(names)}: estimator '{name}' takes no scheduling variable; "
+                          f"parameter-varying estimators: {', '.join(takes) or 'none'}")
+
+
 def make_scheduled(name: str, assignments: Sequence[str], schedule: str, make_estimator):
     """The estimator with ``schedule=NAME`` added to its settings; refused when it takes no schedule.
 
     ``make_estimator(name, assignments)`` builds it (the caller's, so that errors name the caller's flags).
     """
-    from jointbench import estimators
-
-    cls = estimators.REGISTRY.get(name)
-    import dataclasses
-
-    if "schedule" not in {f.name for f in dataclasses.fields(cls.Settings)}:
-        takes = [n for n in estimators.REGISTRY.names("lpv")]
-        raise ConfigError(f"--schedule: estimator '{name}' takes no scheduling variable; "
-                          f"parameter-varying estimators: {', '.join(takes) or 'none'}")
+    check_schedulable(name)
     return make_estimator(name, [*assignments, f"schedule={schedule}"])
+
+
+def _flag(names=None) -> str:
+    """How errors name the scheduling argument: ``--schedule`` (the CLI, default) or ``schedule=`` (the API)."""
+    return "--schedule" if names is None else names("schedule")
 
 
 def _variables(path):
@@ -67,25 +77,26 @@ def _variables(path):
     return io._read_mat(path)
 
 
-def attach(records, sources, name: str):
-    """The records with the scheduling channel ``name`` read from each source (derived names: unchanged)."""
+def attach(records, sources, name: str, names=None):
+    """The records with the scheduling channel ``name`` read from each source (derived names: unchanged);
+    errors name the argument as ``names`` does (default: the CLI's ``--schedule``)."""
     from jointbench.ensemble import Ensemble
 
     if name in DERIVED:
         return records
     if isinstance(records, Ensemble):
-        raise InputError("--schedule: a recorded scheduling channel is read for single records, not ensembles")
+        raise InputError(f"{_flag(names)}: a recorded scheduling channel is read for single records, not ensembles")
     out = []
     for rec, src in zip(records, sources):
         variables = _variables(src.path)
         if name not in variables:
             known = ", ".join(k for k in variables if k not in ("time", "fs") and not k.startswith("__")) or "none"
-            raise InputError(f"--schedule: {src.path} has no column or array '{name}'; it has: {known}")
+            raise InputError(f"{_flag(names)}: {src.path} has no column or array '{name}'; it has: {known}")
         x = np.asarray(variables[name], float).squeeze()
         if np.any(~np.isfinite(x)):
-            raise InputError(f"--schedule: '{name}' in {src.path} has non-numeric or non-finite values")
+            raise InputError(f"{_flag(names)}: '{name}' in {src.path} has non-numeric or non-finite values")
         if x.ndim != 1 or len(x) != rec.n:
-            raise InputError(f"--schedule: '{name}' in {src.path} has shape {np.shape(variables[name])}; "
+            raise InputError(f"{_flag(names)}: '{name}' in {src.path} has shape {np.shape(variables[name])}; "
                              f"expected one value per sample ({rec.n})")
         out.append(rec.replace(channels={**rec.channels, name: x}))
     return out
