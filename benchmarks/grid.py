@@ -53,9 +53,13 @@ from jointbench.errors import ConfigError, Incompatible
 from jointbench.schema import param, parse
 
 #: the axes a grid may have, in the order they appear in case ids
-AXES = ("scenario", "joint", "variation", "perturbation", "noise", "fs", "backend", "estimator", "data")
+AXES = ("scenario", "joint", "variation", "perturbation", "noise", "fs", "backend", "estimator", "data", "tuning")
 NATIVE = "native"
 DATA = ("trial", "ensemble")
+#: the tuning axis: the paper's settings, or tuned on tuning realizations (protocols.compare)
+TUNING = ("paper", "tuned")
+#: the axes an identifiability case has (one per resolved experiment: no estimator, data or tuning)
+SCENARIO_AXES = AXES[:7]
 #: default budget (minutes) of a grid part without ``budget``
 DEFAULT_BUDGET_MIN = 30.0
 #: most combinations a grid may have: each is built and checked when the study is expanded (about a
@@ -78,7 +82,9 @@ class _ScenarioSpec:
     experiment: dict
     stiffness: Stiffness | None = None
     discard: float | None = param(None, unit="s", ge=0, doc="seconds not scored at each end")
+    realizations: int | None = param(None, ge=2, doc="R of this scenario (over params.realizations)")
     estimators: dict = param(default_factory=dict, doc="estimator -> settings for this scenario")
+    tuning: dict = param(default_factory=dict, doc="estimator -> setting -> values searched (over the part's)")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -92,6 +98,8 @@ class Grid:
     joints: Mapping[str, dict]
     settings: Mapping[str, dict]
     budget_minutes: float
+    search: Mapping[str, dict] = dataclasses.field(default_factory=dict)
+    only: tuple = ()
 
     def size(self) -> int:
         return math.prod(len(v) for v in self.axes.values())
@@ -230,6 +238,17 @@ def parse_grid(data: Mapping, experiment: Mapping | None, part_estimators: Mappi
     for i, v in enumerate(axes.get("data", ())):
         if v not in DATA:
             raise ConfigError(f"{where}: grid.data[{i}]: {v!r} not allowed; allowed: {', '.join(DATA)}")
+    for i, v in enumerate(axes.get("tuning", ())):
+        if v not in TUNING:
+            raise ConfigError(f"{where}: grid.tuning[{i}]: {v!r} not allowed; allowed: {', '.join(TUNING)}")
+    search = _search(data.get("tuning"), f"{where}: tuning")
+    for sname, sc in scenarios.items():
+        _search(sc.tuning, f"{where}: scenarios.{sname}.tuning")
+        for est in axes["estimator"]:          # every candidate parses (errors at load)
+            for cand in candidates(est, {**grid_settings(part_estimators, est), **(sc.estimators.get(est) or {})},
+                                   {**search.get(est, {}), **(sc.tuning.get(est) or {})}):
+                estimators.make(est, cand, f"{where}: tuning of {est} (scenario {sname})")
+    only = _only(data.get("only"), axes, where)
     budget = data.get("budget", DEFAULT_BUDGET_MIN)
     if isinstance(budget, bool) or not isinstance(budget, (int, float)) or not budget > 0:
         raise ConfigError(f"{where}: key 'budget': expected minutes > 0, got {budget!r}")
@@ -238,7 +257,79 @@ def parse_grid(data: Mapping, experiment: Mapping | None, part_estimators: Mappi
         raise ConfigError(f"{where}: grid: {' x '.join(f'{len(v)} {a}' for a, v in axes.items())} = {size} "
                           f"combinations, more than the {MAX_COMBINATIONS} a grid may have; shorten the axes")
     return Grid(axes=axes, scenarios=scenarios, variations=variations, perturbations=perturbations,
-                joints=joints, settings=settings, budget_minutes=float(budget))
+                joints=joints, settings=settings, budget_minutes=float(budget), search=search, only=only)
+
+
+def grid_settings(part_estimators: Mapping[str, dict], est: str) -> dict:
+    return dict(part_estimators.get(est) or {})
+
+
+def _search(value: Any, where: str) -> dict[str, dict[str, list]]:
+    """A tuning search: estimator -> setting -> the values tried (non-empty lists)."""
+    if value is None:
+        return {}
+    if not isinstance(value, Mapping):
+        raise ConfigError(f"{where}: expected a mapping estimator -> setting -> list of values")
+    out = {}
+    for est, spec in value.items():
+        if est not in estimators.REGISTRY:
+            raise ConfigError(f"{where}: unknown estimator {est!r}; known: {', '.join(estimators.REGISTRY.names())}")
+        if not isinstance(spec, Mapping) or not all(isinstance(v, list) and v for v in spec.values()):
+            raise ConfigError(f"{where}.{est}: expected a mapping setting -> non-empty list of values, got {spec!r}")
+        out[str(est)] = {str(k): list(v) for k, v in spec.items()}
+    return out
+
+
+def candidates(est: str, settings: Mapping, search: Mapping[str, list]) -> list[dict]:
+    """The settings a tuned case chooses among: the paper's ``settings`` first, then every combination of
+    the ``search`` values over them (each once); empty when there is nothing to search."""
+    if not search:
+        return []
+    out = [dict(settings)]
+    names = list(search)
+    for values in itertools.product(*(search[n] for n in names)):
+        out.append({**settings, **dict(zip(names, values))})
+    seen, unique = set(), []
+    for c in out:
+        key = json.dumps(c, sort_keys=True, default=str)
+        if key not in seen:
+            seen.add(key)
+            unique.append(c)
+    return unique
+
+
+def _only(value: Any, axes: Mapping[str, tuple], where: str) -> tuple:
+    """Rules that run part of the grid: ``[{when: {axis: values}, keep: {axis: values}, reason: text}]``; a
+    combination matching every axis of ``when`` runs only if it matches every axis of ``keep`` (a value or
+    a list); the others are skipped with the ``reason``."""
+    if value is None:
+        return ()
+    if not isinstance(value, list):
+        raise ConfigError(f"{where}: key 'only': expected a list of {{when, keep, reason}}")
+    rules = []
+    for i, rule in enumerate(value):
+        w = f"{where}: only[{i}]"
+        if not isinstance(rule, Mapping) or set(rule) - {"when", "keep", "reason"} or "keep" not in rule:
+            raise ConfigError(f"{w}: expected {{when: {{axis: values}}, keep: {{axis: values}}, reason: text}}")
+        parsed = {}
+        for key in ("when", "keep"):
+            m = rule.get(key) or {}
+            if not isinstance(m, Mapping):
+                raise ConfigError(f"{w}.{key}: expected a mapping axis -> value or list of values")
+            for axis in m:
+                if axis not in AXES:
+                    raise ConfigError(f"{w}.{key}: unknown axis {axis!r}; axes: {', '.join(AXES)}")
+            parsed[key] = {a: tuple(v if isinstance(v, list) else [v]) for a, v in m.items()}
+        rules.append((parsed["when"], parsed["keep"], str(rule.get("reason") or "excluded by the grid's 'only'")))
+    return tuple(rules)
+
+
+def _matches(combo: Mapping, cond: Mapping[str, tuple]) -> bool:
+    def eq(a, b):
+        if isinstance(a, (int, float)) and isinstance(b, (int, float)) and not isinstance(a, bool):
+            return float(a) == float(b)
+        return str(a) == str(b)
+    return all(any(eq(combo.get(a), v) for v in vals) for a, vals in cond.items())
 
 
 # ------------------------------------------------------------------------------------------ expansion
@@ -306,6 +397,7 @@ def expand_grid(study_id: str, part, backend: str | None = None) -> tuple[list[d
     axes.setdefault("backend", (part.backend,))
     names = [a for a in AXES if a in axes]
     cases, skipped = [], []
+    identified: dict[str, dict] = {}       # one identifiability case per resolved experiment and seed
     built: dict[str, Any] = {}
     for values in itertools.product(*(axes[a] for a in names)):
         combo = dict(zip(names, values))
@@ -325,19 +417,39 @@ def expand_grid(study_id: str, part, backend: str | None = None) -> tuple[list[d
                 raise ConfigError(f"{part.where}: the combination {labels}: "
                                   f"{str(exc).removeprefix('the experiment: ')}") from None
         exp = built[key]
+        settings = {**grid.settings[est], **(sc.estimators.get(est) or {})}
+        tuned = combo.get("tuning") == "tuned"
+        search = candidates(est, settings, {**grid.search.get(est, {}), **(sc.tuning.get(est) or {})}) if tuned else []
         reason = exp if isinstance(exp, str) else (cls.supports(exp) or _refusal(cls, mode))
+        if not reason:
+            reason = next((why for when, keep, why in grid.only
+                           if _matches({**combo, "data": mode}, when) and not _matches({**combo, "data": mode}, keep)),
+                          None)
+        if not reason and tuned and not search:
+            reason = (f"nothing to tune: the tuning search names no setting of {est} (its tuned column is its "
+                      f"paper column)")
         if reason:
             skipped.append({**combo, "data": mode, "reason": reason})
             continue
         params = {**part.params, "data": mode}
         if sc.discard is not None:
             params["discard"] = sc.discard
-        settings = {**grid.settings[est], **(sc.estimators.get(est) or {})}
+        if sc.realizations is not None:
+            params["realizations"] = sc.realizations
+        if search:
+            params["search"] = search
         for seed in part.seeds:
             cases.append(dict(study=study_id, part=part.name, protocol=part.protocol, params=params,
                               sweep={**combo, "data": mode}, experiment=mapping, estimators={est: settings},
                               seed=seed, where=part.where, backend=combo["backend"]))
-    return cases, skipped
+            scen = {a: v for a, v in combo.items() if a in SCENARIO_AXES}
+            ident = json.dumps([scen, seed], sort_keys=True, default=str)
+            if ident not in identified:
+                identified[ident] = dict(study=study_id, part=part.name, protocol="identifiability",
+                                         params={k: v for k, v in params.items() if k not in ("data", "search")},
+                                         sweep=scen, experiment=mapping, estimators={}, seed=seed,
+                                         where=part.where, backend=combo["backend"])
+    return cases + list(identified.values()), skipped
 
 
 
@@ -386,8 +498,16 @@ def estimate_seconds(cases: list, groups: list[list[int]]) -> float:
             total += len(noises) * R * (M if ens else 1) * exp.n_sim * TRIAL_S_PER_STEP
         for i in g:
             c = cases[i]
-            est = next(iter(c.estimators), "")
             n = exp.n if exp is not None else 0
+            if c.protocol == "identifiability":     # N_IDENTIFY realizations, with and without noise
+                total += 2 * min(R, 3) * (exp.n_sim * TRIAL_S_PER_STEP if exp is not None else 0) + CASE_OVERHEAD_S
+                continue
+            est = next(iter(c.estimators), "")
             k = M if c.sweep.get("data") == "ensemble" else 1
-            total += R * k * n * FIT_S_PER_SAMPLE.get(est, FIT_DEFAULT) + CASE_OVERHEAD_S
+            per_fit = k * n * FIT_S_PER_SAMPLE.get(est, FIT_DEFAULT)
+            total += R * per_fit + CASE_OVERHEAD_S
+            search = c.params.get("search") or ()
+            if search and exp is not None:         # each candidate fitted once, on k + 1 tuning realizations
+                per_step = SIM_S_PER_STEP.get(first.backend, SIM_S_PER_STEP["mujoco"])
+                total += len(search) * per_fit + (k + 1) * exp.n_sim * (per_step + TRIAL_S_PER_STEP)
     return total
