@@ -397,7 +397,7 @@ def expand_grid(study_id: str, part, backend: str | None = None) -> tuple[list[d
     axes.setdefault("backend", (part.backend,))
     names = [a for a in AXES if a in axes]
     cases, skipped = [], []
-    identified: dict[str, dict] = {}       # one identifiability case per resolved experiment and seed
+    identified: dict[str, dict] = {}       # params.identify: one identifiability case per experiment and seed
     built: dict[str, Any] = {}
     for values in itertools.product(*(axes[a] for a in names)):
         combo = dict(zip(names, values))
@@ -444,7 +444,7 @@ def expand_grid(study_id: str, part, backend: str | None = None) -> tuple[list[d
                               seed=seed, where=part.where, backend=combo["backend"]))
             scen = {a: v for a, v in combo.items() if a in SCENARIO_AXES}
             ident = json.dumps([scen, seed], sort_keys=True, default=str)
-            if ident not in identified:
+            if part.params.get("identify") and ident not in identified:
                 identified[ident] = dict(study=study_id, part=part.name, protocol="identifiability",
                                          params={k: v for k, v in params.items() if k not in ("data", "search")},
                                          sweep=scen, experiment=mapping, estimators={}, seed=seed,

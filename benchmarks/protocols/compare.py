@@ -25,7 +25,8 @@ scored; their truth removed before anything sees them): fitted on one tuning tri
 ``ensemble_size`` tuning realizations), each candidate predicts the torque of another tuning realization
 from its angle. Rows ``tuning_vaf_output`` (label ``candidate``, ``chosen``) give every candidate's score.
 
-Protocol ``identifiability`` (estimator ``(scenario)``, one case per resolved experiment): the figures of
+Protocol ``identifiability`` (estimator ``(scenario)``, one case per resolved experiment when the part's
+``params.identify`` is true): the figures of
 :mod:`benchmarks.identifiability` from the truth, median over the first ``min(R, 3)`` realizations.
 
 Every method is given the impedance direction, angle to torque (:func:`impedance`), and ``vaf_output``
@@ -80,6 +81,7 @@ class CompareParams:
     data: Literal["trial", "ensemble"] = param("trial", doc="fit single trials or ensembles")
     tuning: Literal["paper", "tuned"] = param("paper", doc="label: the paper's settings, or tuned on tuning "
                                                            "realizations (never scored) among 'search'")
+    identify: bool = param(False, doc="the grid adds one identifiability case per resolved experiment")
     search: Any = param(None, doc="tuned: the candidate settings (full mappings; the grid's tuning search)")
     estimator: str = param("", doc="label: the estimator of the case (its settings: the case's estimators)")
     scenario: str = param("", doc="label: the scenario")
