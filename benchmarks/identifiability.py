@@ -49,9 +49,10 @@ def identifiability(k, theta, torque, torque_clean, mask=None) -> dict[str, floa
         ``stiffness_share``, ``tv_share``, ``noise_share`` (% of var(torque)) and ``tv_snr_db`` (dB; ``-inf``
         for a constant stiffness, ``inf`` without noise).
     """
-    theta = np.asarray(theta, float)
-    k = np.broadcast_to(np.asarray(k, float), theta.shape)
+    theta, k = np.asarray(theta, float), np.asarray(k, float)
     torque, torque_clean = np.asarray(torque, float), np.asarray(torque_clean, float)
+    if k.ndim == 0:
+        k = np.full(theta.shape, float(k))
     if not (k.shape == theta.shape == torque.shape == torque_clean.shape):
         raise ValueError(f"k, theta, torque and torque_clean differ in shape: {k.shape}, {theta.shape}, "
                          f"{torque.shape}, {torque_clean.shape}")
