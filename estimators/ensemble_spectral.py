@@ -18,6 +18,9 @@ from jointbench.schema import param
 #: bins whose input power (time mean) is below this fraction of the band's strongest are not fitted: there
 #: the input is mostly the taper's leakage from its band, and ``H`` the response of the neighbouring bins
 INPUT_FLOOR = 1e-2
+#: ... and so are the bins whose spectral window's main lobe (+-2 bins: Hann's) reaches such a bin: at the
+#: edge of the input's band the cross-spectrum averages ``H`` over one side of the bin only
+MAIN_LOBE = 2
 #: numbers (window samples x realizations x windows) transformed at once: bounds memory at about 100 MB
 _CHUNK_NUMBERS = 4_000_000
 
@@ -75,13 +78,16 @@ class EnsembleSpectralEstimate(TVIRFEstimate):
     Attributes (besides those of :class:`~jointbench.estimate_tv.TVIRFEstimate`)
     ----------------------------------------------------------------------------
     freq : ndarray (F,)
-        The frequencies (Hz) the FRF is estimated at (the window's bins in the fitted band with input power).
+        The frequencies (Hz) the FRF is estimated at: the window's bins where the input has power and the
+        coherence is significant, at any frequency (:meth:`predict` uses them all).
     centres : ndarray of int (C,)
         Sample index of each window's centre.
     H, coherence : ndarray (C, F)
         Frozen FRF and squared coherence over the realizations (pooled windows) at each centre.
     params : dict of ndarray (C,)
         ``I``, ``B``, ``K`` of the second-order fit at each centre (empty when ``stiffness = 'lowest'``).
+    fitted : ndarray of bool (F,)
+        The frequencies in ``fmin ... fmax``, from which the stiffness is read.
     """
 
     freq: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0))
@@ -89,6 +95,7 @@ class EnsembleSpectralEstimate(TVIRFEstimate):
     H: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros((0, 0), complex))
     coherence: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros((0, 0)))
     params: dict = dataclasses.field(default_factory=dict)
+    fitted: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0, bool))
 
     def _on_time(self, v: np.ndarray) -> np.ndarray:
         return np.interp(self.time, self.time[self.centres], v)
@@ -124,13 +131,14 @@ class EnsembleSpectralEstimate(TVIRFEstimate):
 
     def response_frame(self):
         """The frozen FRF in long form at the window centres: ``time, freq_hz, re, im, mag, phase_rad,
-        coherence2`` (one row per centre and frequency)."""
+        coherence2, fitted`` (one row per centre and frequency)."""
         import pandas as pd
 
         C, F = self.H.shape
         return pd.DataFrame({"time": np.repeat(self.time[self.centres], F), "freq_hz": np.tile(self.freq, C),
                              "re": self.H.real.ravel(), "im": self.H.imag.ravel(), "mag": np.abs(self.H).ravel(),
-                             "phase_rad": np.angle(self.H).ravel(), "coherence2": self.coherence.ravel()})
+                             "phase_rad": np.angle(self.H).ravel(), "coherence2": self.coherence.ravel(),
+                             "fitted": np.tile(self.fitted, C)})
 
 
 @register("ensemble_spectral", tags=("ltv", "nonparametric", "frf", "ensemble"))
@@ -150,17 +158,21 @@ class EnsembleSpectral(EnsembleEstimator):
     eq. 2) of angle to torque. Averaging over realizations rather than over time keeps the time
     resolution of one window (about ``window / 2`` for a Hann taper) whatever the averaging.
 
-    Frequencies fitted: the bins in ``[fmin, fmax]`` (0 Hz and the Nyquist bin excluded) where the input
-    has power (time-mean ``S_uu`` above ``1e-6`` of its largest bin). Stiffness read from the FRF
-    (``stiffness``): ``'ibk'`` (default) fits ``K + j w B - I w^2`` at every window by least squares
-    weighted by ``gamma^2`` (Westwick & Perreault 2012, Sec. V-A, as ``ibk_spectral``) and reports K,
-    the static gain of the impedance (what the comparison scores); ``'lowest'``: ``|H|`` at the lowest
-    fitted bin (van de Ruit et al. 2018, Sec. IV-E, as ``kbr`` and ``skirt``; biased by ``I w^2`` there).
+    Frequencies: the bins (0 Hz and the Nyquist bin excluded) where the input has power (time-mean
+    ``S_uu`` at least :data:`INPUT_FLOOR` of the band's strongest bin) and the median squared coherence
+    over the windows is significant (95 %). The stiffness is read from those in ``[fmin, fmax]`` whose
+    taper main lobe (:data:`MAIN_LOBE` bins each side) lies where the input has power: at the edge of the
+    input's band the spectra average ``H`` over one side of the bin only. Stiffness (``stiffness``):
+    ``'ibk'`` (default) fits ``K + j w B - I w^2`` at every window by least squares weighted by
+    ``gamma^2`` (Westwick & Perreault 2012, Sec. V-A, as ``ibk_spectral``), with the taper's smoothing of
+    ``-I w^2`` modelled (``resolution``, :func:`taper_spread`), and reports K, the static gain of the
+    impedance (what the comparison scores); ``'lowest'``: ``|H|`` at the lowest fitted bin (van de Ruit
+    et al. 2018, Sec. IV-E, as ``kbr`` and ``skirt``; it includes ``- I w^2 + j w B`` there).
 
-    Prediction: the FRF at the fitted bins, the stiffness at 0 Hz and zero elsewhere is inverted to a
+    Prediction: the FRF at those bins, the stiffness at 0 Hz and zero elsewhere is inverted to a
     two-sided IRF per window (lags ``-W/2 ... W/2 - 1``, linear in time between centres): the model
     ``y(t) = sum_k h(k, t) u(t - k)`` of :class:`~jointbench.estimate_tv.TVIRFEstimate` (eq. 3 of van de
-    Ruit et al. with the frozen FRF), band-limited to the fitted band.
+    Ruit et al. with the frozen FRF), band-limited to where the input excites the joint.
 
     Parameters
     ----------
@@ -243,6 +255,7 @@ class EnsembleSpectral(EnsembleEstimator):
                              f"(resolution {fs / W:g} Hz) lie in fmin ... fmax = {s.fmin:g} ... "
                              f"{s.fmax:g} Hz below the Nyquist frequency; need at least {need}: widen the band or "
                              f"lengthen 'window'")
+        in_range = band.copy()
         step = 1 if s.step is None else max(1, int(round(s.step * fs)))
         starts = np.arange(0, n - W + 1, step)
         P = int(round(s.pool * fs / step))                   # pooled windows on each side
@@ -250,19 +263,22 @@ class EnsembleSpectral(EnsembleEstimator):
             raise InputError(f"{self.name}: pool = {s.pool:g} s spans {2 * P + 1} windows, more than the {len(starts)} "
                              f"of the record; shorten 'pool'")
         U, Y = centred(self.name, ens, s.remove_mean)
-        suu_all, suu, syy, suy = self._spectra(U, Y, W, starts, band, s)
-        # the band of the input: bins with power (time mean), relative to the largest bin at any frequency
-        p = suu_all / len(starts)
-        powered = band & (p > 1e-6 * p[1:].max())
-        powered &= p >= INPUT_FLOOR * (p[powered].max() if powered.any() else np.inf)
-        if powered.sum() < need:
+        # the band of the input: bins with power (mean over half-overlapping windows), relative to the largest
+        p = self._input_power(U, W, s)
+        excited = (f_all > 0) & (f_all < fs / 2) & (p > 1e-6 * p[1:].max())
+        strong = p >= INPUT_FLOOR * (p[band & excited].max() if (band & excited).any() else p[1:].max())
+        strong[0] = True            # 0 Hz is removed by the detrending, not missing; beyond 0 Hz: the mirror image
+        lobe = sliding_window_view(np.pad(strong, MAIN_LOBE, mode="reflect"), 2 * MAIN_LOBE + 1).all(axis=1)
+        excited &= strong
+        band &= lobe                # not at the edge of the input's band
+        if (excited & band).sum() < need:
             top = f_all[p > 1e-3 * p[1:].max()]
             where = f"{top.min():g} ... {top.max():g} Hz" if len(top) else "nowhere"
-            raise InputError(f"{self.name}: the input has power at {int(powered.sum())} of the {int(band.sum())} "
-                             f"frequencies in fmin ... fmax = {s.fmin:g} ... {s.fmax:g} Hz (its power lies {where}); "
-                             f"need at least {need}: move the band to where the perturbation excites the joint")
-        keep = powered[band]
-        suu, syy, suy = suu[:, keep], syy[:, keep], suy[:, keep]
+            raise InputError(f"{self.name}: the input has power at {int((excited & band).sum())} of the "
+                             f"{int(in_range.sum())} frequencies in fmin ... fmax = {s.fmin:g} ... {s.fmax:g} Hz (its "
+                             f"power lies {where}); need at least {need}: move the band to where the perturbation "
+                             f"excites the joint")
+        suu, syy, suy = self._spectra(U, Y, W, starts, excited, s)
         if P:
             suu, syy, suy = (_moving_sum(x, 2 * P + 1) for x in (suu, syy, suy))
             starts = starts[P:len(starts) - P]
@@ -274,28 +290,29 @@ class EnsembleSpectral(EnsembleEstimator):
         n_avg = R * (1.0 + 4.0 * s.pool / s.window)
         crit = significance(n_avg)
         sig = np.median(coh, axis=0) > crit
-        if sig.sum() < need:
-            raise InputError(f"{self.name}: the angle and torque of '{ens.name}' are coherent at {int(sig.sum())} of "
-                             f"the {int(powered.sum())} excited frequencies in {s.fmin:g} ... {s.fmax:g} Hz (median "
-                             f"squared coherence above {crit:.2f}, the 95 % level of {n_avg:.3g} averages); need at "
-                             f"least {need}")
-        fitted = powered.copy()
-        fitted[powered] = sig
-        H, coh, suu = H[:, sig], coh[:, sig], suu[:, sig]
-        freq = f_all[fitted]
+        in_band = band[excited]
+        if (sig & in_band).sum() < need:
+            raise InputError(f"{self.name}: the angle and torque of '{ens.name}' are coherent at "
+                             f"{int((sig & in_band).sum())} of the {int(in_band.sum())} excited frequencies in "
+                             f"{s.fmin:g} ... {s.fmax:g} Hz (median squared coherence above {crit:.2f}, the 95 % level "
+                             f"of {n_avg:.3g} averages); need at least {need}")
+        used = excited.copy()                     # on the window's grid: the frequencies kept (excited, coherent)
+        used[excited] = sig
+        H, coh, suu, in_band = H[:, sig], coh[:, sig], suu[:, sig], in_band[sig]
+        freq = f_all[used]
         # windows without input (e.g. a quiet start): interpolated from their neighbours, not valid
-        power = suu.sum(axis=1)
+        power = suu[:, in_band].sum(axis=1)
         good = power > 1e-6 * np.median(power)
-        w = 2 * np.pi * freq
+        w = 2 * np.pi * freq[in_band]
         params: dict[str, np.ndarray] = {}
         if s.stiffness == "ibk":
             spread = taper_spread(sps.get_window(s.taper, W), fs) if s.resolution == "corrected" else 0.0
-            I, B, K, ok = ibk_fit(w, H, coh, spread)
+            I, B, K, ok = ibk_fit(w, H[:, in_band], coh[:, in_band], spread)
             good &= ok
             params = {"I": I, "B": B, "K": K}
             k0 = K
         else:
-            k0 = np.abs(H[:, 0])
+            k0 = np.abs(H[:, np.flatnonzero(in_band)[0]])
         if good.sum() < 1:
             raise InputError(f"{self.name}: no window of '{ens.name}' has input enough to fit; the input is "
                              f"nearly zero")
@@ -306,7 +323,7 @@ class EnsembleSpectral(EnsembleEstimator):
         coh = np.array([fix(coh[:, j]) for j in range(coh.shape[1])]).T
         params = {k: fix(v) for k, v in params.items()}
         k0 = fix(k0)
-        h_c = self._irfs(H, k0, fitted, W)                              # (C, W), lags -W/2 ... W/2 - 1
+        h_c = self._irfs(H, k0, used, W)                              # (C, W), lags -W/2 ... W/2 - 1
         lags = np.fft.fftshift(np.fft.fftfreq(W, 1.0 / W)).round().astype(int)
         valid = np.zeros(n, bool)
         valid[centres[idx[0]]:centres[idx[-1]] + 1] = True
@@ -326,21 +343,30 @@ class EnsembleSpectral(EnsembleEstimator):
         filled[span] = True
         info = {"realizations": R, "window_samples": W, "windows": len(centres), "step_samples": step,
                 "pooled_windows": 2 * P + 1, "frequencies": f"{len(freq)} ({freq[0]:g} ... {freq[-1]:g} Hz)",
-                "significant_coherence": f"{int(sig.sum())} of {int(powered.sum())} excited frequencies (95 %, "
+                "fitted": f"{int(in_band.sum())} frequencies ({freq[in_band][0]:g} ... {freq[in_band][-1]:g} Hz)",
+                "significant_coherence": f"{int(sig.sum())} of {int(excited.sum())} excited frequencies (95 %, "
                                          f"{n_avg:.3g} averages)",
-                "stiffness_from": "K of the I-B-K fit" if s.stiffness == "ibk" else f"|H({freq[0]:g} Hz)|"}
+                "stiffness_from": "K of the I-B-K fit" if s.stiffness == "ibk" else f"|H({freq[in_band][0]:g} Hz)|"}
         return EnsembleSpectralEstimate(lags=lags, h=fill_invalid(h, filled), fs=fs, time=ens.time, valid=valid,
                                         estimator=self.name, info=info, freq=freq, centres=centres, H=H,
-                                        coherence=coh, params=params)
+                                        coherence=coh, params=params, fitted=in_band)
 
     @staticmethod
-    def _spectra(U, Y, W, starts, band, s):
-        """Time-mean input power at every bin, and per window ``sum_r |U|^2, |Y|^2, conj(U) Y`` at the band bins."""
+    def _input_power(U, W, s) -> np.ndarray:
+        """Mean ``|U|^2`` at every bin of the window over half-overlapping windows of every realization."""
+        taper = sps.get_window(s.taper, W)
+        seg = sliding_window_view(U, W, axis=0)[::max(1, W // 2)]               # (windows, R, W)
+        if s.detrend != "none":
+            seg = sps.detrend(seg, axis=-1, type=s.detrend)
+        return (np.abs(np.fft.rfft(seg * taper, axis=-1)) ** 2).mean(axis=(0, 1))
+
+    @staticmethod
+    def _spectra(U, Y, W, starts, bins, s):
+        """Per window ``sum_r |U|^2``, ``sum_r |Y|^2``, ``sum_r conj(U) Y`` at the ``bins`` (a mask of the grid)."""
         R = U.shape[1]
         taper = sps.get_window(s.taper, W)
         chunk = max(1, _CHUNK_NUMBERS // (W * R))
         vu, vy = sliding_window_view(U, W, axis=0), sliding_window_view(Y, W, axis=0)   # (n - W + 1, R, W)
-        suu_all = np.zeros(W // 2 + 1)
         out = [], [], []
         for c0 in range(0, len(starts), chunk):
             st = starts[c0:c0 + chunk]
@@ -348,14 +374,11 @@ class EnsembleSpectral(EnsembleEstimator):
             if s.detrend != "none":
                 a = sps.detrend(a, axis=-1, type=s.detrend)
                 b = sps.detrend(b, axis=-1, type=s.detrend)
-            FU, FY = np.fft.rfft(a * taper, axis=-1), np.fft.rfft(b * taper, axis=-1)
-            pu = np.abs(FU) ** 2
-            suu_all += pu.sum(axis=(0, 1)) / R
-            FU, FY = FU[..., band], FY[..., band]
-            out[0].append(pu[..., band].sum(axis=1))
+            FU, FY = np.fft.rfft(a * taper, axis=-1)[..., bins], np.fft.rfft(b * taper, axis=-1)[..., bins]
+            out[0].append((np.abs(FU) ** 2).sum(axis=1))
             out[1].append((np.abs(FY) ** 2).sum(axis=1))
             out[2].append((np.conj(FU) * FY).sum(axis=1))
-        return (suu_all, *(np.concatenate(x) for x in out))
+        return tuple(np.concatenate(x) for x in out)
 
     @staticmethod
     def _irfs(H, k0, powered, W) -> np.ndarray:
