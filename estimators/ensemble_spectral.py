@@ -15,8 +15,8 @@ from jointbench.errors import InputError
 from jointbench.estimate_tv import TVIRFEstimate
 from jointbench.schema import param
 
-#: bins whose input power (time mean) is below this fraction of the band's strongest are not fitted: there
-#: the input is mostly the taper's leakage from its band, and ``H`` the response of the neighbouring bins
+#: bins whose input power (time mean) is below this fraction of the strongest bin's are not used: there the
+#: input is mostly the taper's leakage from its band (Hann: -31 dB sidelobes), and ``H`` that of other bins
 INPUT_FLOOR = 1e-2
 #: ... and so are the bins whose spectral window's main lobe (+-2 bins: Hann's) reaches such a bin: at the
 #: edge of the input's band the cross-spectrum averages ``H`` over one side of the bin only
@@ -159,7 +159,7 @@ class EnsembleSpectral(EnsembleEstimator):
     resolution of one window (about ``window / 2`` for a Hann taper) whatever the averaging.
 
     Frequencies: the bins (0 Hz and the Nyquist bin excluded) where the input has power (time-mean
-    ``S_uu`` at least :data:`INPUT_FLOOR` of the band's strongest bin) and the median squared coherence
+    ``S_uu`` at least :data:`INPUT_FLOOR` of its strongest bin's) and the median squared coherence
     over the windows is significant (95 %). The stiffness is read from those in ``[fmin, fmax]`` whose
     taper main lobe (:data:`MAIN_LOBE` bins each side) lies where the input has power: at the edge of the
     input's band the spectra average ``H`` over one side of the bin only. Stiffness (``stiffness``):
@@ -266,7 +266,7 @@ class EnsembleSpectral(EnsembleEstimator):
         # the band of the input: bins with power (mean over half-overlapping windows), relative to the largest
         p = self._input_power(U, W, s)
         excited = (f_all > 0) & (f_all < fs / 2) & (p > 1e-6 * p[1:].max())
-        strong = p >= INPUT_FLOOR * (p[band & excited].max() if (band & excited).any() else p[1:].max())
+        strong = p >= INPUT_FLOOR * p[1:].max()
         strong[0] = True            # 0 Hz is removed by the detrending, not missing; beyond 0 Hz: the mirror image
         lobe = sliding_window_view(np.pad(strong, MAIN_LOBE, mode="reflect"), 2 * MAIN_LOBE + 1).all(axis=1)
         excited &= strong
