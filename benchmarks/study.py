@@ -3,8 +3,8 @@ record the run in the history.
 
 Outputs in ``results/<study>/`` (``./results`` of the current folder, or ``--out``; a run with ``--set`` and
 no ``--out``: ``results/set-runs/<study>-set-<hash>/``, said on stderr): ``cases.csv`` (tidy rows) and
-``cases.parquet`` (the same, typed), ``curves.csv.gz`` (curves behind the figures), ``comparison.csv`` (one row per published check),
-``report.md`` with its PNG figures,
+``cases.parquet`` (the same, typed), ``curves.csv.gz`` (curves behind the figures), ``comparison.csv``
+(one row per published check), ``report.md`` with its PNG figures,
 ``report.html`` (the same report, self-contained), ``failures.log`` (tracebacks of failed cases, when
 any). Beside them, shared by every study:
 ``results/cache/`` (finished cases, :mod:`benchmarks.harness.cache`) and ``results/history.sqlite``
