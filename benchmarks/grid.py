@@ -49,11 +49,10 @@ from typing import Any, Callable, Mapping
 
 from jointbench import estimators
 from jointbench import sims
+from jointbench.benchmarks.grid_tuning import AXES, _matches, _only, _search, candidates, grid_settings
 from jointbench.errors import ConfigError, Incompatible
 from jointbench.schema import param, parse
 
-#: the axes a grid may have, in the order they appear in case ids
-AXES = ("scenario", "joint", "variation", "perturbation", "noise", "fs", "backend", "estimator", "data", "tuning")
 NATIVE = "native"
 DATA = ("trial", "ensemble")
 #: the tuning axis: the paper's settings, or tuned on tuning realizations (protocols.compare)
@@ -260,78 +259,6 @@ def parse_grid(data: Mapping, experiment: Mapping | None, part_estimators: Mappi
                 joints=joints, settings=settings, budget_minutes=float(budget), search=search, only=only)
 
 
-def grid_settings(part_estimators: Mapping[str, dict], est: str) -> dict:
-    return dict(part_estimators.get(est) or {})
-
-
-def _search(value: Any, where: str) -> dict[str, dict[str, list]]:
-    """A tuning search: estimator -> setting -> the values tried (non-empty lists)."""
-    if value is None:
-        return {}
-    if not isinstance(value, Mapping):
-        raise ConfigError(f"{where}: expected a mapping estimator -> setting -> list of values")
-    out = {}
-    for est, spec in value.items():
-        if est not in estimators.REGISTRY:
-            raise ConfigError(f"{where}: unknown estimator {est!r}; known: {', '.join(estimators.REGISTRY.names())}")
-        if not isinstance(spec, Mapping) or not all(isinstance(v, list) and v for v in spec.values()):
-            raise ConfigError(f"{where}.{est}: expected a mapping setting -> non-empty list of values, got {spec!r}")
-        out[str(est)] = {str(k): list(v) for k, v in spec.items()}
-    return out
-
-
-def candidates(est: str, settings: Mapping, search: Mapping[str, list]) -> list[dict]:
-    """The settings a tuned case chooses among: the paper's ``settings`` first, then every combination of
-    the ``search`` values over them (each once); empty when there is nothing to search."""
-    if not search:
-        return []
-    out = [dict(settings)]
-    names = list(search)
-    for values in itertools.product(*(search[n] for n in names)):
-        out.append({**settings, **dict(zip(names, values))})
-    seen, unique = set(), []
-    for c in out:
-        key = json.dumps(c, sort_keys=True, default=str)
-        if key not in seen:
-            seen.add(key)
-            unique.append(c)
-    return unique
-
-
-def _only(value: Any, axes: Mapping[str, tuple], where: str) -> tuple:
-    """Rules that run part of the grid: ``[{when: {axis: values}, keep: {axis: values}, reason: text}]``; a
-    combination matching every axis of ``when`` runs only if it matches every axis of ``keep`` (a value or
-    a list); the others are skipped with the ``reason``."""
-    if value is None:
-        return ()
-    if not isinstance(value, list):
-        raise ConfigError(f"{where}: key 'only': expected a list of {{when, keep, reason}}")
-    rules = []
-    for i, rule in enumerate(value):
-        w = f"{where}: only[{i}]"
-        if not isinstance(rule, Mapping) or set(rule) - {"when", "keep", "reason"} or "keep" not in rule:
-            raise ConfigError(f"{w}: expected {{when: {{axis: values}}, keep: {{axis: values}}, reason: text}}")
-        parsed = {}
-        for key in ("when", "keep"):
-            m = rule.get(key) or {}
-            if not isinstance(m, Mapping):
-                raise ConfigError(f"{w}.{key}: expected a mapping axis -> value or list of values")
-            for axis in m:
-                if axis not in AXES:
-                    raise ConfigError(f"{w}.{key}: unknown axis {axis!r}; axes: {', '.join(AXES)}")
-            parsed[key] = {a: tuple(v if isinstance(v, list) else [v]) for a, v in m.items()}
-        rules.append((parsed["when"], parsed["keep"], str(rule.get("reason") or "excluded by the grid's 'only'")))
-    return tuple(rules)
-
-
-def _matches(combo: Mapping, cond: Mapping[str, tuple]) -> bool:
-    def eq(a, b):
-        if isinstance(a, (int, float)) and isinstance(b, (int, float)) and not isinstance(a, bool):
-            return float(a) == float(b)
-        return str(a) == str(b)
-    return all(any(eq(combo.get(a), v) for v in vals) for a, vals in cond.items())
-
-
 # ------------------------------------------------------------------------------------------ expansion
 def stiffness_profile(variation: Mapping, levels: Stiffness) -> Any:
     """The profile of a relative variation at a scenario's levels: sine/square/smooth_random take
@@ -471,9 +398,9 @@ SIM_S_PER_STEP = {"analytic": 0.8e-6, "lti": 0.8e-6, "ltv": 0.8e-6, "mujoco": 4e
 TRIAL_S_PER_STEP = 0.15e-6
 #: rough fit seconds per acquired sample (of every realization of an ensemble), by estimator (the matrix
 #: study's medians); others: FIT_DEFAULT
-FIT_S_PER_SAMPLE = {"fsewls": 0.7e-6, "kbr": 12e-6, "skirt": 3e-6, "sds": 6e-6, "guarin": 4e-6,
+FIT_S_PER_SAMPLE = {"fsewls": 0.7e-6, "kbr": 12e-6, "skirt": 3e-6, "sds": 6e-6, "guarin": 12e-6,
                     "ensemble_irf": 3e-6, "irf2_ls": 0.3e-6, "irf2_corr": 0.1e-6, "ibk_irf": 2.5e-6,
-                    "ibk_spectral": 2.5e-6, "spectral": 2.5e-6}
+                    "ibk_spectral": 2.5e-6, "spectral": 2.5e-6, "ensemble_spectral": 10e-6}
 FIT_DEFAULT = 1e-5
 #: rough CPU seconds a case spends besides its fits (scoring, the bootstrap of the spread, parsing)
 CASE_OVERHEAD_S = 0.15
