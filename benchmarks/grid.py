@@ -18,15 +18,25 @@ combination of its axes, one case per estimator and combination (all R realizati
         backend: [analytic, mujoco]
         data: [trial, ensemble]      # fit single trials or ensembles (default: what the estimator takes)
         joint: [native, arm_xu1998_calibration]   # a model of configs/models instead of the scenario's
+        tuning: [paper, tuned]       # the settings as given, or chosen on tuning realizations (below)
+      tuning: {sds: {window: [0.5 s, 1 s, 2 s]}}   # the search of 'tuned' (benchmarks/grid_tuning.py)
+      only:                          # run part of the grid; the rest is skipped with the reason
+        - {when: {backend: mujoco}, keep: {tuning: paper, data: trial}, reason: "MuJoCo on a subset"}
       scenarios:                     # name -> an experiment and how to score it
         xu1998_elbow:
           experiment: {...}          # as in any part
           stiffness: {mean: 40, amplitude: 15, period: 2 s}   # levels and time scale of the variations
           discard: 4 s               # not scored at each end
+          realizations: 100          # R of this scenario (over params.realizations)
           estimators: {fsewls: {...}}   # settings for this scenario (over the part's)
+          tuning: {sds: {window: [0.25 s, 0.5 s]}}   # the search for this scenario (over the part's)
       variations: {sine: {shape: sine}, square: {shape: square}}   # levels from the scenario
       perturbations: {pralds: {kind: pralds, ...}}
       estimators: {fsewls: {...}}    # settings of the estimators on the axis
+
+With ``params.identify: true`` every resolved experiment (the axes but estimator, data and tuning) also gets
+one case of protocol ``identifiability`` (rows with estimator ``(scenario)``: how much of the measured torque
+the stiffness and its time variation explain, :mod:`benchmarks.identifiability`).
 
 A combination an estimator cannot run is skipped and reported with the reason: a perturbation it cannot
 identify from (:meth:`estimators.Estimator.supports`: skirt and KBR need a multisine), data it does not
