@@ -148,3 +148,36 @@ def test_a_set_run_leaves_the_study_results_untouched_and_writes_parquet(tmp_pat
     # the same overrides again: the same folder (the hash of the overrides), never the study's own
     again = run_study(path, parts=["grid"], serial=True, progress=False, overrides=["grid.params.realizations=3"])
     assert again.folder == run.folder
+
+
+# ---------------------------------------------------------------------------------------- grid rules
+def test_only_rules_and_scenario_realizations_shape_the_grid(tmp_path):
+    part = tiny_grid_part(["sds", "ibk_spectral"], realizations=2, tuning=["paper", "tuned"], noise=[0, 0.05],
+                          backend=["analytic", "ltv"])
+    part["tuning"] = {"sds": {"window": ["1 s"]}}
+    part["only"] = [{"when": {"backend": "ltv"}, "keep": {"tuning": "paper", "noise": [0]}, "reason": "subset"}]
+    part["scenarios"]["elbow"]["realizations"] = 4
+    cases, skipped = expand_study(load_study(tiny_study(tmp_path, extra_parts={"grid": part})), ["grid"])
+    ltv = [c for c in cases if c.backend == "ltv"]
+    assert ltv and all(c.sweep["tuning"] == "paper" and c.sweep["noise"] == 0 for c in ltv)
+    why = {(s["backend"], s["estimator"], s["tuning"], s["noise"]): s["reason"] for s in skipped}
+    assert why[("ltv", "sds", "tuned", 0)] == "subset" and why[("ltv", "sds", "paper", 0.05)] == "subset"
+    assert why[("analytic", "ibk_spectral", "tuned", 0)].startswith("nothing to tune")
+    assert all(c.params["realizations"] == 4 for c in cases)
+    assert [c.params["search"] for c in cases if c.sweep["tuning"] == "tuned"][0][1]["window"] == "1 s"
+
+
+@pytest.mark.parametrize("key, value, message", [
+    ("only", [{"when": {"colour": "red"}, "keep": {}}], "only[0].when: unknown axis 'colour'"),
+    ("only", {"when": {}}, "key 'only': expected a list"),
+    ("tuning", {"sds": {"window": "1 s"}}, "tuning.sds: expected a mapping setting -> non-empty list"),
+    ("tuning", {"sds": {"widow": ["1 s"]}}, "tuning of sds (scenario elbow)"),
+    ("tuning", {"nosuch": {"window": ["1 s"]}}, "tuning: unknown estimator 'nosuch'"),
+])
+def test_bad_tuning_and_only_are_config_errors(tmp_path, key, value, message):
+    from jointbench.errors import ConfigError
+
+    part = tiny_grid_part(["sds"], tuning=["paper", "tuned"])
+    part[key] = value
+    with pytest.raises(ConfigError, match=message.replace("(", r"\(").replace(")", r"\)").replace("[", r"\[")):
+        load_study(tiny_study(tmp_path, extra_parts={"grid": part}))
