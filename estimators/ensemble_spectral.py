@@ -106,20 +106,38 @@ class EnsembleSpectralEstimate(TVIRFEstimate):
         return {k: self._on_time(v) for k, v in self.params.items()}
 
     def frequency_response(self, f: np.ndarray, t=None) -> np.ndarray:
-        """The frozen FRF at times ``t``: linear in time between window centres, and in frequency between
-        the estimated frequencies, with the stiffness at 0 Hz (as :class:`~jointbench.estimate.FRFEstimate`);
-        held beyond the highest estimated frequency. ``(len(t), len(f))``, or ``(len(f),)`` for a scalar ``t``."""
+        """The frozen FRF at times ``t`` (linear in time between window centres, held outside them).
+
+        At the estimated frequencies it is :attr:`H`, at 0 Hz the stiffness; in between, the fitted
+        ``K + j w B - I w^2`` plus the residual ``H - (K + j w B - I w^2)`` interpolated linearly in
+        frequency (so a second-order response keeps its curvature between the bins), or ``H`` itself
+        interpolated linearly with ``stiffness = 'lowest'``; held beyond the highest estimated frequency.
+        ``(len(t), len(f))``, or ``(len(f),)`` for a scalar ``t``.
+        """
         if t is None:
             raise ValueError(f"{self.estimator}: the estimate is time-varying; give the time(s) t")
         tt = np.atleast_1d(np.asarray(t, float))
         f = np.atleast_1d(np.asarray(f, float))
         tc = self.time[self.centres]
-        k0 = np.interp(tt, tc, self.h[:, self.centres].sum(axis=0))
-        Ht = np.array([np.interp(tt, tc, self.H[:, j].real) + 1j * np.interp(tt, tc, self.H[:, j].imag)
-                       for j in range(len(self.freq))]).T.reshape(len(tt), len(self.freq))
+        at = lambda v: np.interp(tt, tc, v)                                 # noqa: E731
+        k0 = at(self.h[:, self.centres].sum(axis=0))
+        Ht = np.array([at(self.H[:, j].real) + 1j * at(self.H[:, j].imag) for j in range(len(self.freq))]).T
         fg = np.concatenate([[0.0], self.freq])
-        Hg = np.column_stack([k0, Ht])
-        out = np.array([np.interp(f, fg, row.real) + 1j * np.interp(f, fg, row.imag) for row in Hg])
+        Hg = np.column_stack([k0, Ht.reshape(len(tt), len(self.freq))])
+
+        def model(freqs):
+            if not self.params:
+                return np.zeros((len(tt), len(freqs)), complex)
+            w = 2 * np.pi * freqs[None, :]
+            return (at(self.params["K"])[:, None] + 1j * w * at(self.params["B"])[:, None]
+                    - at(self.params["I"])[:, None] * w ** 2)
+
+        r = Hg - model(fg)
+        r[:, 0] = 0.0 if self.params else r[:, 0]
+        inner = np.clip(f, 0.0, fg[-1])
+        out = model(inner) + np.array([np.interp(inner, fg, row.real) + 1j * np.interp(inner, fg, row.imag)
+                                       for row in r])
+        out[:, f > fg[-1]] = Hg[:, -1:]
         return out[0] if np.ndim(t) == 0 else out
 
     def to_frame(self):
