@@ -145,6 +145,7 @@ def test_a_set_run_leaves_the_study_results_untouched_and_writes_parquet(tmp_pat
     csv = pd.read_csv(run.folder / "cases.csv")
     assert len(pq) == len(csv) and {"scenario", "variation", "noise", "backend", "data"} <= set(pq.columns)
     assert pq["noise"].dtype == float and set(pq["scenario"].dropna()) == {"elbow"}
+    assert str(pq["realization"].dtype) == "Int64" and set(pq["realization"].dropna()) == {0, 1, 2}
     # the same overrides again: the same folder (the hash of the overrides), never the study's own
     again = run_study(path, parts=["grid"], serial=True, progress=False, overrides=["grid.params.realizations=3"])
     assert again.folder == run.folder
@@ -181,3 +182,26 @@ def test_bad_tuning_and_only_are_config_errors(tmp_path, key, value, message):
     part[key] = value
     with pytest.raises(ConfigError, match=message.replace("(", r"\(").replace(")", r"\)").replace("[", r"\[")):
         load_study(tiny_study(tmp_path, extra_parts={"grid": part}))
+
+
+def test_committed_matrix_rows_have_intervals_that_contain_their_values():
+    """Over the committed results/matrix/cases.parquet (written by `make matrix`; skipped before the first
+    run that writes it): every aggregate row's 90 % interval contains its value."""
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "results" / "matrix" / "cases.parquet"
+    if not path.is_file():
+        pytest.skip("results/matrix/cases.parquet not committed yet (make matrix writes it)")
+    rows = pd.read_parquet(path)
+    agg = rows[rows["p05"].notna()]
+    assert len(agg) > 0
+    bad = agg[~((agg["p05"] <= agg["value"]) & (agg["value"] <= agg["p95"]))]
+    assert bad.empty, bad[["case_id", "metric", "value", "p05", "p95"]].head().to_string()
+
+
+def test_a_tuned_case_is_estimated_to_cost_more_than_its_paper_case(tmp_path):
+    from jointbench.benchmarks.grid import estimate_seconds
+
+    cases, _ = expand_study(load_study(_tuned_study(tmp_path)), ["grid"])
+    cost = {c.sweep.get("tuning", "identifiability"): estimate_seconds([c], [[0]]) for c in cases}
+    assert cost["tuned"] > cost["paper"] > cost["identifiability"] > 0

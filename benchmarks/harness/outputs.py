@@ -108,12 +108,22 @@ def set_folder_name(study_id: str, overrides) -> str:
     return f"{study_id}-set-{digest}"
 
 
+#: count and index columns written as (nullable) integers
+INT_COLUMNS = ("seed", "realization", "n", "n_steps", "n_trials", "n_responses")
+
+
 def parquet_frame(rows):
     """The tidy rows typed for Parquet: a column holding one kind of value keeps it (numbers, booleans,
-    strings); a column mixing kinds (a grid axis with ``native`` and rates) is written as strings."""
+    strings; the :data:`INT_COLUMNS` as nullable integers); a column mixing kinds (a grid axis with ``native``
+    and rates) is written as strings."""
     import pandas as pd
 
     out = rows.copy()
+    for col in INT_COLUMNS:
+        if col in out.columns and pd.api.types.is_numeric_dtype(out[col]):
+            x = out[col]
+            if bool((x.dropna() == x.dropna().round()).all()):
+                out[col] = x.astype("Int64")
     for col in out.columns:
         if out[col].dtype != object and not pd.api.types.is_string_dtype(out[col]):
             continue
