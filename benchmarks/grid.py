@@ -444,7 +444,7 @@ def estimate_seconds(cases: list, groups: list[list[int]]) -> float:
             per_fit = k * n * FIT_S_PER_SAMPLE.get(est, FIT_DEFAULT)
             total += R * per_fit + CASE_OVERHEAD_S
             search = c.params.get("search") or ()
-            if search and exp is not None:         # each candidate fitted once, on k + 1 tuning realizations
+            if search and exp is not None:         # each candidate fitted once; k + 2 tuning realizations
                 per_step = SIM_S_PER_STEP.get(first.backend, SIM_S_PER_STEP["mujoco"])
-                total += len(search) * per_fit + (k + 1) * exp.n_sim * (per_step + TRIAL_S_PER_STEP)
+                total += len(search) * per_fit + (k + 2) * exp.n_sim * (per_step + TRIAL_S_PER_STEP)
     return total

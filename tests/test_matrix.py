@@ -95,7 +95,7 @@ def test_tuning_never_reads_the_scored_realizations_or_the_truth(tmp_path, monke
     real_select = compare_mod.select_setting
 
     def blind_select(make, candidates, fit_data, held_out, keep):
-        for trial in (*getattr(fit_data, "realizations", [fit_data]), held_out):
+        for trial in (*getattr(fit_data, "realizations", [fit_data]), *held_out):
             assert trial.truth is None             # the tuning data reach the search without their truth
         return real_select(make, candidates, fit_data, held_out, keep)
 

@@ -22,8 +22,9 @@ Every row carries ``settings`` (JSON of the estimator's settings as fitted). Wit
 settings are first chosen (:func:`select_setting`) among ``search`` (full settings mappings, from the grid's
 ``tuning`` search) by the output VAF on tuning realizations (indices from :data:`TUNE_OFFSET`, never
 scored; their truth removed before anything sees them): fitted on one tuning trial (or an ensemble of
-``ensemble_size`` tuning realizations), each candidate predicts the torque of another tuning realization
-from its angle. Rows ``tuning_vaf_output`` (label ``candidate``, ``chosen``) give every candidate's score.
+``ensemble_size`` tuning realizations), each candidate predicts the torque of two other tuning realizations
+from their angle (score: the mean VAF). Rows ``tuning_vaf_output`` (label ``candidate``, ``chosen``) give
+every candidate's score.
 
 Protocol ``identifiability`` (estimator ``(scenario)``, one case per resolved experiment when the part's
 ``params.identify`` is true): the figures of
@@ -62,6 +63,8 @@ from jointbench.schema import param
 
 
 TUNE_OFFSET = 100_000
+#: held-out tuning realizations each candidate predicts (its score: the mean output VAF)
+N_HELD_OUT = 2
 #: realizations whose identifiability figures are computed (median)
 N_IDENTIFY = 3
 #: the estimator label of the identifiability rows
@@ -133,22 +136,24 @@ def settings_json(estimator) -> str:
 
 
 def select_setting(make, candidates, fit_data, held_out, keep) -> tuple[int, list[float]]:
-    """The candidate whose estimate, fitted to ``fit_data``, best predicts the output of ``held_out`` from
-    its input (VAF over the ``keep`` samples valid for the estimate): ``(index, scores)``, score NaN where
-    the candidate cannot be fitted. ``make(candidate)`` builds the estimator. Only the tuning data are
-    given: this function cannot see a scored realization or the truth (the caller removes it)."""
+    """The candidate whose estimate, fitted to ``fit_data``, best predicts the output of the ``held_out``
+    trials from their input (mean VAF over the ``keep`` samples valid for the estimate): ``(index, scores)``,
+    score NaN where the candidate cannot be fitted. ``make(candidate)`` builds the estimator. Only the tuning
+    data are given: this function cannot see a scored realization or the truth (the caller removes it)."""
     scores = []
-    t = held_out.time
     for cand in candidates:
         try:
             est = make(cand).fit(fit_data)
         except InputError:
             scores.append(math.nan)
             continue
-        m = keep & valid_mask(est, t)
-        yhat = np.asarray(est.predict(held_out.input), float)
-        ok = m.sum() >= 2 and bool(np.all(np.isfinite(yhat[m])))
-        scores.append(metrics.vaf(held_out.output[m], yhat[m]) if ok else math.nan)
+        vafs = []
+        for trial in held_out:
+            m = keep & valid_mask(est, trial.time)
+            yhat = np.asarray(est.predict(trial.input), float)
+            ok = m.sum() >= 2 and bool(np.all(np.isfinite(yhat[m])))
+            vafs.append(metrics.vaf(trial.output[m], yhat[m]) if ok else math.nan)
+        scores.append(float(np.mean(vafs)))
     if not np.any(np.isfinite(scores)):
         raise InputError("no candidate setting could be fitted to the tuning realizations")
     return int(np.nanargmax(scores)), scores
@@ -160,14 +165,14 @@ def _blind_copy(trial):
 
 def tuning_data(ctx, p: CompareParams):
     """The tuning data of a case (realizations from :data:`TUNE_OFFSET`, truth removed): what is fitted (a
-    trial, or an ensemble of ``ensemble_size``) and the held-out trial it predicts."""
+    trial, or an ensemble of ``ensemble_size``) and the :data:`N_HELD_OUT` held-out trials it predicts."""
     def sim(i):
         return _blind_copy(impedance(sims.simulate(ctx.experiment, ctx.seed, realization=TUNE_OFFSET + i,
                                                    name=f"tuning realization {i}")))
     n = p.ensemble_size if p.data == "ensemble" else 1
     fit = [sim(i) for i in range(n)]
     data = Ensemble(tuple(fit), name="tuning ensemble") if p.data == "ensemble" else fit[0]
-    return data, sim(n)
+    return data, [sim(n + j) for j in range(N_HELD_OUT)]
 
 
 def _share(p: CompareParams) -> tuple:
