@@ -15,12 +15,14 @@ from jointbench.errors import InputError
 from jointbench.estimate_tv import TVIRFEstimate
 from jointbench.schema import param
 
-#: bins whose input power (time mean) is below this fraction of the strongest bin's are not used: there the
-#: input is mostly the taper's leakage from its band (Hann: -31 dB sidelobes), and ``H`` that of other bins
+#: bins whose input power (time mean) is below this fraction of the strongest bin's are not fitted: there the
+#: input may be mostly the taper's leakage from its band (Hann: -31 dB sidelobes), and ``H`` that of other bins
 INPUT_FLOOR = 1e-2
 #: ... and so are the bins whose spectral window's main lobe (+-2 bins: Hann's) reaches such a bin: at the
 #: edge of the input's band the cross-spectrum averages ``H`` over one side of the bin only
 MAIN_LOBE = 2
+#: knots of :meth:`EnsembleSpectralEstimate.predict` whose full-record products are held at once
+_KNOTS_AT_ONCE = 32
 #: numbers (window samples x realizations x windows) transformed at once: bounds memory at about 100 MB
 _CHUNK_NUMBERS = 4_000_000
 
@@ -69,11 +71,14 @@ def ibk_fit(w: np.ndarray, H: np.ndarray, g2: np.ndarray,
 
 @dataclasses.dataclass(eq=False)
 class EnsembleSpectralEstimate(TVIRFEstimate):
-    """The time-varying two-sided IRF of the estimated frozen FRF, plus that FRF itself.
+    """The estimated frozen FRF over time, and the time-varying two-sided IRF of its window grid.
 
     ``h(., t)`` is the inverse DFT of the frozen FRF at ``t`` on the window's frequency grid (lags
-    ``-W/2 ... W/2 - 1``), so :meth:`predict` is the model ``y(t) = sum_k h(k, t) u(t - k)`` and
-    ``sum_k h(k, t)`` (:meth:`stiffness`) is the grid's DC value, the stiffness read from the FRF.
+    ``-W/2 ... W/2 - 1``; the FRF at the estimated bins, the stiffness at 0 Hz, zero elsewhere), so that
+    ``sum_k h(k, t)`` (:meth:`stiffness`) is the stiffness read from the FRF. :meth:`predict` applies the
+    FRF itself to the record's DFT (eq. 3 of van de Ruit et al. 2018): an IRF of one window's length
+    would wrap the long, band-limited impulse response of ``- I w^2`` (measured: VAF 71 % against 94 % on
+    the Xu elbow at 200 Hz, -15 % against 92 % with 0.5 s windows).
 
     Attributes (besides those of :class:`~jointbench.estimate_tv.TVIRFEstimate`)
     ----------------------------------------------------------------------------
@@ -140,6 +145,40 @@ class EnsembleSpectralEstimate(TVIRFEstimate):
         out[:, f > fg[-1]] = Hg[:, -1:]
         return out[0] if np.ndim(t) == 0 else out
 
+    def predict(self, u: np.ndarray) -> np.ndarray:
+        """``y(t) = sum_f G(f, t) U(f) e^{j 2 pi f t}`` (van de Ruit et al. 2018, eq. 3) for an input on the
+        fitted time base: ``U`` the DFT of the whole record, ``G`` :meth:`frequency_response` on its grid,
+        zero above the highest estimated frequency, at knots every ``W / 8`` samples of the window centres
+        (linear between knots, held outside them). The product is circular: the record's ends (outside
+        :attr:`valid`) are not predicted reliably."""
+        u = np.asarray(u, float)
+        n = len(self.time)
+        if u.shape != (n,):
+            raise ValueError(f"{self.estimator}: predict needs an input on the fitted time base ({n} samples), got "
+                             f"shape {u.shape}")
+        f = np.fft.rfftfreq(n, 1.0 / self.fs)
+        Uf = np.fft.rfft(u)
+        spacing = max(1, len(self.lags) // 8)
+        knots = np.unique(np.concatenate([self.centres[::spacing], self.centres[-1:]]))
+        out = np.zeros(n)
+        top = f > self.freq[-1]
+        prev = None
+        for k0 in range(0, len(knots), _KNOTS_AT_ONCE):
+            ks = knots[max(k0 - 1, 0):k0 + _KNOTS_AT_ONCE]          # one knot of overlap with the last chunk
+            G = self.frequency_response(f, self.time[ks])
+            G[:, top] = 0.0
+            Yk = np.fft.irfft(G * Uf[None, :], n, axis=1)             # (knots, n)
+            for j in range(len(ks) - 1):
+                a, b = ks[j], ks[j + 1]
+                wgt = (np.arange(a, b + 1) - a) / (b - a)
+                out[a:b + 1] = (1 - wgt) * Yk[j, a:b + 1] + wgt * Yk[j + 1, a:b + 1]
+            if k0 == 0:
+                out[:ks[0]] = Yk[0, :ks[0]]
+            prev = (ks[-1], Yk[-1])
+        if prev is not None:
+            out[prev[0]:] = prev[1][prev[0]:]
+        return out
+
     def to_frame(self):
         """``time``, ``I``, ``B``, ``K`` (when fitted), ``stiffness`` and ``valid``."""
         import pandas as pd
@@ -177,20 +216,20 @@ class EnsembleSpectral(EnsembleEstimator):
     resolution of one window (about ``window / 2`` for a Hann taper) whatever the averaging.
 
     Frequencies: the bins (0 Hz and the Nyquist bin excluded) where the input has power (time-mean
-    ``S_uu`` at least :data:`INPUT_FLOOR` of its strongest bin's) and the median squared coherence
-    over the windows is significant (95 %). The stiffness is read from those in ``[fmin, fmax]`` whose
-    taper main lobe (:data:`MAIN_LOBE` bins each side) lies where the input has power: at the edge of the
-    input's band the spectra average ``H`` over one side of the bin only. Stiffness (``stiffness``):
+    ``S_uu`` above ``1e-6`` of its strongest bin's) and the median squared coherence over the windows is
+    significant (95 %). The stiffness is read from those in ``[fmin, fmax]`` where the input is strong
+    (at least :data:`INPUT_FLOOR` of the strongest bin), over the taper's main lobe around the bin
+    (:data:`MAIN_LOBE` bins each side): at the edge of the input's band the spectra average ``H`` over
+    one side of the bin only. Stiffness (``stiffness``):
     ``'ibk'`` (default) fits ``K + j w B - I w^2`` at every window by least squares weighted by
     ``gamma^2`` (Westwick & Perreault 2012, Sec. V-A, as ``ibk_spectral``), with the taper's smoothing of
     ``-I w^2`` modelled (``resolution``, :func:`taper_spread`), and reports K, the static gain of the
     impedance (what the comparison scores); ``'lowest'``: ``|H|`` at the lowest fitted bin (van de Ruit
     et al. 2018, Sec. IV-E, as ``kbr`` and ``skirt``; it includes ``- I w^2 + j w B`` there).
 
-    Prediction: the FRF at those bins, the stiffness at 0 Hz and zero elsewhere is inverted to a
-    two-sided IRF per window (lags ``-W/2 ... W/2 - 1``, linear in time between centres): the model
-    ``y(t) = sum_k h(k, t) u(t - k)`` of :class:`~jointbench.estimate_tv.TVIRFEstimate` (eq. 3 of van de
-    Ruit et al. with the frozen FRF), band-limited to where the input excites the joint.
+    Prediction (:meth:`EnsembleSpectralEstimate.predict`): ``y(t) = sum_f G(f, t) U(f) e^{j 2 pi f t}``
+    over the record's DFT (van de Ruit et al. 2018, eq. 3) with the frozen FRF interpolated between the
+    estimated bins (around the fitted second order), zero above the highest excited bin.
 
     Parameters
     ----------
@@ -287,8 +326,7 @@ class EnsembleSpectral(EnsembleEstimator):
         strong = p >= INPUT_FLOOR * p[1:].max()
         strong[0] = True            # 0 Hz is removed by the detrending, not missing; beyond 0 Hz: the mirror image
         lobe = sliding_window_view(np.pad(strong, MAIN_LOBE, mode="reflect"), 2 * MAIN_LOBE + 1).all(axis=1)
-        excited &= strong
-        band &= lobe                # not at the edge of the input's band
+        band &= strong & lobe       # fitted: well inside the input's band (predicted: wherever it has power)
         if (excited & band).sum() < need:
             top = f_all[p > 1e-3 * p[1:].max()]
             where = f"{top.min():g} ... {top.max():g} Hz" if len(top) else "nowhere"
