@@ -108,7 +108,7 @@ def _run(args) -> int:
     for r in comp.itertuples():
         print(f"  {r.status:4s}  {r.evidence:12s}  {r.check:18s} reproduced {r.reproduced:.5g}  "
               f"[{r.low:.5g}, {r.high:.5g}]")
-    print(f"wrote {run.folder}/report.md, comparison.csv, cases.csv; history run {run.run_id}")
+    print(f"wrote {run.folder}/report.md, comparison.csv, cases.csv, cases.parquet; history run {run.run_id}")
     if run.failed and not run.study.expected_failures:
         print(f"jointbench: {len(run.failed)} of {len(run.results)} cases failed (tracebacks in "
               f"{run.folder / 'failures.log'}); exit 1 (a study whose failures are expected says "

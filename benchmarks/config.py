@@ -154,9 +154,9 @@ class Study:
 _PART_KEYS = {"protocol": True, "description": True, "params": False, "experiment": False,
               "estimators": False, "seeds": False, "sweep": False, "report_section": False, "backend": False,
               "figure": False, "grid": False, "scenarios": False, "variations": False, "perturbations": False,
-              "budget": False}
+              "budget": False, "tuning": False, "only": False}
 #: keys only a part with a comparison grid takes (benchmarks/grid.py)
-GRID_KEYS = ("scenarios", "variations", "perturbations", "budget")
+GRID_KEYS = ("scenarios", "variations", "perturbations", "budget", "tuning", "only")
 REPORT_SECTIONS = ("results", "interpretation")
 _STUDY_KEYS = {"study": True, "title": True, "paper": True, "published": False, "readings": False,
                "not_reproduced": True, "method_swap": False, "parts": True, "plugins": False,

@@ -18,15 +18,25 @@ combination of its axes, one case per estimator and combination (all R realizati
         backend: [analytic, mujoco]
         data: [trial, ensemble]      # fit single trials or ensembles (default: what the estimator takes)
         joint: [native, arm_xu1998_calibration]   # a model of configs/models instead of the scenario's
+        tuning: [paper, tuned]       # the settings as given, or chosen on tuning realizations (below)
+      tuning: {sds: {window: [0.5 s, 1 s, 2 s]}}   # the search of 'tuned' (benchmarks/grid_tuning.py)
+      only:                          # run part of the grid; the rest is skipped with the reason
+        - {when: {backend: mujoco}, keep: {tuning: paper, data: trial}, reason: "MuJoCo on a subset"}
       scenarios:                     # name -> an experiment and how to score it
         xu1998_elbow:
           experiment: {...}          # as in any part
           stiffness: {mean: 40, amplitude: 15, period: 2 s}   # levels and time scale of the variations
           discard: 4 s               # not scored at each end
+          realizations: 100          # R of this scenario (over params.realizations)
           estimators: {fsewls: {...}}   # settings for this scenario (over the part's)
+          tuning: {sds: {window: [0.25 s, 0.5 s]}}   # the search for this scenario (over the part's)
       variations: {sine: {shape: sine}, square: {shape: square}}   # levels from the scenario
       perturbations: {pralds: {kind: pralds, ...}}
       estimators: {fsewls: {...}}    # settings of the estimators on the axis
+
+With ``params.identify: true`` every resolved experiment (the axes but estimator, data and tuning) also gets
+one case of protocol ``identifiability`` (rows with estimator ``(scenario)``: how much of the measured torque
+the stiffness and its time variation explain, :mod:`benchmarks.identifiability`).
 
 A combination an estimator cannot run is skipped and reported with the reason: a perturbation it cannot
 identify from (:meth:`estimators.Estimator.supports`: skirt and KBR need a multisine), data it does not
@@ -49,13 +59,16 @@ from typing import Any, Callable, Mapping
 
 from jointbench import estimators
 from jointbench import sims
+from jointbench.benchmarks.grid_tuning import AXES, _matches, _only, _search, candidates, grid_settings
 from jointbench.errors import ConfigError, Incompatible
 from jointbench.schema import param, parse
 
-#: the axes a grid may have, in the order they appear in case ids
-AXES = ("scenario", "joint", "variation", "perturbation", "noise", "fs", "backend", "estimator", "data")
 NATIVE = "native"
 DATA = ("trial", "ensemble")
+#: the tuning axis: the paper's settings, or tuned on tuning realizations (protocols.compare)
+TUNING = ("paper", "tuned")
+#: the axes an identifiability case has (one per resolved experiment: no estimator, data or tuning)
+SCENARIO_AXES = AXES[:7]
 #: default budget (minutes) of a grid part without ``budget``
 DEFAULT_BUDGET_MIN = 30.0
 #: most combinations a grid may have: each is built and checked when the study is expanded (about a
@@ -78,7 +91,9 @@ class _ScenarioSpec:
     experiment: dict
     stiffness: Stiffness | None = None
     discard: float | None = param(None, unit="s", ge=0, doc="seconds not scored at each end")
+    realizations: int | None = param(None, ge=2, doc="R of this scenario (over params.realizations)")
     estimators: dict = param(default_factory=dict, doc="estimator -> settings for this scenario")
+    tuning: dict = param(default_factory=dict, doc="estimator -> setting -> values searched (over the part's)")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -92,6 +107,8 @@ class Grid:
     joints: Mapping[str, dict]
     settings: Mapping[str, dict]
     budget_minutes: float
+    search: Mapping[str, dict] = dataclasses.field(default_factory=dict)
+    only: tuple = ()
 
     def size(self) -> int:
         return math.prod(len(v) for v in self.axes.values())
@@ -230,6 +247,17 @@ def parse_grid(data: Mapping, experiment: Mapping | None, part_estimators: Mappi
     for i, v in enumerate(axes.get("data", ())):
         if v not in DATA:
             raise ConfigError(f"{where}: grid.data[{i}]: {v!r} not allowed; allowed: {', '.join(DATA)}")
+    for i, v in enumerate(axes.get("tuning", ())):
+        if v not in TUNING:
+            raise ConfigError(f"{where}: grid.tuning[{i}]: {v!r} not allowed; allowed: {', '.join(TUNING)}")
+    search = _search(data.get("tuning"), f"{where}: tuning")
+    for sname, sc in scenarios.items():
+        _search(sc.tuning, f"{where}: scenarios.{sname}.tuning")
+        for est in axes["estimator"]:          # every candidate parses (errors at load)
+            for cand in candidates(est, {**grid_settings(part_estimators, est), **(sc.estimators.get(est) or {})},
+                                   {**search.get(est, {}), **(sc.tuning.get(est) or {})}):
+                estimators.make(est, cand, f"{where}: tuning of {est} (scenario {sname})")
+    only = _only(data.get("only"), axes, where)
     budget = data.get("budget", DEFAULT_BUDGET_MIN)
     if isinstance(budget, bool) or not isinstance(budget, (int, float)) or not budget > 0:
         raise ConfigError(f"{where}: key 'budget': expected minutes > 0, got {budget!r}")
@@ -238,7 +266,7 @@ def parse_grid(data: Mapping, experiment: Mapping | None, part_estimators: Mappi
         raise ConfigError(f"{where}: grid: {' x '.join(f'{len(v)} {a}' for a, v in axes.items())} = {size} "
                           f"combinations, more than the {MAX_COMBINATIONS} a grid may have; shorten the axes")
     return Grid(axes=axes, scenarios=scenarios, variations=variations, perturbations=perturbations,
-                joints=joints, settings=settings, budget_minutes=float(budget))
+                joints=joints, settings=settings, budget_minutes=float(budget), search=search, only=only)
 
 
 # ------------------------------------------------------------------------------------------ expansion
@@ -306,6 +334,7 @@ def expand_grid(study_id: str, part, backend: str | None = None) -> tuple[list[d
     axes.setdefault("backend", (part.backend,))
     names = [a for a in AXES if a in axes]
     cases, skipped = [], []
+    identified: dict[str, dict] = {}       # params.identify: one identifiability case per experiment and seed
     built: dict[str, Any] = {}
     for values in itertools.product(*(axes[a] for a in names)):
         combo = dict(zip(names, values))
@@ -325,19 +354,39 @@ def expand_grid(study_id: str, part, backend: str | None = None) -> tuple[list[d
                 raise ConfigError(f"{part.where}: the combination {labels}: "
                                   f"{str(exc).removeprefix('the experiment: ')}") from None
         exp = built[key]
+        settings = {**grid.settings[est], **(sc.estimators.get(est) or {})}
+        tuned = combo.get("tuning") == "tuned"
+        search = candidates(est, settings, {**grid.search.get(est, {}), **(sc.tuning.get(est) or {})}) if tuned else []
         reason = exp if isinstance(exp, str) else (cls.supports(exp) or _refusal(cls, mode))
+        if not reason:
+            reason = next((why for when, keep, why in grid.only
+                           if _matches({**combo, "data": mode}, when) and not _matches({**combo, "data": mode}, keep)),
+                          None)
+        if not reason and tuned and not search:
+            reason = (f"nothing to tune: the tuning search names no setting of {est} (its tuned column is its "
+                      f"paper column)")
         if reason:
             skipped.append({**combo, "data": mode, "reason": reason})
             continue
         params = {**part.params, "data": mode}
         if sc.discard is not None:
             params["discard"] = sc.discard
-        settings = {**grid.settings[est], **(sc.estimators.get(est) or {})}
+        if sc.realizations is not None:
+            params["realizations"] = sc.realizations
+        if search:
+            params["search"] = search
         for seed in part.seeds:
             cases.append(dict(study=study_id, part=part.name, protocol=part.protocol, params=params,
                               sweep={**combo, "data": mode}, experiment=mapping, estimators={est: settings},
                               seed=seed, where=part.where, backend=combo["backend"]))
-    return cases, skipped
+            scen = {a: v for a, v in combo.items() if a in SCENARIO_AXES}
+            ident = json.dumps([scen, seed], sort_keys=True, default=str)
+            if part.params.get("identify") and ident not in identified:
+                identified[ident] = dict(study=study_id, part=part.name, protocol="identifiability",
+                                         params={k: v for k, v in params.items() if k not in ("data", "search")},
+                                         sweep=scen, experiment=mapping, estimators={}, seed=seed,
+                                         where=part.where, backend=combo["backend"])
+    return cases + list(identified.values()), skipped
 
 
 
@@ -359,9 +408,9 @@ SIM_S_PER_STEP = {"analytic": 0.8e-6, "lti": 0.8e-6, "ltv": 0.8e-6, "mujoco": 4e
 TRIAL_S_PER_STEP = 0.15e-6
 #: rough fit seconds per acquired sample (of every realization of an ensemble), by estimator (the matrix
 #: study's medians); others: FIT_DEFAULT
-FIT_S_PER_SAMPLE = {"fsewls": 0.7e-6, "kbr": 12e-6, "skirt": 3e-6, "sds": 6e-6, "guarin": 4e-6,
+FIT_S_PER_SAMPLE = {"fsewls": 0.7e-6, "kbr": 12e-6, "skirt": 3e-6, "sds": 6e-6, "guarin": 12e-6,
                     "ensemble_irf": 3e-6, "irf2_ls": 0.3e-6, "irf2_corr": 0.1e-6, "ibk_irf": 2.5e-6,
-                    "ibk_spectral": 2.5e-6, "spectral": 2.5e-6}
+                    "ibk_spectral": 2.5e-6, "spectral": 2.5e-6, "ensemble_spectral": 10e-6}
 FIT_DEFAULT = 1e-5
 #: rough CPU seconds a case spends besides its fits (scoring, the bootstrap of the spread, parsing)
 CASE_OVERHEAD_S = 0.15
@@ -386,8 +435,16 @@ def estimate_seconds(cases: list, groups: list[list[int]]) -> float:
             total += len(noises) * R * (M if ens else 1) * exp.n_sim * TRIAL_S_PER_STEP
         for i in g:
             c = cases[i]
-            est = next(iter(c.estimators), "")
             n = exp.n if exp is not None else 0
+            if c.protocol == "identifiability":     # N_IDENTIFY realizations, with and without noise
+                total += 2 * min(R, 3) * (exp.n_sim * TRIAL_S_PER_STEP if exp is not None else 0) + CASE_OVERHEAD_S
+                continue
+            est = next(iter(c.estimators), "")
             k = M if c.sweep.get("data") == "ensemble" else 1
-            total += R * k * n * FIT_S_PER_SAMPLE.get(est, FIT_DEFAULT) + CASE_OVERHEAD_S
+            per_fit = k * n * FIT_S_PER_SAMPLE.get(est, FIT_DEFAULT)
+            total += R * per_fit + CASE_OVERHEAD_S
+            search = c.params.get("search") or ()
+            if search and exp is not None:         # each candidate fitted once; k + 2 tuning realizations
+                per_step = SIM_S_PER_STEP.get(first.backend, SIM_S_PER_STEP["mujoco"])
+                total += len(search) * per_fit + (k + 2) * exp.n_sim * (per_step + TRIAL_S_PER_STEP)
     return total

@@ -1,9 +1,10 @@
 """Run a whole study: expand, run cases, write tidy results, comparison, figures and the report, and
 record the run in the history.
 
-Outputs in ``results/<study>/`` (``./results`` of the current folder, or ``--out``): ``cases.csv`` (tidy
-rows), ``curves.csv.gz`` (curves behind the figures), ``comparison.csv`` (one row per published check),
-``report.md`` with its PNG figures,
+Outputs in ``results/<study>/`` (``./results`` of the current folder, or ``--out``; a run with ``--set`` and
+no ``--out``: ``results/set-runs/<study>-set-<hash>/``, said on stderr): ``cases.csv`` (tidy rows) and
+``cases.parquet`` (the same, typed), ``curves.csv.gz`` (curves behind the figures), ``comparison.csv``
+(one row per published check), ``report.md`` with its PNG figures,
 ``report.html`` (the same report, self-contained), ``failures.log`` (tracebacks of failed cases, when
 any). Beside them, shared by every study:
 ``results/cache/`` (finished cases, :mod:`benchmarks.harness.cache`) and ``results/history.sqlite``
@@ -181,7 +182,13 @@ def run_study(ref: str | Path, parts: list[str] | None = None, out_root: Path | 
         figure_maker(part)
     cases, skipped = expand_study(study, parts, backend)
     root = results_root(out_root)
-    folder = backends.run_folder(outputs.study_folder(root, study.id, study.path), backend)
+    base = outputs.study_folder(root, study.id, study.path)
+    if overrides and out_root is None:    # a --set run never replaces the study's own (committed) results
+        base = outputs.study_folder(root / outputs.SET_RUNS, outputs.set_folder_name(study.id, overrides), study.path)
+    folder = backends.run_folder(base, backend)
+    if base.name != study.id:
+        print(f"jointbench: --set without --out: outputs in {folder} (not {root / study.id}; --out DIR to choose)",
+              file=sys.stderr)
     cache_dir = root / CACHE_FOLDER
     outputs.ensure_writable(root, folder, cache_dir)
     for f in (folder, root):
@@ -252,6 +259,7 @@ def run_study(ref: str | Path, parts: list[str] | None = None, out_root: Path | 
             stage = staging_folder(folder)
             try:
                 atomic_write(stage / "cases.csv", lambda p: rows.to_csv(p, index=False))
+                atomic_write(stage / "cases.parquet", lambda p: outputs.write_parquet(rows, p))
                 atomic_write(stage / "curves.csv.gz", lambda p: curves.to_csv(p, index=False, compression="gzip"))
                 atomic_write(stage / "comparison.csv", lambda p: comparison.to_csv(p, index=False))
                 failed = [r for r in results if r.status != "ok"]

@@ -24,7 +24,7 @@ from jointbench.errors import ConfigError, OutputError
 STUDY_ID = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,99}")
 #: names in the results folder that belong to the harness (the case cache, the nightly pages, the run
 #: history and its SQLite companions), compared without case (macOS and Windows fold it)
-RESERVED = ("cache", "nightly", "history.sqlite", "history.sqlite-wal", "history.sqlite-shm",
+RESERVED = ("cache", "nightly", "set-runs", "history.sqlite", "history.sqlite-wal", "history.sqlite-shm",
             "history.sqlite-journal")
 
 
@@ -91,3 +91,53 @@ def study_lock(folder: Path, owner: str, wait_message: bool = True):
         yield
     finally:
         os.close(fd)                   # closing releases the lock
+
+
+#: where runs with ``--set`` and no ``--out`` write (``<results>/set-runs/<study>-set-<hash8>/``): beside, not
+#: among, the studies' own folders (``results/*/comparison.csv`` are the studies' status)
+SET_RUNS = "set-runs"
+
+
+def set_folder_name(study_id: str, overrides) -> str:
+    """The results folder of a run with ``--set`` and no ``--out``: ``<study>-set-<hash8>`` (the hash of the
+    overrides in order), so that such a run never replaces the study's own (committed) results."""
+    import hashlib
+    import json
+
+    digest = hashlib.sha256(json.dumps(list(overrides)).encode()).hexdigest()[:8]
+    return f"{study_id}-set-{digest}"
+
+
+#: count and index columns written as (nullable) integers
+INT_COLUMNS = ("seed", "realization", "n", "n_steps", "n_trials", "n_responses")
+
+
+def parquet_frame(rows):
+    """The tidy rows typed for Parquet: a column holding one kind of value keeps it (numbers, booleans,
+    strings; the :data:`INT_COLUMNS` as nullable integers); a column mixing kinds (a grid axis with ``native``
+    and rates) is written as strings."""
+    import pandas as pd
+
+    out = rows.copy()
+    for col in INT_COLUMNS:
+        if col in out.columns and pd.api.types.is_numeric_dtype(out[col]):
+            x = out[col]
+            if bool((x.dropna() == x.dropna().round()).all()):
+                out[col] = x.astype("Int64")
+    for col in out.columns:
+        if out[col].dtype != object and not pd.api.types.is_string_dtype(out[col]):
+            continue
+        values = out[col].dropna()
+        kinds = {bool if isinstance(v, bool) else (float if isinstance(v, (int, float)) else type(v)) for v in values}
+        if kinds == {bool}:
+            out[col] = out[col].astype("boolean")
+        elif kinds == {float}:
+            out[col] = pd.to_numeric(out[col])
+        else:
+            out[col] = out[col].map(lambda v: None if v is None or (isinstance(v, float) and v != v) else str(v))
+    return out
+
+
+def write_parquet(rows, path: Path) -> None:
+    """``rows`` as Parquet (pyarrow) at ``path``."""
+    parquet_frame(rows).to_parquet(path, index=False, engine="pyarrow")
