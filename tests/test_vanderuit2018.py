@@ -59,7 +59,7 @@ def test_config_parses_with_every_table1_cell_and_reading():
                 assert (c.low, c.high) == pytest.approx((100 - (res + 0.05) * f, min(100, 100 - (res - 0.05) / f)))
                 assert c.low > 0 and (c.high < 100 or not noisy)
             assert c.select["snr_db"] == (math.inf if snr == "inf" else float(snr))
-            # the noise level was fitted to the noisy VAF_self and VAF_val cells (reading R1)
+            # the noise level was fitted to the noisy VAF_val and VAF_optim cells (reading R1)
             calibrated = noisy and metric in ("vaf_self", "vaf_val")
             assert c.evidence == ("calibrated" if calibrated else "reproduction"), cid
             assert (c.free_parameter != "") == calibrated

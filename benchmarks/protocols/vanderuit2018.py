@@ -23,7 +23,8 @@ from jointbench import estimators
 from jointbench import sims
 from jointbench.benchmarks.metrics import rmse, vaf
 from jointbench.benchmarks.protocols import Context, register
-from jointbench.benchmarks.scoring import frozen_stiffness
+from jointbench.benchmarks.scoring import basis_bound, frozen_stiffness
+from jointbench.estimators.skirt import basis as skirt_basis
 from jointbench.errors import ConfigError
 from jointbench.schema import param
 from jointbench.sims.profile import parse_profile
@@ -141,6 +142,11 @@ class Table1Params:
     image_variations: tuple[str, ...] = param(("sine20",), doc="variations whose |G(jw, t)| image is "
                                                                "recorded (curve seeds only)")
     image_step: float = param(0.5, unit="s", gt=0, doc="time grid of the |G(jw, t)| images")
+    bound_orders: tuple[int, ...] = param((), doc="orders N_p of the eq. 14 basis whose best possible RMSE_k "
+                                                  "(skirt bound) is recorded, on the curve seeds without noise")
+    bound_intervals: dict = param(default_factory=dict,
+                                  doc="name -> [start, end] (s from the window's start): other scored intervals "
+                                      "of the bound")
 
     def __post_init__(self):
         if self.variation not in self.variations:
@@ -178,6 +184,24 @@ def _case_estimators(ctx: Context, p: Table1Params) -> dict:
         else:
             out[name] = est
     return out
+
+
+def _skirt_bounds(ctx: Context, p: Table1Params, t: np.ndarray, truths: dict, lab: dict) -> None:
+    """The best possible RMSE_k of the eq. 14 basis (``rmse_k_bound``, estimator 'bound') for each order of
+    ``bound_orders``, each scored interval (the part's ``score`` as 'paper' and ``bound_intervals``), each
+    truth (the frozen |G(j w_1, t)| of reading R5, the intrinsic k(t)) and each fit (least squares on the
+    scored samples: the exact bound; on the whole window: what a fit over the record projects)."""
+    tw = t - t[0]
+    duration = float(len(t) * (t[1] - t[0]))
+    intervals = {"paper": tuple(p.score), **{k: tuple(v) for k, v in p.bound_intervals.items()}}
+    for n_p in p.bound_orders:
+        B = skirt_basis(int(n_p), tw, duration)
+        for iname, window in intervals.items():
+            m = scored_mask(t, window)
+            for tname, truth in truths.items():
+                for fit in ("scored", "window"):
+                    ctx.metric("rmse_k_bound", basis_bound(truth, t, m, B, fit), "bound", n_p=int(n_p),
+                               interval=iname, truth=tname, fit=fit, **lab)
 
 
 @register("vanderuit2018.table1", Table1Params, share=lambda p: p.variations[p.variation])
@@ -238,6 +262,9 @@ def table1(ctx: Context) -> None:
         Gt = np.abs(truth.frozen_response(lines, tg, t))
         for j, f in enumerate(lines):
             ctx.curve("tf_mag", tg - p.score[0], Gt[:, j], series="truth", freq_hz=float(f))
+
+    if record and not math.isfinite(p.snr_db) and p.bound_orders:
+        _skirt_bounds(ctx, p, t, {"frozen": H1, "intrinsic": k_true}, lab)
 
     for name, estimator in ests.items():
         est = estimator.fit(est_trial)
