@@ -18,8 +18,8 @@ from jointbench.benchmarks import backends
 from jointbench.benchmarks.config import EVIDENCE, Study
 from jointbench.benchmarks.harness.pages import (Code, Figure, Items, Page, Paragraph, Section, paragraphs, table,
                                                  to_html, to_markdown)
-from jointbench.benchmarks.tables import (DIRTY_BANNER, difference_counts, difference_rows, evidence_counts, headline,
-                                          headline_rows)
+from jointbench.benchmarks.tables import (DIRTY_BANNER, difference_counts, difference_rows, evidence_counts, fidelity,
+                                          headline, headline_rows)
 from jointbench.files import write_text
 
 #: what each kind of evidence means, as the report says it
@@ -129,6 +129,7 @@ def model(study: Study, comparison: pd.DataFrame, part_reports: dict, failed: li
         "commit": commit,
         "generated": f"{_dt.datetime.now(_dt.timezone.utc):%Y-%m-%d %H:%M} UTC",
         "meta": meta,
+        "comparison": comparison,
         "counts": evidence_counts(comparison),
         "differences": difference_counts(comparison),
         "headline": headline(comparison),
@@ -169,6 +170,14 @@ def _checks_section(m: dict, empty: bool) -> Section:
             Paragraph("`reproduced` combines the seeds as `over` says; `spread` is min to max over seeds; a pass "
                       "needs low <= reproduced <= high. The reason for each band is under its table (column "
                       "`band: why`)."))
+    fid = fidelity(m["comparison"])
+    if len(fid):
+        sec.add(Section("Fidelity", anchor="fidelity", body=[
+            Paragraph("Per published table, figure or claim: the checks that pass (reproduction: the headline; "
+                      "conditional: under a named reading; method differences: gaps between two methods' cells), "
+                      "those shown beside them, and how many misses a one-line cause explains (key `cause` of the "
+                      "check; the full reason is under 'Misses and their likely reasons')."),
+            table("", fid)]))
     if m["swap"]:
         sec.add(Paragraph(m["swap"]))
     for g in m["groups"]:

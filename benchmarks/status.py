@@ -14,7 +14,7 @@ import pandas as pd
 
 from jointbench.benchmarks.config import EVIDENCE
 from jointbench.benchmarks.harness.pages import markdown_table as markdown
-from jointbench.benchmarks.tables import difference_counts, evidence_counts, headline
+from jointbench.benchmarks.tables import difference_counts, evidence_counts, fidelity, headline
 from jointbench.errors import ConfigError
 
 BEGIN = "<!-- status:begin -->"
@@ -94,7 +94,8 @@ def block(results: Path | None = None) -> str:
               markdown(overview({k: c for k, c in comps.items() if not c.empty}))]
     for study, comp in comps.items():
         if not comp.empty:
-            lines += [f"#### `{study}`: {headline(comp)}", "", markdown(groups(comp))]
+            lines += [f"#### `{study}`: {headline(comp)}", "", "Fidelity per published table or figure:", "",
+                      markdown(fidelity(comp)), "", "Per family of checks:", "", markdown(groups(comp))]
     free = [s for s, c in comps.items() if c.empty]
     if free:
         lines += ["Studies with no published value to check (comparison studies; their reports hold the "

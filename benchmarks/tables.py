@@ -338,3 +338,49 @@ def median_range(median: float, low: float, high: float, n: int, digits: int | N
 def summarize(rows: pd.DataFrame, part: str, by: list[str]) -> pd.DataFrame:
     """Median and min-max over seeds of every metric of a part, grouped by ``by`` columns."""
     return over_seeds(rows[rows["part"] == part], by + ["estimator", "metric"])
+
+
+def _target(row) -> str:
+    """The published table or figure a check belongs to: its ``target``, else its family (the id up to the
+    first '-') with the first phrase of its source."""
+    t = str(row.get("target", "") or "").strip()
+    if t and t != "nan":
+        return t
+    fam = str(row["check"]).split("-")[0]
+    src = str(row.get("source", "") or "")
+    head = src.replace("'", ":").split(":")[0].split(";")[0].strip().rstrip(",")
+    return f"{fam} ({head})" if head and head != "nan" else fam
+
+
+def fidelity(comparison: pd.DataFrame) -> pd.DataFrame:
+    """Per published table or figure: the checks passing (reproduction, conditional, method differences),
+    the calibrated and sanity ones beside them, the misses explained by a one-line cause and those causes
+    (``cause: n checks``), from the comparison rows (never typed)."""
+    if comparison.empty:
+        return pd.DataFrame()
+    comp = comparison.copy()
+    comp["_target"] = [_target(r) for r in comp.to_dict("records")]
+    comp["_diff"] = _is_difference(comp)
+    ev = comp["evidence"].fillna("unrecorded") if "evidence" in comp else pd.Series("unrecorded", index=comp.index)
+    cause = (comp["cause"].fillna("").astype(str).replace("nan", "") if "cause" in comp
+             else pd.Series("", index=comp.index))
+    recs = []
+    for target in dict.fromkeys(comp["_target"]):
+        sel = comp["_target"] == target
+
+        def count(mask):
+            g = comp[sel & mask]
+            return f"{int((g['status'] == 'pass').sum())} of {len(g)}" if len(g) else "–"
+        miss = sel & (comp["status"] != "pass")
+        causes = cause[miss]
+        named = causes[causes != ""].value_counts()
+        recs.append({"published": target,
+                     "reproduction": count(~comp["_diff"] & (ev == "reproduction")),
+                     "conditional": count(~comp["_diff"] & (ev == "conditional")),
+                     "method differences": count(comp["_diff"]),
+                     "calibrated (not counted)": count(~comp["_diff"] & (ev == "calibrated")),
+                     "sanity": count(~comp["_diff"] & (ev == "sanity")),
+                     "misses explained": f"{int((causes != '').sum())} of {int(miss.sum())}" if miss.any() else "–",
+                     "causes of the misses": "; ".join(f"{c}: {n} check{'s' if n > 1 else ''}"
+                                                       for c, n in named.items())})
+    return pd.DataFrame(recs)

@@ -2,6 +2,7 @@
 evidence kinds the issue corrected, read from the published configs."""
 from __future__ import annotations
 
+import numpy as np
 import pandas as pd
 import pytest
 
@@ -43,3 +44,56 @@ def test_table1_gap_checks_are_method_differences_and_cells_are_not(table1_check
     # the near-copies of their sign checks are gone (inner edge of the band below a quarter of the gap)
     for gone in ("D-square20-5-rmse_k-size", "D-square10-5-rmse_k-size"):
         assert gone not in table1_checks and gone.replace("-size", "-sign") in table1_checks
+
+
+# ------------------------------------------------------------------------------ the skirt bound (R12)
+def test_bound_of_a_square_wave_on_a_known_basis():
+    """sign(sin w t) over whole periods: on {1} the best fit is 0 (RMSE 1); on {1, sin w t} the projection is
+    (4/pi) sin w t, leaving RMSE sqrt(1 - 8/pi^2) = 0.4352; adding the harmonics of 3 w lowers it to
+    sqrt(1 - 8/pi^2 (1 + 1/9)); a curve in the span has bound 0."""
+    from jointbench.benchmarks.scoring import basis_bound
+
+    t = np.arange(200_000) / 200_000 * 2.0                   # two periods of 1 s, fine grid
+    w = 2 * np.pi
+    sq = np.sign(np.sin(w * t))
+    every = np.ones_like(t, bool)
+    one = np.ones((1, t.size))
+    assert basis_bound(sq, t, every, one) == pytest.approx(1.0, abs=1e-4)
+    B1 = np.vstack([one, np.sin(w * t)])
+    assert basis_bound(sq, t, every, B1) == pytest.approx(np.sqrt(1 - 8 / np.pi ** 2), abs=1e-4)
+    B3 = np.vstack([B1, np.sin(3 * w * t)])
+    assert basis_bound(sq, t, every, B3) == pytest.approx(np.sqrt(1 - 8 / np.pi ** 2 * (1 + 1 / 9)), abs=1e-4)
+    assert basis_bound(0.3 + 2 * np.sin(w * t), t, every, B1) == pytest.approx(0.0, abs=1e-12)
+    # fitted on the scored samples it is the exact floor: never above the projection over the whole record
+    first = t < 1.0
+    assert basis_bound(sq, t, first, B1, "scored") <= basis_bound(sq, t, first, B1, "window") + 1e-12
+    with pytest.raises(ValueError, match="fit_on"):
+        basis_bound(sq, t, every, B1, "nowhere")
+    with pytest.raises(ValueError, match="shapes"):
+        basis_bound(sq[:-1], t, every, B1)
+
+
+def test_skirt_basis_bound_at_np7_is_above_the_printed_noise_free_squares():
+    """The eq. 14 basis over a 40 s window at N_p = 7 cannot bring a +-0.9 square of 10 s below the printed
+    0.39 (scored [5, 35] s), whereas N_p = 13 can (the argument of reading R12, on the intrinsic square)."""
+    from jointbench.benchmarks.scoring import basis_bound
+    from jointbench.estimators.skirt import basis
+
+    t = np.arange(1760) / 44.0
+    k = 5.6 + 0.9 * np.sign(np.sin(2 * np.pi * (t + 5.0) / 10.0))     # simulation time = window time + 5 s
+    s = (t >= 5.0) & (t <= 35.0)
+    b7 = basis_bound(k, t, s, basis(7, t, 40.0), "window")
+    b13 = basis_bound(k, t, s, basis(13, t, 40.0), "window")
+    assert b7 > 0.39 * 1.5 and b13 < b7
+
+
+def test_skirt_checks_are_conditional_on_the_basis_reading(table1_checks):
+    for c in table1_checks.values():
+        names_skirt = "skirt" in (str(c.select.get("estimator")), str((c.versus or {}).get("estimator")))
+        if names_skirt and c.evidence != "calibrated":
+            assert c.evidence == "conditional" and "R12" in c.readings, c.id
+        if c.id.startswith("T1-") and "-kbr-" in c.id and c.evidence != "calibrated":
+            assert c.evidence == "reproduction", c.id
+    for c in table1_checks.values():                  # noisy VAF cells: the noise level was fitted to them (R1)
+        if c.id.startswith("T1-") and not c.id.split("-")[3] == "inf" and "vaf" in c.id:
+            assert c.evidence == "calibrated", c.id
