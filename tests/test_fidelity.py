@@ -97,3 +97,16 @@ def test_skirt_checks_are_conditional_on_the_basis_reading(table1_checks):
     for c in table1_checks.values():                  # noisy VAF cells: the noise level was fitted to them (R1)
         if c.id.startswith("T1-") and not c.id.split("-")[3] == "inf" and "vaf" in c.id:
             assert c.evidence == "calibrated", c.id
+
+
+# ------------------------------------------------------------------------------ R1 tried as a derivation
+def test_prefilter_noise_ratio_and_the_ratio_a_published_row_implies():
+    from jointbench.benchmarks.protocols.vanderuit2018 import inferred_noise_ratio, prefilter_noise_ratio
+
+    # the equivalent noise bandwidth of an n-th order Butterworth is pi f_c / (2 n sin(pi / 2n))
+    enbw = np.pi * 15.0 / (4 * np.sin(np.pi / 4))
+    assert prefilter_noise_ratio(0.0, 15.0, 2, 1e4, 1e4) == pytest.approx(enbw / 1e4, rel=1e-6)
+    assert prefilter_noise_ratio(10.0, 15.0, 2, 50.0, 50.0) < 0.1 * enbw / 50 + 1e-12
+    assert prefilter_noise_ratio(5.0, 15.0, 2, 50.0, 22.0) < prefilter_noise_ratio(5.0, 15.0, 2, 50.0, 50.0)
+    # Table I, KBR sine 20 s at 5 dB: VAF_val 89.7, VAF_optim 99.7 -> r = (1 - 0.897 - 0.003)/0.897
+    assert inferred_noise_ratio(89.7, 99.7) == pytest.approx(0.1 / 0.897)

@@ -12,7 +12,8 @@ import numpy as np
 import pandas as pd
 
 from jointbench.benchmarks.figures import PartReport, new_figure, register, save
-from jointbench.benchmarks.protocols.vanderuit2018 import TABLE1_METRICS
+from jointbench.benchmarks.protocols.vanderuit2018 import (TABLE1_METRICS, inferred_noise_ratio,
+                                                           prefilter_noise_ratio)
 from jointbench.benchmarks.tables import median_range, over_seeds
 
 LABELS = {"vaf_self": "VAF_self (%)", "vaf_optim": "VAF_optim (%)", "vaf_val": "VAF_val (%)",
@@ -334,6 +335,32 @@ def bound_figure(rows: pd.DataFrame, published: dict, skirt_np, folder: Path, na
     return save(fig, folder, name)
 
 
+def noise_derivation_frame(published: dict, ratios: dict, cutoff_hz: float = 15.0, order: int = 2,
+                           white_hz: float = 50.0, scored_hz: float = 22.0) -> pd.DataFrame:
+    """Reading R1 tried as a derivation: per nominal SNR, the ratio each published row implies (KBR and skirt
+    ranges, :func:`inferred_noise_ratio`), the configured (calibrated) ratio, and what white noise to
+    ``white_hz`` scaled to the SNR before the 15 Hz filter gives on the scored record (0 ... ``scored_hz``,
+    the 44 Hz decimation of R9) and on the whole filtered noise (0 ... ``white_hz``)."""
+    recs = []
+    for snr in (5.0, 10.0):
+        rec = {"SNR (dB)": f"{snr:g}"}
+        for est in ("kbr", "skirt"):
+            rs = []
+            for var in VARIATION_NAMES:
+                val, opt = published.get(("vaf_val", est, var, snr)), published.get(("vaf_optim", est, var, snr))
+                if val is not None and opt is not None:
+                    rs.append(inferred_noise_ratio(float(val.published), float(opt.published)))
+            rec[f"inferred from the published {est} rows"] = f"{min(rs):.3f}-{max(rs):.3f}" if rs else ""
+        conf = next((v for k, v in ratios.items() if math.isclose(float(k), snr)), None)
+        rec["configured (calibrated, R1)"] = f"{float(conf):.3f}" if conf is not None else ""
+        on = prefilter_noise_ratio(snr, cutoff_hz, order, white_hz, scored_hz)
+        full = prefilter_noise_ratio(snr, cutoff_hz, order, white_hz, white_hz)
+        rec[f"derived, scored 0-{scored_hz:g} Hz (our 44 Hz record)"] = f"{on:.3f}"
+        rec[f"derived, all the filtered noise (0-{white_hz:g} Hz)"] = f"{full:.3f}"
+        recs.append(rec)
+    return pd.DataFrame(recs)
+
+
 def gaps_frame(rows: pd.DataFrame, checks) -> pd.DataFrame:
     """KBR - skirt of this part's medians for every method-difference check of Table I (published gap, its
     size band when there is one), whatever part the check belongs to: the gaps under this part's variant."""
@@ -410,6 +437,10 @@ def table1(part, rows, curves, folder, checks) -> PartReport:
         t = extra_frame(rows[rows["estimator"].fillna("") == ""], noise)
         tables.append(("Noise actually added to the estimation trial (reading R1): var(noise)/var(torque) and "
                        "the standard SNR, scored interval and whole window", t.drop(columns=["estimator"])))
+    if part.name == "table1" and (part.params.get("variance_ratio") or {}):
+        tables.append(("Reading R1 tried as a derivation (issue 19): white noise to 50 Hz scaled to the nominal SNR "
+                       "before the 15 Hz filter, against the ratio the published rows imply", noise_derivation_frame(
+                           published, part.params["variance_ratio"])))
     gaps = gaps_frame(rows, checks)
     if len(gaps) and part.name != "table1":
         tables.append(("Table I's gaps KBR - skirt under this part's settings (medians; the bands of the "

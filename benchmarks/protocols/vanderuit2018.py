@@ -57,6 +57,26 @@ def noise_ratio(snr_db: float, definition: str, ratios: dict) -> float:
                       f"entries: {', '.join(str(k) for k in ratios)}")
 
 
+def prefilter_noise_ratio(snr_db: float, cutoff_hz: float, order: int, white_hz: float, scored_hz: float) -> float:
+    """var(noise)/var(torque) on a record that keeps ``0 ... scored_hz`` when white noise, band-limited to
+    ``white_hz`` and scaled to ``snr_db`` (standard definition) *before* a Butterworth low-pass of ``order``
+    and ``cutoff_hz``, is what was added (the derivation of reading R1 tried in issue 19):
+    ``10^(-SNR/10) * integral_0^scored |H(f)|^2 df / white_hz`` with ``|H|^2 = 1/(1 + (f/f_c)^(2n))``."""
+    from scipy.integrate import quad
+
+    top = min(scored_hz, white_hz)
+    power, _ = quad(lambda f: 1.0 / (1.0 + (f / cutoff_hz) ** (2 * order)), 0.0, top, limit=500)
+    return 10.0 ** (-snr_db / 10.0) * power / white_hz
+
+
+def inferred_noise_ratio(vaf_val: float, vaf_optim: float) -> float:
+    """The noise ratio a published row implies (reading R1): VAF_val = 1 - (r + e)/(1 + r) with
+    e = 1 - VAF_optim (validation noise independent of the model error), so r = (1 - VAF_val - e)/VAF_val;
+    VAFs in percent."""
+    v, e = vaf_val / 100.0, 1.0 - vaf_optim / 100.0
+    return (1.0 - v - e) / v
+
+
 def step_times(time: np.ndarray, k: np.ndarray, window: tuple[float, float], margin: float) -> list[int]:
     """Indices of the samples where the true stiffness ``k`` jumps (first sample at the new level),
     at least ``margin`` seconds inside ``window``."""
