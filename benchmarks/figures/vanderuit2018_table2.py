@@ -209,6 +209,13 @@ def table2(part, rows, curves, folder, checks) -> PartReport:
         tables.append(("Ensemble VAF_val in the band both rates hold, 0.8-22 Hz (reading S5), overall",
                        pd.DataFrame([{NAMES[r.estimator]: f"{r.mean:.1f} ± {r.sd:.1f}" for r in ov.itertuples()}])))
     gp = gaps_frame(rows, checks)
+    finding = ""
+    if len(gp) > 1 and {"KBR - SDS", "KBR - Guarin"} <= set(gp.columns) and gp.iloc[0]["KBR - SDS"]:
+        own, common, pub = gp.iloc[0], gp.iloc[1], gp.iloc[-1]
+        finding = (f"\n\nGaps of this part (from its rows): KBR - SDS {own['KBR - SDS']} and KBR - Guarin "
+                   f"{own['KBR - Guarin']} points when each method is scored over its own band, "
+                   f"{common['KBR - SDS']} and {common['KBR - Guarin']} over the common 0.8-22 Hz band "
+                   f"(published {pub['KBR - SDS']} and {pub['KBR - Guarin']}).")
     if len(gp) > 1:
         tables.append(("Ensemble VAF_val (%) overall and the gaps KBR - SDS, KBR - Guarin, over each method's band "
                        "and over the band both rates hold (readings S5, S14)", gp))
@@ -231,5 +238,6 @@ def table2(part, rows, curves, folder, checks) -> PartReport:
                         "mean), bottom: single-trial fits of trial 1."))
     seeds = sorted(set(_ok(rows)["seed"])) if "seed" in rows.columns else []
     text = (f"{len(seeds)} seed(s) x {rows['subject'].nunique() if 'subject' in rows.columns else 0} simulated "
-            "subjects; every VAF after removing the frequencies below 0.8 Hz, over the scored 5-35 s of the window.")
+            "subjects; every VAF after removing the frequencies below 0.8 Hz, over the scored 5-35 s of the window."
+            + finding)
     return PartReport(figures=figs, tables=tables, text=text)
