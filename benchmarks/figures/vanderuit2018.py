@@ -53,7 +53,7 @@ def within_tolerance(rows: pd.DataFrame, published: dict) -> pd.DataFrame:
     st = _stats(rows)
     recs = []
     for m in TABLE1_METRICS:
-        for ev in ("reproduction", "calibrated"):
+        for ev in ("reproduction", "conditional", "calibrated"):
             n = hit = 0
             for (metric, est, var, snr), c in published.items():
                 key = (var, est, snr, metric)

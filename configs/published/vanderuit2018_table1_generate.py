@@ -13,7 +13,10 @@ with the band of every column and its reason. Two families of checks come out:
   gap exceeds the reproduction's seed spread of that gap plus the printed rounding (a gap smaller than
   that cannot be resolved by the reproduction, so its sign would be a coin flip). The per-cell bands
   cannot tell the two methods apart (the reproduced methods are closer to each other than the paper's);
-  these checks can: swapping the methods' values fails every one of them (tests/test_scoring.py).
+  these checks can: swapping the methods' values fails every one of them (tests/test_scoring.py). They are
+  ``count: method_difference`` (issue 19): differences of cells the T1 checks count already, so they have
+  their own line beside the headline; the size check is left out where its band would be a near-copy of the
+  sign (:data:`SIZE_INNER_MIN`). Every check of the skirt (cells and gaps) is conditional on reading R12.
 
 ``SPREAD`` holds the reproduction's seed spread of each gap: the range (max - min) over the 10 seeds of
 the per-seed difference KBR - skirt (same seed = same multisine and noise for both), measured by
