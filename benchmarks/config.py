@@ -88,6 +88,9 @@ class Check:
     tolerance_reason: str = ""
     domain: Mapping[str, Any] | None = None
     domain_reason: str = ""
+    count: str = "headline"        # COUNTS: 'method_difference' = a difference of cells counted already
+    target: str = ""               # the published table or figure it belongs to (the Fidelity table)
+    cause: str = ""                # one-line cause of a miss, shared by the misses it explains
 
     @property
     def readings(self) -> tuple[str, ...]:
@@ -167,7 +170,11 @@ _CHECK_KEYS = {"id": True, "part": True, "description": True, "source": True, "p
                "low": False, "high": False, "select": True, "aggregate": False, "if_missed": False,
                "kind": False, "over": False, "direction": False, "slack": False, "versus": False, "by": False,
                "evidence": True, "reading": False, "free_parameter": False, "tolerance_reason": True,
-               "domain": False, "domain_reason": False}
+               "domain": False, "domain_reason": False, "count": False, "target": False, "cause": False}
+#: how a check counts: ``headline`` (one published value or claim: the headline when its evidence is
+#: reproduction) or ``method_difference`` (a difference of two published cells that are checked one by one
+#: already, e.g. KBR - skirt of Table I: its own line beside the headline, never in it)
+COUNTS = ("headline", "method_difference")
 AGGREGATES = ("median", "mean", "min", "max", "std")
 #: kinds of evidence, in the order the report shows them; the headline counts ``reproduction`` only
 EVIDENCE = ("reproduction", "conditional", "calibrated", "sanity")
@@ -382,6 +389,11 @@ def load_checks(path: Path, parts: Mapping[str, Part]) -> tuple[Check, ...]:
             if clash:
                 raise ConfigError(f"{where}: key 'domain': column {clash[0]!r} is also in 'select'/'versus'")
         evidence, reading, free = _evidence(c, where)
+        count = str(c.get("count", "headline"))
+        if count not in COUNTS:
+            raise ConfigError(f"{where}: key 'count': {count!r} not allowed; allowed: {', '.join(COUNTS)}")
+        if count == "method_difference" and kind != "difference":
+            raise ConfigError(f"{where}: key 'count': 'method_difference' needs check kind 'difference'")
         reason = str(c["tolerance_reason"]).strip()
         if not reason:
             raise ConfigError(f"{where}: key 'tolerance_reason': state why the band is what it is")
@@ -391,7 +403,8 @@ def load_checks(path: Path, parts: Mapping[str, Part]) -> tuple[Check, ...]:
                          kind=kind, over=str(c.get("over", "")), direction=direction, slack=slack,
                          versus=versus, by=str(c.get("by", "")), evidence=evidence, reading=reading,
                          free_parameter=free, tolerance_reason=reason, domain=domain,
-                         domain_reason=str(c.get("domain_reason", ""))))
+                         domain_reason=str(c.get("domain_reason", "")), count=count,
+                         target=str(c.get("target", "")), cause=str(c.get("cause", ""))))
     return tuple(out)
 
 

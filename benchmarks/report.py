@@ -18,7 +18,8 @@ from jointbench.benchmarks import backends
 from jointbench.benchmarks.config import EVIDENCE, Study
 from jointbench.benchmarks.harness.pages import (Code, Figure, Items, Page, Paragraph, Section, paragraphs, table,
                                                  to_html, to_markdown)
-from jointbench.benchmarks.tables import DIRTY_BANNER, evidence_counts, headline
+from jointbench.benchmarks.tables import (DIRTY_BANNER, difference_counts, difference_rows, evidence_counts, fidelity,
+                                          headline, headline_rows)
 from jointbench.files import write_text
 
 #: what each kind of evidence means, as the report says it
@@ -31,6 +32,8 @@ EVIDENCE_TEXT = {
     "sanity": "arithmetic on the paper's own numbers, or a self-consistency of the harness (e.g. a fit "
               "recovering the simulation's own truth): shown separately",
     "unrecorded": "generated before the kind of evidence was recorded",
+    "method_difference": "the difference between two methods' published cells (e.g. KBR - skirt), whose cells "
+                         "are checked one by one already: counted on their own line, never in the headline",
 }
 
 
@@ -106,12 +109,16 @@ def model(study: Study, comparison: pd.DataFrame, part_reports: dict, failed: li
     """Everything the report says, as data."""
     groups = []
     if not comparison.empty:
-        ev = comparison["evidence"].fillna("unrecorded") if "evidence" in comparison else None
+        once = headline_rows(comparison)
+        ev = once["evidence"].fillna("unrecorded") if "evidence" in once else None
         for kind in (*EVIDENCE, "unrecorded"):
-            sel = (comparison[ev == kind] if ev is not None
-                   else comparison if kind == "unrecorded" else comparison.iloc[0:0])
+            sel = (once[ev == kind] if ev is not None
+                   else once if kind == "unrecorded" else once.iloc[0:0])
             if len(sel):
                 groups.append(_group(sel, kind))
+        diff = difference_rows(comparison)
+        if len(diff):
+            groups.append(_group(diff, "method_difference"))
     sections = {"results": [], "interpretation": []}
     for name, rep in part_reports.items():
         sections[study.parts[name].report_section].append((name, rep))
@@ -122,7 +129,9 @@ def model(study: Study, comparison: pd.DataFrame, part_reports: dict, failed: li
         "commit": commit,
         "generated": f"{_dt.datetime.now(_dt.timezone.utc):%Y-%m-%d %H:%M} UTC",
         "meta": meta,
+        "comparison": comparison,
         "counts": evidence_counts(comparison),
+        "differences": difference_counts(comparison),
         "headline": headline(comparison),
         "groups": groups,
         "swap": _swap_text(meta.get("method_swap")),
@@ -134,9 +143,12 @@ def model(study: Study, comparison: pd.DataFrame, part_reports: dict, failed: li
     }
 
 
-def _headline_sentence(counts: dict) -> str:
+def _headline_sentence(counts: dict, differences: tuple[int, int] | None = None) -> str:
     rep = counts.get("reproduction", (0, 0))
-    out = f"**Reproduction: {rep[0]} of {rep[1]} checks pass.**"
+    out = f"**Reproduction: {rep[0]} of {rep[1]} checks pass.** (One published value or claim each.)"
+    if differences:
+        out += (f" **Method differences: {differences[0]} of {differences[1]}** (gaps between two methods' "
+                "published cells, whose cells are counted above already: their own line, not in the headline).")
     beside = []
     for kind, what in (("conditional", "each under a reading chosen by its outcome"),
                        ("calibrated", "a free parameter was chosen to match them: not evidence, not counted"),
@@ -154,14 +166,23 @@ def _checks_section(m: dict, empty: bool) -> Section:
     sec = Section("Checks against the published values", anchor="checks")
     if empty:
         return sec.add(Paragraph("_(no check belongs to the parts run)_"))
-    sec.add(Paragraph(_headline_sentence(m["counts"])),
+    sec.add(Paragraph(_headline_sentence(m["counts"], m.get("differences"))),
             Paragraph("`reproduced` combines the seeds as `over` says; `spread` is min to max over seeds; a pass "
                       "needs low <= reproduced <= high. The reason for each band is under its table (column "
                       "`band: why`)."))
+    fid = fidelity(m["comparison"])
+    if len(fid):
+        sec.add(Section("Fidelity", anchor="fidelity", body=[
+            Paragraph("Per published table, figure or claim: the checks that pass (reproduction: the headline; "
+                      "conditional: under a named reading; method differences: gaps between two methods' cells), "
+                      "those shown beside them, and how many misses a one-line cause explains (key `cause` of the "
+                      "check; the full reason is under 'Misses and their likely reasons')."),
+            table("", fid)]))
     if m["swap"]:
         sec.add(Paragraph(m["swap"]))
     for g in m["groups"]:
-        sec.add(Section(f"{g.evidence.capitalize()} checks ({g.passed} of {g.total} pass)",
+        title = "Method differences" if g.evidence == "method_difference" else f"{g.evidence.capitalize()} checks"
+        sec.add(Section(f"{title} ({g.passed} of {g.total} pass)",
                         anchor=f"checks-{g.evidence}", body=[
                             Paragraph(f"_{EVIDENCE_TEXT[g.evidence].capitalize()}._"),
                             table("", g.table, classes=lambda r: {"status": "pass" if r["status"] == "pass"

@@ -2,7 +2,9 @@
 
 ``jointbench status`` prints them; ``jointbench status --write-readme`` rewrites the block between
 :data:`BEGIN` and :data:`END` in README.md (``make reproduce`` does so after the studies). The headline of a
-study counts its ``reproduction`` checks only; conditional, calibrated and sanity checks go beside it.
+study counts its ``reproduction`` checks of one published value each; the method differences (differences of
+cells the headline counts already) are their own column, and conditional, calibrated and sanity checks go
+beside it.
 """
 from __future__ import annotations
 
@@ -12,7 +14,7 @@ import pandas as pd
 
 from jointbench.benchmarks.config import EVIDENCE
 from jointbench.benchmarks.harness.pages import markdown_table as markdown
-from jointbench.benchmarks.tables import evidence_counts, headline
+from jointbench.benchmarks.tables import difference_counts, evidence_counts, fidelity, headline
 from jointbench.errors import ConfigError
 
 BEGIN = "<!-- status:begin -->"
@@ -47,6 +49,7 @@ def overview(comps: dict[str, pd.DataFrame]) -> pd.DataFrame:
         counts = evidence_counts(comp)
         rec = {"study": f"`{study}`", "report": f"[report](results/{study}/report.md)", "commit": _commit(comp),
                "reproduction (headline)": _count(counts, "reproduction"),
+               "method differences": _count({"d": difference_counts(comp)} if difference_counts(comp) else {}, "d"),
                "conditional": _count(counts, "conditional"),
                "calibrated (not counted)": _count(counts, "calibrated"), "sanity": _count(counts, "sanity")}
         if "unrecorded" in counts:
@@ -82,13 +85,17 @@ def block(results: Path | None = None) -> str:
              "do not edit by hand -->", ""]
     if not comps:
         return "\n".join(lines + ["_(no results yet: run `make reproduce`)_"])
-    lines += ["Headline = reproduction checks (an independent published value, judged). Beside it: conditional "
+    lines += ["Headline = reproduction checks, one per published value (an independent published value, judged). "
+              "Method differences = differences between two methods' published cells (e.g. KBR - skirt of "
+              "Table I), whose cells the headline counts already: their own column, never in the headline. "
+              "Beside it: conditional "
               "(passes only under a reading chosen by its outcome), calibrated (a free parameter was chosen to "
               "match: not counted as a pass), sanity (arithmetic or self-consistency).", "",
               markdown(overview({k: c for k, c in comps.items() if not c.empty}))]
     for study, comp in comps.items():
         if not comp.empty:
-            lines += [f"#### `{study}`: {headline(comp)}", "", markdown(groups(comp))]
+            lines += [f"#### `{study}`: {headline(comp)}", "", "Fidelity per published table or figure:", "",
+                      markdown(fidelity(comp)), "", "Per family of checks:", "", markdown(groups(comp))]
     free = [s for s, c in comps.items() if c.empty]
     if free:
         lines += ["Studies with no published value to check (comparison studies; their reports hold the "

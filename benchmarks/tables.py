@@ -158,7 +158,7 @@ def _outside(c: Check, rows: pd.DataFrame) -> str:
 
 COMPARISON_COLUMNS = ["check", "description", "published", "reproduced", "low", "high", "status", "evidence",
                       "reading", "free_parameter", "aggregate", "n", "spread", "out_of_domain", "part",
-                      "source", "tolerance_reason", "domain_reason", "note", "commit"]
+                      "source", "tolerance_reason", "domain_reason", "note", "count", "target", "cause", "commit"]
 
 
 def compare(checks: tuple[Check, ...], rows: pd.DataFrame, parts_run: set[str], commit: str = "") -> pd.DataFrame:
@@ -198,7 +198,8 @@ def compare(checks: tuple[Check, ...], rows: pd.DataFrame, parts_run: set[str], 
                     "aggregate": c.aggregate if c.kind == "value" else f"{c.kind} of {c.aggregate}s",
                     "n": n, "spread": spread, "out_of_domain": _outside(c, rows), "part": c.part,
                     "source": c.source, "tolerance_reason": c.tolerance_reason,
-                    "domain_reason": c.domain_reason, "note": note, "commit": stamp(commit)})
+                    "domain_reason": c.domain_reason, "note": note, "count": c.count, "target": c.target,
+                    "cause": c.cause, "commit": stamp(commit)})
     return pd.DataFrame(out, columns=COMPARISON_COLUMNS)
 
 
@@ -210,8 +211,27 @@ def stamp(commit: str) -> str:
     return f"{commit} ({DIRTY_BANNER})" if commit.endswith("-dirty") else commit
 
 
+def _is_difference(comparison: pd.DataFrame) -> pd.Series:
+    """Rows of checks counted as method differences (their own line, never in the headline)."""
+    if "count" not in comparison:
+        return pd.Series(False, index=comparison.index)
+    return comparison["count"].fillna("headline").astype(str) == "method_difference"
+
+
+def headline_rows(comparison: pd.DataFrame) -> pd.DataFrame:
+    """The checks that count one published value or claim each (method differences left out)."""
+    return comparison[~_is_difference(comparison)]
+
+
+def difference_rows(comparison: pd.DataFrame) -> pd.DataFrame:
+    """The method-difference checks (differences of published cells already checked one by one)."""
+    return comparison[_is_difference(comparison)]
+
+
 def evidence_counts(comparison: pd.DataFrame) -> dict[str, tuple[int, int]]:
-    """Evidence kind -> (passes, checks), in :data:`benchmarks.config.EVIDENCE` order (kinds present).
+    """Evidence kind -> (passes, checks), in :data:`benchmarks.config.EVIDENCE` order (kinds present),
+    over the checks of one published value each: method-difference checks (``count``) are left out, so
+    that a published cell is counted once (:func:`difference_counts` counts them).
 
     The headline of a report or of the README is ``reproduction`` alone; the others go beside it.
     A comparison written before the evidence column existed counts under ``unrecorded``.
@@ -220,6 +240,7 @@ def evidence_counts(comparison: pd.DataFrame) -> dict[str, tuple[int, int]]:
 
     if comparison.empty:
         return {}
+    comparison = headline_rows(comparison)
     ev = comparison["evidence"].fillna("unrecorded") if "evidence" in comparison else \
         pd.Series("unrecorded", index=comparison.index)
     out = {}
@@ -230,13 +251,24 @@ def evidence_counts(comparison: pd.DataFrame) -> dict[str, tuple[int, int]]:
     return out
 
 
+def difference_counts(comparison: pd.DataFrame) -> tuple[int, int] | None:
+    """(passes, checks) of the method-difference checks, or None when there are none."""
+    d = difference_rows(comparison) if not comparison.empty else comparison
+    if d.empty:
+        return None
+    return int((d["status"] == "pass").sum()), len(d)
+
+
 def headline(comparison: pd.DataFrame) -> str:
-    """``reproduction 9 of 14 pass; beside them: conditional 3 of 3, calibrated 2 of 4 (not counted), ...``"""
+    """``reproduction 9 of 14 pass; method differences 20 of 30; beside them: conditional 3 of 3, ...``"""
     counts = evidence_counts(comparison)
-    if not counts:
+    diff = difference_counts(comparison)
+    if not counts and not diff:
         return "no checks"
     rep = counts.get("reproduction")
     head = f"reproduction {rep[0]} of {rep[1]} pass" if rep else "no reproduction check"
+    if diff:
+        head += f"; method differences {diff[0]} of {diff[1]}"
     notes = {"calibrated": " (not counted)"}
     others = [f"{k} {p} of {n}{notes.get(k, '')}" for k, (p, n) in counts.items() if k != "reproduction"]
     return head + ("; beside them: " + ", ".join(others) if others else "")
@@ -306,3 +338,49 @@ def median_range(median: float, low: float, high: float, n: int, digits: int | N
 def summarize(rows: pd.DataFrame, part: str, by: list[str]) -> pd.DataFrame:
     """Median and min-max over seeds of every metric of a part, grouped by ``by`` columns."""
     return over_seeds(rows[rows["part"] == part], by + ["estimator", "metric"])
+
+
+def _target(row) -> str:
+    """The published table or figure a check belongs to: its ``target``, else its family (the id up to the
+    first '-') with the first phrase of its source."""
+    t = str(row.get("target", "") or "").strip()
+    if t and t != "nan":
+        return t
+    fam = str(row["check"]).split("-")[0]
+    src = str(row.get("source", "") or "")
+    head = src.replace("'", ":").split(":")[0].split(";")[0].strip().rstrip(",")
+    return f"{fam} ({head})" if head and head != "nan" else fam
+
+
+def fidelity(comparison: pd.DataFrame) -> pd.DataFrame:
+    """Per published table or figure: the checks passing (reproduction, conditional, method differences),
+    the calibrated and sanity ones beside them, the misses explained by a one-line cause and those causes
+    (``cause: n checks``), from the comparison rows (never typed)."""
+    if comparison.empty:
+        return pd.DataFrame()
+    comp = comparison.copy()
+    comp["_target"] = [_target(r) for r in comp.to_dict("records")]
+    comp["_diff"] = _is_difference(comp)
+    ev = comp["evidence"].fillna("unrecorded") if "evidence" in comp else pd.Series("unrecorded", index=comp.index)
+    cause = (comp["cause"].fillna("").astype(str).replace("nan", "") if "cause" in comp
+             else pd.Series("", index=comp.index))
+    recs = []
+    for target in dict.fromkeys(comp["_target"]):
+        sel = comp["_target"] == target
+
+        def count(mask):
+            g = comp[sel & mask]
+            return f"{int((g['status'] == 'pass').sum())} of {len(g)}" if len(g) else "–"
+        miss = sel & (comp["status"] != "pass")
+        causes = cause[miss]
+        named = causes[causes != ""].value_counts()
+        recs.append({"published": target,
+                     "reproduction": count(~comp["_diff"] & (ev == "reproduction")),
+                     "conditional": count(~comp["_diff"] & (ev == "conditional")),
+                     "method differences": count(comp["_diff"]),
+                     "calibrated (not counted)": count(~comp["_diff"] & (ev == "calibrated")),
+                     "sanity": count(~comp["_diff"] & (ev == "sanity")),
+                     "misses explained": f"{int((causes != '').sum())} of {int(miss.sum())}" if miss.any() else "–",
+                     "causes of the misses": "; ".join(f"{c}: {n} check{'s' if n > 1 else ''}"
+                                                       for c, n in named.items())})
+    return pd.DataFrame(recs)

@@ -199,9 +199,9 @@ def test_cli_summary_line_is_the_headline(tmp_path, capsys, monkeypatch):
                         lambda *a, **k: orig(*a, **{**k, "out_root": tmp_path / "out", "serial": True}))
     assert cli.main(["run", "westwick2012", "--parts", "fig2", "fig4", "--quiet"]) == 0
     out = capsys.readouterr().out.splitlines()
-    assert out[0] == ("westwick2012: 2 cases (0 from cache, 2 computed), 0 failed; reproduction 4 of 4 pass; "
-                      "beside them: sanity 3 of 3")
-    assert out[1].split()[:3] == ["pass", "reproduction", "W1-h1-idft"]
+    assert out[0] == ("westwick2012: 2 cases (0 from cache, 2 computed), 0 failed; reproduction 3 of 3 pass; "
+                      "beside them: sanity 4 of 4")                # W1-h1-idft is sanity (issue 19)
+    assert out[1].split()[:3] == ["pass", "sanity", "W1-h1-idft"]
 
 
 # ------------------------------------------------------------------------------------ van de Ruit gaps
@@ -222,21 +222,30 @@ def _published_cells(checks) -> dict:
 
 
 def test_table1_gap_checks_cover_every_resolvable_cell():
-    """A sign and a size check of KBR - skirt for every cell whose published gap exceeds the seed spread
-    plus the rounding; the size band always excludes zero (so it implies the sign)."""
+    """A sign check of KBR - skirt for every cell whose published gap exceeds the seed spread plus the rounding,
+    and a size check unless its band would be a near-copy of the sign (inner edge below SIZE_INNER_MIN of the
+    gap); the size band always excludes zero (so it implies the sign). All count as method differences."""
     gen = _load_generator()
     s = load_study("vanderuit2018_table1")
     ids = {c.id: c for c in s.checks}
     expected = [(v, snr, col) for v in gen.VARIATIONS for snr in gen.SNRS for col in gen.COLUMNS
                 if gen.resolvable(v, snr, col) is not None]
     assert len(expected) >= 19
+    n_size = 0
     for v, snr, col in expected:
-        sign, size = ids[f"D-{v}-{snr}-{col}-sign"], ids[f"D-{v}-{snr}-{col}-size"]
+        sign, size = ids[f"D-{v}-{snr}-{col}-sign"], ids.get(f"D-{v}-{snr}-{col}-size")
         gap = gen.resolvable(v, snr, col)
-        assert sign.kind == size.kind == "difference" and sign.evidence == "reproduction"
-        assert size.low <= gap <= size.high and (size.low > 0 or size.high < 0)
+        assert sign.kind == "difference" and sign.count == "method_difference"
+        assert sign.evidence == "conditional" and sign.readings == ("R12",)       # the skirt's basis (issue 19)
         assert (sign.low, sign.high) == ((0.0, math.inf) if gap > 0 else (-math.inf, 0.0))
-    assert len([c for c in s.checks if c.id.startswith("D-")]) == 2 * len(expected)
+        if size is None:
+            continue
+        n_size += 1
+        assert size.kind == "difference" and size.count == "method_difference"
+        assert size.low <= gap <= size.high and (size.low > 0 or size.high < 0)
+        assert min(abs(size.low), abs(size.high)) >= gen.SIZE_INNER_MIN * abs(gap) - 1e-9
+    assert n_size == len(expected) - 2          # two RMSE_k size bands were near-copies of their sign
+    assert len([c for c in s.checks if c.id.startswith("D-")]) == len(expected) + n_size
 
 
 def test_generated_block_of_the_table1_yaml_is_the_generators_output():

@@ -22,17 +22,21 @@ STUDY = CONFIGS / "studies" / "vanderuit2018_table2.yaml"
 
 def test_config_parses_with_readings_and_checks_that_say_what_they_are():
     s = load_study("vanderuit2018_table2")
-    assert set(s.parts) == {"table2", "table2_pralds", "table2_kbr_relaxation", "table2_one_sided_lags"}
-    assert {r.id for r in s.readings} == {f"S{i}" for i in range(1, 14)}
+    assert set(s.parts) == {"table2", "table2_pralds", "table2_kbr_relaxation", "table2_one_sided_lags",
+                            "table2_broadband"}
+    assert {r.id for r in s.readings} == {f"S{i}" for i in range(1, 15)}
     assert all(c.if_missed and c.evidence for c in s.checks)
     assert {c.evidence for c in s.checks} == {"calibrated", "reproduction", "conditional", "sanity"}
     by_id = {c.id: c for c in s.checks}
     assert by_id["C1-kbr-single-vaf_self"].evidence == "calibrated"
-    for c in s.checks:      # every check involving KBR depends on its solver reading (S13)
-        involves_kbr = "kbr" in (c.select.get("estimator"), (c.versus or {}).get("estimator"))
-        assert (c.evidence in ("conditional", "calibrated")) == involves_kbr, c.id
+    for c in s.checks:      # every check involving KBR depends on its solver reading (S13), the skirt on S7
+        names = (c.select.get("estimator"), (c.versus or {}).get("estimator"))
+        involves = "kbr" in names or ("skirt" in names and c.evidence != "sanity")   # A4: by construction
+        assert (c.evidence in ("conditional", "calibrated")) == involves, c.id
+        if c.evidence == "conditional":
+            assert ("S13" in c.readings) == ("kbr" in names) and ("S7" in c.readings) == ("skirt" in names), c.id
     cases = expand(s)
-    assert len(cases) == 6 * 3 + 6 * 3 + 6 + 6
+    assert len(cases) == 6 * 3 + 6 * 3 + 6 + 6 + 6
     assert s.parts["table2"].estimators["kbr"]["refine"] is True
 
 

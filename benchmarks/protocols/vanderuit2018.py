@@ -23,7 +23,8 @@ from jointbench import estimators
 from jointbench import sims
 from jointbench.benchmarks.metrics import rmse, vaf
 from jointbench.benchmarks.protocols import Context, register
-from jointbench.benchmarks.scoring import frozen_stiffness
+from jointbench.benchmarks.scoring import basis_bound, frozen_stiffness
+from jointbench.estimators.skirt import basis as skirt_basis
 from jointbench.errors import ConfigError
 from jointbench.schema import param
 from jointbench.sims.profile import parse_profile
@@ -54,6 +55,26 @@ def noise_ratio(snr_db: float, definition: str, ratios: dict) -> float:
             return float(v)
     raise ConfigError(f"params: 'variance_ratio' has no entry for snr_db = {snr_db:g} dB; "
                       f"entries: {', '.join(str(k) for k in ratios)}")
+
+
+def prefilter_noise_ratio(snr_db: float, cutoff_hz: float, order: int, white_hz: float, scored_hz: float) -> float:
+    """var(noise)/var(torque) on a record that keeps ``0 ... scored_hz`` when white noise, band-limited to
+    ``white_hz`` and scaled to ``snr_db`` (standard definition) *before* a Butterworth low-pass of ``order``
+    and ``cutoff_hz``, is what was added (the derivation of reading R1 tried in issue 19):
+    ``10^(-SNR/10) * integral_0^scored |H(f)|^2 df / white_hz`` with ``|H|^2 = 1/(1 + (f/f_c)^(2n))``."""
+    from scipy.integrate import quad
+
+    top = min(scored_hz, white_hz)
+    power, _ = quad(lambda f: 1.0 / (1.0 + (f / cutoff_hz) ** (2 * order)), 0.0, top, limit=500)
+    return 10.0 ** (-snr_db / 10.0) * power / white_hz
+
+
+def inferred_noise_ratio(vaf_val: float, vaf_optim: float) -> float:
+    """The noise ratio a published row implies (reading R1): VAF_val = 1 - (r + e)/(1 + r) with
+    e = 1 - VAF_optim (validation noise independent of the model error), so r = (1 - VAF_val - e)/VAF_val;
+    VAFs in percent."""
+    v, e = vaf_val / 100.0, 1.0 - vaf_optim / 100.0
+    return (1.0 - v - e) / v
 
 
 def step_times(time: np.ndarray, k: np.ndarray, window: tuple[float, float], margin: float) -> list[int]:
@@ -141,6 +162,11 @@ class Table1Params:
     image_variations: tuple[str, ...] = param(("sine20",), doc="variations whose |G(jw, t)| image is "
                                                                "recorded (curve seeds only)")
     image_step: float = param(0.5, unit="s", gt=0, doc="time grid of the |G(jw, t)| images")
+    bound_orders: tuple[int, ...] = param((), doc="orders N_p of the eq. 14 basis whose best possible RMSE_k "
+                                                  "(skirt bound) is recorded, on the curve seeds without noise")
+    bound_intervals: dict = param(default_factory=dict,
+                                  doc="name -> [start, end] (s from the window's start): other scored intervals "
+                                      "of the bound")
 
     def __post_init__(self):
         if self.variation not in self.variations:
@@ -178,6 +204,31 @@ def _case_estimators(ctx: Context, p: Table1Params) -> dict:
         else:
             out[name] = est
     return out
+
+
+def _lowest_line(est: Any, f1: float) -> float:
+    """The lowest line an estimate reports its stiffness at (its ``lines_hz``, e.g. a skirt fitted on chosen
+    lines), else ``f1`` (the perturbation's lowest line)."""
+    lines = getattr(est, "lines_hz", None)
+    return float(np.min(lines)) if lines is not None and len(lines) else f1
+
+
+def _skirt_bounds(ctx: Context, p: Table1Params, t: np.ndarray, truths: dict, lab: dict) -> None:
+    """The best possible RMSE_k of the eq. 14 basis (``rmse_k_bound``, estimator 'bound') for each order of
+    ``bound_orders``, each scored interval (the part's ``score`` as 'paper' and ``bound_intervals``), each
+    truth (the frozen |G(j w_1, t)| of reading R5, the intrinsic k(t)) and each fit (least squares on the
+    scored samples: the exact bound; on the whole window: what a fit over the record projects)."""
+    tw = t - t[0]
+    duration = float(len(t) * (t[1] - t[0]))
+    intervals = {"paper": tuple(p.score), **{k: tuple(v) for k, v in p.bound_intervals.items()}}
+    for n_p in p.bound_orders:
+        B = skirt_basis(int(n_p), tw, duration)
+        for iname, window in intervals.items():
+            m = scored_mask(t, window)
+            for tname, truth in truths.items():
+                for fit in ("scored", "window"):
+                    ctx.metric("rmse_k_bound", basis_bound(truth, t, m, B, fit), "bound", n_p=int(n_p),
+                               interval=iname, truth=tname, fit=fit, **lab)
 
 
 @register("vanderuit2018.table1", Table1Params, share=lambda p: p.variations[p.variation])
@@ -239,6 +290,9 @@ def table1(ctx: Context) -> None:
         for j, f in enumerate(lines):
             ctx.curve("tf_mag", tg - p.score[0], Gt[:, j], series="truth", freq_hz=float(f))
 
+    if record and not math.isfinite(p.snr_db) and p.bound_orders:
+        _skirt_bounds(ctx, p, t, {"frozen": H1, "intrinsic": k_true}, lab)
+
     for name, estimator in ests.items():
         est = estimator.fit(est_trial)
         yhat = est.predict(est_trial.input)
@@ -248,7 +302,11 @@ def table1(ctx: Context) -> None:
             ctx.metric("vaf_optim" + tag, vaf(y0[m], yhat[m]), name, **lab)
             ctx.metric("vaf_val" + tag, vaf(yv[m], yhat_v[m]), name, **lab)
         khat = np.asarray(est.stiffness(t), float)
-        ctx.metric("rmse_k", rmse(H1[s], khat[s]), name, **lab)
+        ctx.metric("rmse_k", rmse(H1[s], khat[s]), name, **lab)      # R5: against |G(j w_1, t)|, w_1 = 0.1 Hz
+        f_est = _lowest_line(est, f1)
+        if not math.isclose(f_est, f1, rel_tol=1e-6):   # its lowest line is another (R12: skirt N_p = 13, 0.9 Hz)
+            ctx.metric("rmse_k_own_line", rmse(frozen_stiffness(est_trial, f_est)[s], khat[s]), name,
+                       line_hz=f_est, **lab)
         ctx.metric("rmse_k_intrinsic", rmse(k_true[s], khat[s]), name, **lab)
         if steps:
             ramps = [step_ramp_time(t, khat, H1, i, p.step_half) for i in steps]

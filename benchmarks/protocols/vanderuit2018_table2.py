@@ -206,7 +206,14 @@ class _Case:
                 "rmse_k_rel": float(np.sqrt(np.mean(err ** 2)) / np.mean(true[m]))}, khat, true
 
 
-@register("vanderuit2018.table2", Table2Params)
+def _response_share(p: Table2Params) -> dict:
+    """What of the parameters decides the simulated responses of a case (its subject and the design without
+    the noise levels, which only the sensors see): parts that differ in noise or estimators share them."""
+    return {"subject": p.subject, "same_input": p.same_input,
+            "subjects": {k: v for k, v in p.subjects.items() if k != "noise_variance_ratio"}}
+
+
+@register("vanderuit2018.table2", Table2Params, share=_response_share)
 def table2(ctx: Context) -> None:
     """Table II for one simulated subject: single-trial and ensemble VAFs, stiffness RMSE and bias.
 
