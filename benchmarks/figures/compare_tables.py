@@ -390,12 +390,19 @@ def tuning_table(rows: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(recs)
 
 
+def _design(reason: pd.Series) -> pd.Series:
+    """Skips that are the grid's design (its ``only`` rules: reasons led by a reading id, 'M3: ...') or a
+    tuned column with nothing to tune: not failures."""
+    r = reason.fillna("").astype(str)
+    return r.str.match(r"^[A-Z]+\d+:") | r.str.contains("nothing to tune", case=False)
+
+
 def reasons(rows: pd.DataFrame) -> pd.DataFrame:
-    """Skipped and not-fitted combinations: one line per method and reason, with the scenarios (the
-    methods copied from the paper column because they have nothing to tune are not listed)."""
+    """Skipped and not-fitted combinations: one line per method and reason, with the scenarios. Skips by
+    the grid's design are counted separately (:func:`design_skips`)."""
     sel = rows[rows["metric"].isin(FAILURES)]
     if "reason" in sel:
-        sel = sel[~sel["reason"].fillna("").str.contains("nothing to tune", case=False)]
+        sel = sel[~_design(sel["reason"])]
     if sel.empty:
         return pd.DataFrame()
     out = []
@@ -406,6 +413,17 @@ def reasons(rows: pd.DataFrame) -> pd.DataFrame:
                     "method": method, "reason": reason, "scenarios": len(cells),
                     "which": "; ".join(cells[:4]) + (f"; ... ({len(cells) - 4} more)" if len(cells) > 4 else "")})
     return pd.DataFrame(out)
+
+
+def design_skips(rows: pd.DataFrame) -> pd.DataFrame:
+    """Combinations the grid leaves out by design: one line per reason with the number of combinations."""
+    if "reason" not in rows:
+        return pd.DataFrame()
+    sel = rows[(rows["metric"] == "skipped") & _design(rows["reason"])]
+    if sel.empty:
+        return pd.DataFrame()
+    n = sel.groupby(sel["reason"].astype(str), sort=False).size()
+    return pd.DataFrame({"left out by the grid's design": n.index, "combinations": n.to_numpy()})
 
 
 # ----------------------------------------------------------------------------- per-scenario tables
