@@ -147,9 +147,9 @@ def paired_comparisons(values: dict[str, dict], better: Better, alpha: float = 0
     ``values`` maps a method to {realization: value}. For each pair (a, b) with at least one shared
     realization where both values are finite: ``n`` shared realizations, ``median_diff`` (median over
     them of a - b) with ``diff_lo``/``diff_hi`` (the paired percentile bootstrap 90 % interval of that
-    median: the realizations resampled as pairs), ``p`` (:func:`signed_rank_p`), ``p_holm`` (Holm over all pairs of this call: one
-    family), ``favours``: 'a' or 'b' (the one the median difference favours; '' on 0) and ``verdict``:
-    ``favours`` when ``p_holm < alpha``, else '' (no difference shown).
+    median: the realizations resampled as pairs), ``p`` (:func:`signed_rank_p`), ``p_holm`` (Holm over
+    all pairs of this call: one family), ``favours``: 'a' or 'b' (the one the median difference favours;
+    '' on 0) and ``verdict``: ``favours`` when ``p_holm < alpha``, else '' (no difference shown).
     """
     names = list(values)
     recs = []

@@ -217,7 +217,7 @@ def test_figures_written_as_png_and_svg(report):
     names = [f for f, _ in rep.figures]
     assert {"matrix_heatmap.png", "matrix_tradeoff.png", "matrix_khat.png", "matrix_heatmap_tuned.png"} <= set(names)
     for f in names:
-        assert (folder / f).stat().st_size > 1000 and (folder / f.replace(".png", ".svg")).stat().st_size > 1000
+        assert (folder / f).stat().st_size > 1000 and (folder / f.replace(".png", ".pdf")).stat().st_size > 1000
     cap = dict((f, c) for f, c in rep.figures)["matrix_tradeoff.png"]
     assert "rise time infinite for" in cap and "slow" in cap and "const" in cap
 

@@ -54,7 +54,8 @@ def _axes_text(rows: pd.DataFrame) -> str:
             continue
         vals = [v for v in dict.fromkeys(rows.loc[rows["estimator"] != ct.SCENARIO_ROWS, a].dropna())]
         if a == "scenario" or len(vals) > 1:
-            parts.append(f"{len(vals)} {a} value{'s' if len(vals) != 1 else ''} ({_join([f'{v:g}' if isinstance(v, float) else v for v in vals])})")
+            shown = _join([f"{v:g}" if isinstance(v, float) else v for v in vals])
+            parts.append(f"{len(vals)} {a} value{'s' if len(vals) != 1 else ''} ({shown})")
     return _join(parts)
 
 
@@ -194,38 +195,34 @@ def compare_figures(part, rows, curves, folder, checks) -> PartReport:
 
     sets, order = {}, {}
     for tuning in tunings:
-        f = plots.heat_map(table, rows, primary, tuning, feas, folder, f"{part.name}_heatmap{_suffix(tuning, tunings)}.png")
+        sfx = _suffix(tuning, tunings)
+        f = plots.heat_map(table, rows, primary, tuning, feas, folder, f"{part.name}_heatmap{sfx}.png")
         if f:
             rep.figures.append((f, f"Methods x scenarios ({tuning} column, {primary}): median VAF of k (%), diverging "
                                    f"at 0 % (blue: better than a constant at the true mean), colour clipped at "
-                                   f"{plots.VAF_FLOOR:.0f} %, every cell printed; also as SVG"))
-        f, lines = plots.trade_off(table, primary, tuning, folder, f"{part.name}_tradeoff{_suffix(tuning, tunings)}.png")
+                                   f"{plots.VAF_FLOOR:.0f} %, every cell printed; also as PDF"))
+        f, lines = plots.trade_off(table, primary, tuning, folder, f"{part.name}_tradeoff{sfx}.png")
         if f:
             rep.figures.append((f, f"Rise time against random error, square-wave scenarios ({tuning} column): bars "
                                    "are the 90 % intervals; methods with an infinite rise time at the right edge ('>')"
-                                   + (": " + "; ".join(lines) if lines else "") + "; also as SVG"))
+                                   + (": " + "; ".join(lines) if lines else "") + "; also as PDF"))
         s = plots.curve_sets(curves, primary, tuning)
-        f = plots.khat_figure(s, table, primary, tuning, folder, f"{part.name}_khat{_suffix(tuning, tunings)}.png")
+        f = plots.khat_figure(s, table, primary, tuning, folder, f"{part.name}_khat{sfx}.png")
         if f:
             rep.figures.append((f, f"k_hat(t) against the truth ({tuning} column, {primary}): mean over realizations "
                                    f"of the {plots.CURVES_PER_PANEL} methods with the highest median VAF of k per "
                                    "scenario (band: 5th-95th percentile over realizations where stored; the axis "
-                                   "spans the truth's range with a margin); every method on the interactive page; "
-                                   "also as SVG"))
+                                   "spans the truth's range with a margin); more methods on the interactive page; "
+                                   "also as PDF"))
         for cell, d in s.items():
             sets[(cell, primary, tuning)] = d
             order[(cell, primary, tuning)] = plots.best_methods(table, cell, primary, tuning, len(d["methods"]))
     study = str(rows["study"].dropna().iloc[0]) if "study" in rows and rows["study"].notna().any() else ""
     title = f"Method comparison: {study + ', part ' if study else 'part '}{part.name}"
-    intro = [_plain(p) for p in text[:2]] + [DEFINITIONS, text[3]]
+    intro = [re.sub(r"\[([^\]]+)\]\([^)]+\)", r"\1", p) for p in text[:2]] + [DEFINITIONS, text[3], text[4]]
     static = [(t, df) for t, df in rep.tables if not t.startswith(tuple(cells))]
     write_text(folder / page_name, cp.render(title, intro, cp.page_data(table, sets, order), static))
     return rep
-
-
-def _plain(text: str) -> str:
-    """Inline markdown as plain text (the page's paragraphs)."""
-    return re.sub(r"\[([^\]]+)\]\([^)]+\)", r"\1", text).replace("**", "").replace("`", "")
 
 
 def _suffix(tuning: str, tunings: list[str]) -> str:

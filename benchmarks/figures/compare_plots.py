@@ -1,7 +1,7 @@
 """The figures of a comparison grid, drawn from its full table (:mod:`benchmarks.figures.compare_tables`)
 and stored curves: the methods x scenarios heat map of the VAF of k on a diverging scale centred at 0,
 the rise-time / random-error trade-off with the methods whose rise time is infinite at the axis edge,
-and k_hat(t) against the truth per scenario. Each figure is written as PNG (the report) and SVG (print).
+and k_hat(t) against the truth per scenario. Each figure is written as PNG (the report) and PDF (print).
 """
 from __future__ import annotations
 
@@ -22,9 +22,9 @@ SPREAD = ("p05 over realizations", "p95 over realizations")
 
 
 def save_both(fig, folder, name: str) -> str:
-    """The figure as ``name`` (PNG) and beside it as SVG; returns the PNG's name."""
+    """The figure as ``name`` (PNG) and beside it as PDF (vector, for print); returns the PNG's name."""
     folder.mkdir(parents=True, exist_ok=True)
-    fig.savefig(folder / (name.rsplit(".", 1)[0] + ".svg"), bbox_inches="tight")
+    fig.savefig(folder / (name.rsplit(".", 1)[0] + ".pdf"), bbox_inches="tight")
     return save(fig, folder, name)
 
 
