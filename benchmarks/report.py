@@ -117,7 +117,7 @@ def model(study: Study, comparison: pd.DataFrame, part_reports: dict, failed: li
         sections[study.parts[name].report_section].append((name, rep))
     commit = meta["commit"]
     return {
-        "title": f"{study.title}: reproduction report",
+        "title": f"{study.title}: {'reproduction' if study.checks else 'comparison'} report",
         "dirty": commit.endswith("-dirty"),
         "commit": commit,
         "generated": f"{_dt.datetime.now(_dt.timezone.utc):%Y-%m-%d %H:%M} UTC",
