@@ -194,11 +194,15 @@ def test_full_table_intervals_contain_values_and_ranks_skip_non_finite(report):
 def test_report_text_is_derived_from_the_rows(report):
     rep, folder, rows, curves = report
     text = rep.text
-    assert "3 methods on 3 scenarios" in text and "R = 8 realizations" in text
-    assert "2 of 3 scenarios are ranked" in text and "elbow / sine" in text
-    assert not re.search(r"studies\.md|issue \d+|#\d\d", text, re.I)        # nothing a reader cannot open
-    assert "backend agreement" in text.lower() and text.count("mujoco against analytic") == 1
     titles = [t for t, _ in rep.tables]
+    assert "3 methods on 3 scenarios" in text and "R = 8 realizations" in text
+    assert "2 base scenarios (wrist, elbow) x 2 stiffness variations (square, sine)" in text
+    assert "2 of 3 scenarios are ranked" in text and "elbow / sine" in text
+    infeasible = [t for t in titles if t.startswith("elbow / sine")]
+    assert len(infeasible) == 1 and "infeasible: not ranked" in infeasible[0]
+    assert "SNR of the time-varying" in infeasible[0]                    # shown with its identifiability figures
+    assert not re.search(r"studies\.md|issue \d+|#\d\d", text, re.I)        # nothing a reader cannot open
+    assert "backend agreement" in text.lower() and text.count("mujoco against analytic") == 1 and "VAF within" in text
     assert any(t.startswith("Identifiability") for t in titles)
     settings = dict(rep.tables)["Settings of every method"]
     assert {"paper", "tuned", "paper (nothing to tune)"} <= set(settings["tuning"])

@@ -46,6 +46,11 @@ def _join(items: list[str]) -> str:
     return items[0] if len(items) == 1 else ", ".join(items[:-1]) + " and " + items[-1] if items else ""
 
 
+#: how the text names the values of a cell axis
+AXIS_NAMES = {"scenario": "base scenario", "joint": "joint", "variation": "stiffness variation",
+              "perturbation": "perturbation", "noise": "noise level", "fs": "rate"}
+
+
 def _axes_text(rows: pd.DataFrame) -> str:
     """What the scenarios are made of, from the rows: each varying axis and its values."""
     parts = []
@@ -54,9 +59,9 @@ def _axes_text(rows: pd.DataFrame) -> str:
             continue
         vals = [v for v in dict.fromkeys(rows.loc[rows["estimator"] != ct.SCENARIO_ROWS, a].dropna())]
         if a == "scenario" or len(vals) > 1:
-            shown = _join([f"{v:g}" if isinstance(v, float) else v for v in vals])
-            parts.append(f"{len(vals)} {a} value{'s' if len(vals) != 1 else ''} ({shown})")
-    return _join(parts)
+            shown = ", ".join(f"{v:g}" if isinstance(v, float) else str(v) for v in vals)
+            parts.append(f"{len(vals)} {AXIS_NAMES[a]}{'s' if len(vals) != 1 else ''} ({shown})")
+    return " x ".join(parts)
 
 
 def _r_text(rows: pd.DataFrame) -> str:
@@ -130,7 +135,7 @@ def compare_figures(part, rows, curves, folder, checks) -> PartReport:
             + f"; tuning column{'s' if len(tunings) > 1 else ''} {_join(tunings)}. Every number is from the tidy "
             f"rows (`cases.csv`); the full table is `{part.name}_scores.csv`, the paired comparisons "
             f"`{part.name}_pairs.csv`, and [the interactive comparison page]({page_name}) has the full table sortable "
-            "and filtered by scenario and metric, and k_hat(t) of every method.",
+            "and filtered by scenario and metric, and k_hat(t) of the best methods of every scenario.",
             f"**{len(ranked)} of {len(cells)} scenarios are ranked**"
             + (f"; {len(infeasible)} are infeasible (no method's median VAF of k is above 0 %, i.e. none beats a "
                f"constant at the true mean) and left out of every ranking and count: {_join(infeasible)}."
@@ -181,8 +186,15 @@ def compare_figures(part, rows, curves, folder, checks) -> PartReport:
                 rep.tables.append((f"Paired wins on {METRICS[metric][0]} ({tuning}): row against column, 'w/a/n' = "
                                    "significantly better in w, median paired difference ahead in a, of n ranked "
                                    "scenarios", w))
+    figures = ident.set_index(["scenario", "backend"]) if not ident.empty else None
     for cell, df, note in ct.scenario_tables(table, primary):
-        status = "ranked" if cell in ranked else "infeasible: not ranked"
+        status = "ranked"
+        if cell not in ranked:
+            status = "infeasible: not ranked"
+            if figures is not None and (cell, primary) in figures.index:
+                f = figures.loc[(cell, primary)]
+                shown = [f"{h} {f[h]:.3g}" for h in ct.IDENTIFIABILITY.values() if h in f and pd.notna(f[h])]
+                status += ("; " + ", ".join(shown)) if shown else ""
         n_m = df["method"].nunique()
         title = f"{cell} ({primary}; {status}; {n_m} methods): value [90 % interval] #rank"
         rep.tables.append((title + (f". {note}" if note else ""), df))
