@@ -179,6 +179,10 @@ def compare_figures(part, rows, curves, folder, checks) -> PartReport:
     if not tt.empty:
         rep.tables.append(("Tuning: candidates tried on the tuning realizations (never scored), chosen by held-out "
                            "output VAF", tt))
+    te = ct.tuning_effect(rows, table)
+    if not te.empty:
+        rep.tables.append(("Tuned against paper settings, per method: paired over the same realizations of each ranked "
+                           "scenario (signed-rank, Holm over the methods of a scenario)", te))
     for tuning in tunings:
         for metric in ("vaf_stiffness", "error_rms"):
             w = ct.wins(pairs, metric, tuning)

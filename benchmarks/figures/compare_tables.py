@@ -308,6 +308,45 @@ def beats_sentences(pairs: pd.DataFrame, metric: str, tuning: str, top: int = 12
     return [f"`{a}` beats `{b}` on {head} in {w} of {n} scenarios" for w, n, a, b in best]
 
 
+def tuning_effect(rows: pd.DataFrame, table: pd.DataFrame, metric: str = "vaf_stiffness") -> pd.DataFrame:
+    """Per method, the tuned column against the paper column on ``metric`` over the same realizations of
+    each feasible cell (primary backend): signed-rank p-values, Holm over the methods of a cell; counts of
+    the cells where tuning helped or hurt significantly, and the median over cells of the median paired
+    change. Methods with nothing to tune are left out (the same fit in both columns)."""
+    if "realization" not in rows.columns or not (rows["tuning"] == "tuned").any():
+        return pd.DataFrame()
+    primary = primary_backend(rows)
+    feas = feasibility(table)
+    better = METRICS[metric][1]
+    per = rows[(rows["status"] == "ok") & rows["realization"].notna() & (rows["backend"] == primary)
+               & (rows["metric"] == metric)]
+    recs = []
+    for cell, g in per.groupby("cell", sort=False):
+        if not feas.get((cell, primary), np.nan) > 0:
+            continue
+        fam = []
+        for method, h in g.groupby("method", sort=False):
+            a, b = ({int(r): v for r, v in zip(h.loc[h["tuning"] == c, "realization"],
+                                                h.loc[h["tuning"] == c, "value"])} for c in ("tuned", "paper"))
+            shared = [r for r in a if r in b and np.isfinite(a[r]) and np.isfinite(b[r])]
+            if shared:
+                d = np.array([a[r] - b[r] for r in shared], float)
+                fam.append({"method": method, "change": float(np.median(d)), "p": cs.signed_rank_p(d)})
+        for rec, ph in zip(fam, cs.holm([f["p"] for f in fam])):
+            good = rec["change"] > 0 if better == "max" else rec["change"] < 0
+            rec["helped"] = bool(ph < ALPHA and good)
+            rec["hurt"] = bool(ph < ALPHA and not good and rec["change"] != 0)
+            recs.append(rec)
+    if not recs:
+        return pd.DataFrame()
+    df = pd.DataFrame(recs)
+    head = METRICS[metric][0].replace(" (%)", " (points)")
+    out = df.groupby("method", sort=True).agg(scenarios=("p", "size"), helped=("helped", "sum"), hurt=("hurt", "sum"),
+                                              change=("change", "median")).reset_index()
+    return out.rename(columns={"helped": "tuned significantly better", "hurt": "tuned significantly worse",
+                               "change": f"median change of {head}"})
+
+
 # ----------------------------------------------------------------------------- backends, settings
 def backend_agreement(table: pd.DataFrame, primary: str) -> list[str]:
     """One line per cell run on more than one backend: how far the other backend's values lie from the
