@@ -6,7 +6,7 @@ columns, the figures (heat map, rise-time / random-error trade-off, k_hat(t) aga
 SVG) and the interactive page ``<part>_comparison.html``. Every heading, count and reading is derived
 from the tidy rows.
 
-The tables are :mod:`benchmarks.figures.compare_tables`, the figures
+The tables are :mod:`benchmarks.figures.compare_tables` and :mod:`benchmarks.figures.compare_pairs`, the figures
 :mod:`benchmarks.figures.compare_plots`, the page :mod:`benchmarks.figures.compare_page`, the statistics
 :mod:`benchmarks.comparison_stats`.
 
@@ -25,6 +25,7 @@ import pandas as pd
 from jointbench.benchmarks import comparison_stats as cs
 from jointbench.benchmarks.figures import PartReport, register
 from jointbench.benchmarks.figures import compare_page as cp
+from jointbench.benchmarks.figures import compare_pairs as pairs_
 from jointbench.benchmarks.figures import compare_plots as plots
 from jointbench.benchmarks.figures import compare_tables as ct
 from jointbench.benchmarks.figures.compare_tables import METRICS, labelled  # noqa: F401  (the public names)
@@ -124,7 +125,7 @@ def compare_figures(part, rows, curves, folder, checks) -> PartReport:
     backends = [b for b in dict.fromkeys(rows["backend"]) if b]
     ranked = [c for c in cells if feas.get((c, primary), np.nan) > 0]
     infeasible = [c for c in cells if c not in ranked and (c, primary) in feas]
-    pairs = ct.paired(rows, table)
+    pairs = pairs_.paired(rows, table)
     if not pairs.empty:
         pairs.to_csv(folder / f"{part.name}_pairs.csv", index=False)
     page_name = f"{part.name}_comparison.html"
@@ -158,7 +159,7 @@ def compare_figures(part, rows, curves, folder, checks) -> PartReport:
         text.append("Readings from the ranks: " + "; ".join(readings) + ".")
     main = "error_rms" if (table["metric"] == "error_rms").any() else "vaf_stiffness"
     for tuning in tunings:
-        s = ct.beats_sentences(pairs, main, tuning)
+        s = pairs_.beats_sentences(pairs, main, tuning)
         if s:
             text.append(f"Significant paired wins ({tuning} column, {METRICS[main][0]}): " + "; ".join(s) + ".")
     agree = ct.backend_agreement(table, primary)
@@ -179,13 +180,13 @@ def compare_figures(part, rows, curves, folder, checks) -> PartReport:
     if not tt.empty:
         rep.tables.append(("Tuning: candidates tried on the tuning realizations (never scored), chosen by held-out "
                            "output VAF", tt))
-    te = ct.tuning_effect(rows, table)
+    te = pairs_.tuning_effect(rows, table)
     if not te.empty:
         rep.tables.append(("Tuned against paper settings, per method: paired over the same realizations of each ranked "
                            "scenario (signed-rank, Holm over the methods of a scenario)", te))
     for tuning in tunings:
         for metric in ("vaf_stiffness", "error_rms"):
-            w = ct.wins(pairs, metric, tuning)
+            w = pairs_.wins(pairs, metric, tuning)
             if not w.empty:
                 rep.tables.append((f"Paired wins on {METRICS[metric][0]} ({tuning}): row against column, 'w/a/n' = "
                                    "significantly better in w, median paired difference ahead in a, of n ranked "
