@@ -178,7 +178,7 @@ def _checks_section(m: dict, empty: bool) -> Section:
 
 def _part(study: Study, name: str, rep, folder) -> Section:
     """The section of one part: its text, tables and figures (or why there are none)."""
-    sec = Section(f"{name}: {study.parts[name].description}", anchor=f"part-{name}")
+    sec = Section(f"{name}: {getattr(rep, 'title', '') or study.parts[name].description}", anchor=f"part-{name}")
     if rep is None:
         return sec.add(Paragraph("_(no figure maker for this protocol)_"))
     if isinstance(rep, str):

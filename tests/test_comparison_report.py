@@ -197,6 +197,7 @@ def test_report_text_is_derived_from_the_rows(report):
     text = rep.text
     titles = [t for t, _ in rep.tables]
     assert "3 methods on 3 scenarios" in text and "R = 8 realizations" in text
+    assert rep.title.startswith("3 methods on 3 scenarios (2 ranked), R = 8 realizations per case, tuning paper")
     assert "2 base scenarios (wrist, elbow) x 2 stiffness variations (square, sine)" in text
     assert "2 of 3 scenarios are ranked" in text and "elbow / sine" in text
     infeasible = [t for t in titles if t.startswith("elbow / sine")]

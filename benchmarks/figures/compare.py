@@ -101,7 +101,8 @@ def _readings(table: pd.DataFrame, primary: str) -> list[str]:
     out = []
     t = table[(table["backend"] == primary) & (table["rank"] == 1)]
     for tuning, g in t.groupby("tuning", sort=False):
-        for metric, h in g.groupby("metric", sort=False):
+        for metric in [m for m in METRICS if m in set(g["metric"])]:
+            h = g[g["metric"] == metric]
             n_cells = table[(table["backend"] == primary) & (table["tuning"] == tuning) & (table["metric"] == metric)
                             & (table["ranked"] > 0)]["cell"].nunique()
             counts = h.groupby("method")["cell"].nunique().sort_values(ascending=False)
@@ -166,6 +167,8 @@ def compare_figures(part, rows, curves, folder, checks) -> PartReport:
     if agree:
         text.append("Backend agreement, one line per scenario:\n\n" + "\n\n".join(agree))
     rep.text = "\n\n".join(text)
+    rep.title = (f"{len(methods)} methods on {len(cells)} scenarios ({len(ranked)} ranked), {_r_text(rows)}, "
+                 f"tuning {' and '.join(tunings)}, backend{'s' if len(backends) > 1 else ''} {', '.join(backends)}")
 
     ident = ct.identifiability(rows, table)
     if not ident.empty:
