@@ -231,7 +231,8 @@ def compare_figures(part, rows, curves, folder, checks) -> PartReport:
         if f:
             rep.figures.append((f, f"k_hat(t) against the truth ({tuning} column, {primary}): mean over realizations "
                                    f"of the {plots.CURVES_PER_PANEL} methods with the highest median VAF of k per "
-                                   "scenario (band: 5th-95th percentile over realizations where stored; the axis "
+                                   f"scenario (band: 5th-95th percentile over realizations of the best {plots.BANDS}, "
+                                   "where stored; the axis "
                                    "spans the truth's range with a margin); more methods on the interactive page; "
                                    "also as PDF"))
         for cell, d in s.items():

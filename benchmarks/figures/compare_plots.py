@@ -17,15 +17,26 @@ from jointbench.benchmarks.figures.compare_tables import labelled
 VAF_FLOOR = -100.0
 #: methods drawn per panel of the k_hat(t) figure (the best by median VAF of k)
 CURVES_PER_PANEL = 5
+#: of those, drawn with their band over realizations (legibility)
+BANDS = 3
+#: PNG rate of the k_hat(t) figure (many noisy lines: the report inlines it; the PDF has every detail)
+KHAT_DPI = 72
 #: series names of the spread of the estimate over realizations in the curves file
 SPREAD = ("p05 over realizations", "p95 over realizations")
 
 
-def save_both(fig, folder, name: str) -> str:
-    """The figure as ``name`` (PNG) and beside it as PDF (vector, for print); returns the PNG's name."""
+def save_both(fig, folder, name: str, dpi: int | None = None) -> str:
+    """The figure as ``name`` (PNG; at ``dpi``, else the report's rate) and beside it as PDF (vector, for
+    print); returns the PNG's name."""
     folder.mkdir(parents=True, exist_ok=True)
     fig.savefig(folder / (name.rsplit(".", 1)[0] + ".pdf"), bbox_inches="tight")
-    return save(fig, folder, name)
+    if dpi is None:
+        return save(fig, folder, name)
+    import matplotlib.pyplot as plt
+
+    fig.savefig(folder / name, dpi=dpi, bbox_inches="tight")
+    plt.close(fig)
+    return name
 
 
 def _vaf_text(v: float) -> str:
@@ -162,7 +173,7 @@ def curve_sets(curves: pd.DataFrame | None, backend: str, tuning: str) -> dict[s
             if all(k in s for k in SPREAD):
                 m["lo"], m["hi"] = (s[k]["y"].to_numpy(float) for k in SPREAD)
             d["methods"][method] = m
-            if "truth" in s and "truth" not in d:
+            if "truth" in s and len(s["truth"]) > len(d.get("t", ())):      # the widest span of the truth
                 d["t"], d["truth"] = s["truth"]["x"].to_numpy(float), s["truth"]["y"].to_numpy(float)
         if d["methods"] and "truth" in d:
             out[cell] = d
@@ -179,8 +190,8 @@ def best_methods(table: pd.DataFrame, cell: str, backend: str, tuning: str, n: i
 
 def khat_figure(sets: dict, table: pd.DataFrame, backend: str, tuning: str, folder, name: str) -> str | None:
     """k_hat(t) against the truth, one panel per scenario: the truth (black) and the mean estimate over
-    realizations of the :data:`CURVES_PER_PANEL` methods with the highest median VAF of k, with the band
-    of the 5th to 95th percentile over realizations where the curves carry it."""
+    realizations of the :data:`CURVES_PER_PANEL` methods with the highest median VAF of k, the first
+    :data:`BANDS` with the band of the 5th to 95th percentile over realizations where the curves carry it."""
     if not sets:
         return None
     cells = list(sets)
@@ -195,10 +206,10 @@ def khat_figure(sets: dict, table: pd.DataFrame, backend: str, tuning: str, fold
         d = sets[cell]
         ax.plot(d["t"], d["truth"], color="k", lw=1.6, label="truth")
         shown = [m for m in best_methods(table, cell, backend, tuning, CURVES_PER_PANEL) if m in d["methods"]]
-        for m in shown:
+        for i, m in enumerate(shown):
             s = d["methods"][m]
             ax.plot(s["t"], s["mean"], color=colors[m], lw=1.0, label=m)
-            if "lo" in s:
+            if "lo" in s and i < BANDS:
                 ax.fill_between(s["t"], s["lo"], s["hi"], color=colors[m], alpha=0.15, lw=0)
         lo, hi = np.min(d["truth"]), np.max(d["truth"])
         pad = max(0.6 * (hi - lo), 0.2 * abs(hi))
@@ -212,4 +223,4 @@ def khat_figure(sets: dict, table: pd.DataFrame, backend: str, tuning: str, fold
     for ax in axes.ravel()[len(cells):]:
         ax.axis("off")
     fig.tight_layout()
-    return save_both(fig, folder, name)
+    return save_both(fig, folder, name, dpi=KHAT_DPI)
