@@ -163,12 +163,12 @@ def full_table(rows: pd.DataFrame, curves: pd.DataFrame | None = None) -> pd.Dat
             kind = ""
             if len(g) == 1 and "p05" in g and "p95" in g:
                 p05, p95 = float(g["p05"].iloc[0]), float(g["p95"].iloc[0])
-                if np.isfinite(value) and np.isfinite(p05) and np.isfinite(p95) and p05 <= value <= p95:
+                if np.isfinite(value) and not (np.isnan(p05) or np.isnan(p95)) and p05 <= value <= p95:
                     lo, hi, kind = p05, p95, "study's bootstrap over realizations (90 %)"
                 elif not np.isfinite(value):
                     lo = hi = value
                     kind = "infinite"
-                elif np.isfinite(p05):
+                elif not np.isnan(p05):
                     kind = "study's interval excludes its value: not shown"
         n = int(g["realization"].nunique()) if per else (int(g["n"].iloc[0]) if "n" in g and g["n"].notna().any()
                                                          else int(len(v)))
@@ -389,7 +389,7 @@ def design_skips(rows: pd.DataFrame) -> pd.DataFrame:
 def cell_text(r) -> str:
     """'value [lo, hi] #rank' of one row of the full table."""
     s = _num(r["value"])
-    if np.isfinite(r["lo"]) and np.isfinite(r["hi"]) and r["lo"] != r["hi"]:
+    if not (np.isnan(r["lo"]) or np.isnan(r["hi"])) and r["lo"] != r["hi"]:      # an end may be infinite
         s += f" [{_num(r['lo'])}, {_num(r['hi'])}]"
     if np.isfinite(r["rank"]):
         s += f" #{int(r['rank'])}"
