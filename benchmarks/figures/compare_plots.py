@@ -56,7 +56,7 @@ def heat_map(table: pd.DataFrame, rows: pd.DataFrame, backend: str, tuning: str,
     v = table[(table["metric"] == "vaf_stiffness") & (table["backend"] == backend) & (table["tuning"] == tuning)]
     ran = rows[(rows["backend"] == backend) & (rows["tuning"] == tuning) & rows["method"].ne("")
                & ~rows["metric"].isin(["skipped", "tuning_vaf_output"]) & rows["estimator"].ne("(scenario)")]
-    methods = sorted(dict.fromkeys(ran["method"]))
+    methods = sorted(set(ran["method"]) | set(v["method"]))    # with the tuned copies of untunable fits
     scens = list(dict.fromkeys(v["cell"])) or list(dict.fromkeys(ran["cell"]))
     if not methods or not scens:
         return None
@@ -145,10 +145,10 @@ def trade_off(table: pd.DataFrame, backend: str, tuning: str, folder, name: str)
         ax.grid(alpha=0.3)
     for ax in axes.ravel()[len(scens):]:
         ax.axis("off")
-    seen = {}
-    for ax in axes.ravel()[:len(scens)]:
-        for h, lab in zip(*ax.get_legend_handles_labels()):
-            seen.setdefault(lab, h)
+    from matplotlib.lines import Line2D
+
+    drawn = sorted({lab for ax in axes.ravel()[:len(scens)] for lab in ax.get_legend_handles_labels()[1]})
+    seen = {m: Line2D([], [], color=colors[m], marker="o", ls="", ms=5) for m in drawn}
     fig.tight_layout(rect=(0, 0.05 + 0.02 * (len(seen) // 6), 1, 1), h_pad=3.0)
     fig.legend(list(seen.values()), list(seen.keys()), loc="lower center", ncol=min(6, max(1, len(seen))),
                fontsize=7, frameon=False)
