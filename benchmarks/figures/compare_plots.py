@@ -93,7 +93,10 @@ def heat_map(table: pd.DataFrame, rows: pd.DataFrame, backend: str, tuning: str,
     return save_both(fig, folder, name)
 
 
-def _bar(value: float, lo: float, hi: float):
+def _bar(value: float, lo: float, hi: float, edge: float | None = None):
+    """Error bar of an interval; an infinite upper end runs to ``edge`` (the axis edge) when given."""
+    if np.isposinf(hi) and edge is not None:
+        hi = max(edge, value)
     if not (np.isfinite(lo) and np.isfinite(hi) and np.isfinite(value)):
         return None
     return [[max(0.0, value - lo)], [max(0.0, hi - value)]]
@@ -123,10 +126,11 @@ def trade_off(table: pd.DataFrame, backend: str, tuning: str, folder, name: str)
         fin = [m for m in both if np.isfinite(r.loc[m, "value"])]
         inf = [m for m in both if not np.isfinite(r.loc[m, "value"])]
         xmax = max([r.loc[m, "hi"] if np.isfinite(r.loc[m, "hi"]) else r.loc[m, "value"] for m in fin] or [1.0])
+        xmax = xmax if np.isfinite(xmax) and xmax > 0 else 1.0
         edge = 1.1 * xmax
         for m in fin:
             x, y = r.loc[m], e.loc[m]
-            ax.errorbar(x["value"], y["value"], xerr=_bar(x["value"], x["lo"], x["hi"]),
+            ax.errorbar(x["value"], y["value"], xerr=_bar(x["value"], x["lo"], x["hi"], edge),
                         yerr=_bar(y["value"], y["lo"], y["hi"]), fmt="o", color=colors[m], label=m, ms=5, capsize=2)
         for m in inf:
             y = e.loc[m]
