@@ -31,6 +31,8 @@ from jointbench.benchmarks.figures import compare_tables as ct
 from jointbench.benchmarks.figures.compare_tables import METRICS, labelled  # noqa: F401  (the public names)
 from jointbench.files import write_text
 
+#: paired wins written out in the text per tuning column (the win tables have them all)
+WIN_SENTENCES = 5
 DEFINITIONS = (
     "Definitions (van de Ruit et al.'s comparison framework): VAF of k = 100 (1 - sum (k_hat - k)^2 / "
     "sum (k - mean k)^2) per realization (a constant at the true mean scores 0 %); RMS error of k per "
@@ -96,8 +98,8 @@ def _paired_text(pairs: pd.DataFrame, rows: pd.DataFrame) -> str:
     return text
 
 
-def _readings(table: pd.DataFrame, primary: str) -> list[str]:
-    """Derived readings: who is best most often on each ranked metric (primary backend, each tuning)."""
+def _readings(table: pd.DataFrame, primary: str) -> pd.DataFrame:
+    """Derived readings: who ranks first how often on each ranked metric (primary backend, each tuning)."""
     out = []
     t = table[(table["backend"] == primary) & (table["rank"] == 1)]
     for tuning, g in t.groupby("tuning", sort=False):
@@ -105,10 +107,10 @@ def _readings(table: pd.DataFrame, primary: str) -> list[str]:
             h = g[g["metric"] == metric]
             n_cells = table[(table["backend"] == primary) & (table["tuning"] == tuning) & (table["metric"] == metric)
                             & (table["ranked"] > 0)]["cell"].nunique()
-            counts = h.groupby("method")["cell"].nunique().sort_values(ascending=False)
-            best = "; ".join(f"{m} {n}" for m, n in counts.items())
-            out.append(f"{METRICS[metric][0]} ({tuning}): best in the {n_cells} ranked scenarios: {best}")
-    return out
+            counts = h.groupby("method")["cell"].nunique().sort_values(ascending=False, kind="stable")
+            out.append({"metric": METRICS[metric][0], "tuning": tuning, "ranked scenarios": n_cells,
+                        "first (scenarios)": "; ".join(f"{m} {n}" for m, n in counts.items())})
+    return pd.DataFrame(out)
 
 
 @register("compare")
@@ -155,14 +157,12 @@ def compare_figures(part, rows, curves, folder, checks) -> PartReport:
     if n_bad:
         text.append(f"{n_bad} study intervals exclude their own value (rows from before the study re-centred its "
                     "bootstrap): not shown.")
-    readings = _readings(table, primary)
-    if readings:
-        text.append("Readings from the ranks: " + "; ".join(readings) + ".")
     main = "error_rms" if (table["metric"] == "error_rms").any() else "vaf_stiffness"
     for tuning in tunings:
-        s = pairs_.beats_sentences(pairs, main, tuning)
+        s = pairs_.beats_sentences(pairs, main, tuning, top=WIN_SENTENCES)
         if s:
-            text.append(f"Significant paired wins ({tuning} column, {METRICS[main][0]}): " + "; ".join(s) + ".")
+            text.append(f"The most frequent significant paired wins ({tuning} column; all in the win tables): "
+                        + "; ".join(s) + ".")
     agree = ct.backend_agreement(table, primary)
     if agree:
         text.append("Backend agreement, one line per scenario:\n\n" + "\n\n".join(agree))
@@ -175,6 +175,9 @@ def compare_figures(part, rows, curves, folder, checks) -> PartReport:
         has = any(h in ident.columns for h in ct.IDENTIFIABILITY.values())
         rep.tables.append(("Identifiability of every scenario" + ("" if has else
                            " (the rows carry no identifiability figures: only the best VAF of k)"), ident))
+    readings = _readings(table, primary)
+    if not readings.empty:
+        rep.tables.append(("Who ranks first, counted over the ranked scenarios", readings))
     st = ct.settings_table(rows)
     rep.tables.append(("Settings of every method" if not st.empty else
                        "Settings of every method: the rows carry no settings column (a run before settings "
