@@ -232,6 +232,13 @@ def test_figures_written_as_png_and_svg(report):
     assert {"matrix_heatmap.png", "matrix_tradeoff.png", "matrix_khat.png", "matrix_heatmap_tuned.png"} <= set(names)
     for f in names:
         assert (folder / f).stat().st_size > 1000 and (folder / f.replace(".png", ".pdf")).stat().st_size > 1000
+    # the heat map's scale diverges at 0: the infeasible cell's negative VAF is red, the good ones blue
+    import matplotlib.image as mpimg
+
+    px = mpimg.imread(folder / "matrix_heatmap.png")[..., :3]
+    red = (px[..., 0] > 0.35) & (px[..., 1] < 0.2) & (px[..., 0] - px[..., 2] > 0.2)
+    blue = (px[..., 2] > 0.4) & (px[..., 0] < 0.25) & (px[..., 2] - px[..., 0] > 0.3)
+    assert red.mean() > 0.02 and blue.mean() > 0.02
     cap = dict((f, c) for f, c in rep.figures)["matrix_tradeoff.png"]
     assert "rise time infinite for" in cap and "slow" in cap and "const" in cap
 
