@@ -124,7 +124,7 @@ def model(study: Study, comparison: pd.DataFrame, part_reports: dict, failed: li
         sections[study.parts[name].report_section].append((name, rep))
     commit = meta["commit"]
     return {
-        "title": f"{study.title}: reproduction report",
+        "title": f"{study.title}: {'reproduction' if study.checks else 'comparison'} report",
         "dirty": commit.endswith("-dirty"),
         "commit": commit,
         "generated": f"{_dt.datetime.now(_dt.timezone.utc):%Y-%m-%d %H:%M} UTC",
@@ -199,7 +199,7 @@ def _checks_section(m: dict, empty: bool) -> Section:
 
 def _part(study: Study, name: str, rep, folder) -> Section:
     """The section of one part: its text, tables and figures (or why there are none)."""
-    sec = Section(f"{name}: {study.parts[name].description}", anchor=f"part-{name}")
+    sec = Section(f"{name}: {getattr(rep, 'title', '') or study.parts[name].description}", anchor=f"part-{name}")
     if rep is None:
         return sec.add(Paragraph("_(no figure maker for this protocol)_"))
     if isinstance(rep, str):

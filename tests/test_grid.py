@@ -42,7 +42,7 @@ def test_skipped_combinations_are_reported_with_their_reason(tmp_path):
     assert skipped["reason"].str.contains("needs a 'multisine' perturbation").all()
     report = (run.folder / "report.md").read_text()
     assert "Combinations skipped or not fitted, and why" in report and "needs a 'multisine'" in report
-    assert "Best method per scenario" in report and (run.folder / "grid_heatmap.png").is_file()
+    assert "value [90 % interval] #rank" in report and (run.folder / "grid_heatmap.png").is_file()
     assert (run.folder / "grid_tradeoff.png").is_file()
     scores = pd.read_csv(run.folder / "grid_scores.csv")
     assert {"vaf_stiffness", "bias_rms", "random_error", "total_error", "rise_time_s", "vaf_output",

@@ -21,6 +21,7 @@ class PartReport:
     figures: list[tuple[str, str]] = dataclasses.field(default_factory=list)   # (file name, caption)
     tables: list[tuple[str, pd.DataFrame]] = dataclasses.field(default_factory=list)
     text: str = ""
+    title: str = ""          # the part's heading in the report (default: its config description)
 
 
 REGISTRY: Registry[Callable] = Registry("figure maker")

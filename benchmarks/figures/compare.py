@@ -1,232 +1,254 @@
-"""Tables and figures of a comparison grid (protocol ``compare``): the best method of every scenario on
-each metric with its spread, a heat map of methods x scenarios, the rise-time / random-error trade-off,
-and the combinations skipped or not fitted with their reasons. Drawn from the tidy rows only.
+"""The report of a comparison grid (protocol ``compare``): every method x scenario x metric with an
+interval that contains its value and its rank, the scenarios' identifiability (infeasible ones shown and
+left out of the rankings), paired comparisons between methods over the same realizations and their win
+counts, the backends' agreement in one line per scenario, the settings of every method in both tuning
+columns, the figures (heat map, rise-time / random-error trade-off, k_hat(t) against the truth; PNG and
+SVG) and the interactive page ``<part>_comparison.html``. Every heading, count and reading is derived
+from the tidy rows.
 
-A *method* is an estimator with the data it was given (``kbr`` on single trials, ``kbr (ensemble)``); a
-*scenario* is a combination of the grid's other axes (scenario, time variation, noise, rate, backend ...).
+The tables are :mod:`benchmarks.figures.compare_tables` and :mod:`benchmarks.figures.compare_pairs`, the figures
+:mod:`benchmarks.figures.compare_plots`, the page :mod:`benchmarks.figures.compare_page`, the statistics
+:mod:`benchmarks.comparison_stats`.
+
+References
+----------
+van de Ruit, Mugge, Cavallo, Lataire, Ludvig & Schouten, "Quantitative comparison of time-varying system
+identification methods to describe human joint impedance" (the metrics).
 """
 from __future__ import annotations
+
+import re
 
 import numpy as np
 import pandas as pd
 
-from jointbench.benchmarks.figures import PartReport, new_figure, register, save
+from jointbench.benchmarks import comparison_stats as cs
+from jointbench.benchmarks.figures import PartReport, register
+from jointbench.benchmarks.figures import compare_page as cp
+from jointbench.benchmarks.figures import compare_pairs as pairs_
+from jointbench.benchmarks.figures import compare_plots as plots
+from jointbench.benchmarks.figures import compare_tables as ct
+from jointbench.benchmarks.figures.compare_tables import METRICS, labelled  # noqa: F401  (the public names)
+from jointbench.files import write_text
 
-#: grid axes that make a scenario, in the order of its label
-SCENARIO_AXES = ("scenario", "joint", "variation", "perturbation", "noise", "fs", "backend")
-#: metric -> (heading, better: 'max' or 'min', per realization?)
-METRICS = {
-    "vaf_stiffness": ("VAF of k (%)", "max", True),
-    "total_error": ("total error (N·m/rad)", "min", False),
-    "bias_rms": ("bias, RMS (N·m/rad)", "min", False),
-    "random_error": ("random error (N·m/rad)", "min", False),
-    "rise_time_s": ("rise time (s)", "min", False),
-    "vaf_output": ("output VAF (%)", "max", True),
-    "fit_time_s": ("fit time (s)", "min", True),
-}
+#: paired wins written out in the text per tuning column (the win tables have them all)
+WIN_SENTENCES = 5
+DEFINITIONS = (
+    "Definitions (van de Ruit et al.'s comparison framework): VAF of k = 100 (1 - sum (k_hat - k)^2 / "
+    "sum (k - mean k)^2) per realization (a constant at the true mean scores 0 %); RMS error of k per "
+    "realization = RMS over t of k_hat - k; bias(t) = mean over realizations of k_hat(t) - k(t), its RMS over t; "
+    "random error = RMS over t of the SD over realizations; total error = RMS over t and realizations of "
+    "k_hat - k (total^2 = bias^2 + random^2 (R-1)/R); rise time = 10-90 % of the mean estimate at each step of a "
+    "square wave, averaged over the steps (infinite when a step is never followed). k is the static gain of "
+    "the true frozen impedance, scored between the discarded ends of the record where the estimate is valid "
+    "in every realization.")
 
 
-def _axes(rows: pd.DataFrame) -> list[str]:
-    """The scenario axes that vary in these rows (the scenario name always)."""
+def _join(items: list[str]) -> str:
+    items = [str(i) for i in items]
+    return items[0] if len(items) == 1 else ", ".join(items[:-1]) + " and " + items[-1] if items else ""
+
+
+#: how the text names the values of a cell axis
+AXIS_NAMES = {"scenario": "base scenario", "joint": "joint", "variation": "stiffness variation",
+              "perturbation": "perturbation", "noise": "noise level", "fs": "rate"}
+
+
+def _axes_text(rows: pd.DataFrame) -> str:
+    """What the scenarios are made of, from the rows: each varying axis and its values."""
+    parts = []
+    for a in ct.CELL_AXES:
+        if a not in rows.columns:
+            continue
+        vals = [v for v in dict.fromkeys(rows.loc[rows["estimator"] != ct.SCENARIO_ROWS, a].dropna())]
+        if a == "scenario" or len(vals) > 1:
+            shown = ", ".join(f"{v:g}" if isinstance(v, float) else str(v) for v in vals)
+            parts.append(f"{len(vals)} {AXIS_NAMES[a]}{'s' if len(vals) != 1 else ''} ({shown})")
+    return " x ".join(parts)
+
+
+def _r_text(rows: pd.DataFrame) -> str:
+    rs = ct.realizations(rows)
+    if not rs:
+        return "no per-realization rows"
+    return "R = " + _join([str(r) for r in rs]) + " realizations per case"
+
+
+def _paired_text(pairs: pd.DataFrame, rows: pd.DataFrame) -> str:
+    text = ("Paired comparisons: for every feasible scenario (primary backend), tuning column and metric scored per "
+            "realization, every pair of methods is compared over the realizations both were scored on (the same "
+            "data: realization r is the same simulation for every method) by the two-sided Wilcoxon signed-rank "
+            f"test (exact distribution), with Holm's correction over the pairs of that scenario, column and metric "
+            f"(family-wise error {ct.ALPHA:g}); the median paired difference carries its paired percentile bootstrap "
+            "90 % interval. 'A beats B' counts the scenarios where the adjusted p-value is below "
+            f"{ct.ALPHA:g} and the median difference favours A.")
+    if pairs.empty:
+        return text + " No pair could be compared in this run."
+    fam = pairs.groupby(["cell", "tuning", "metric"]).agg(m=("p", "size"), n=("n", "max"))
+    blind = fam[[cs.min_signed_rank_p(int(n)) >= ct.ALPHA / m for m, n in zip(fam["m"], fam["n"])]]
+    if len(blind):
+        n_min = int(blind["n"].min())
+        text += (f" In {len(blind)} of the {len(fam)} families the test cannot reject at all: with n = {n_min} "
+                 f"realizations the smallest possible p-value is 2/2^{n_min} = {cs.min_signed_rank_p(n_min):.2g}, "
+                 f"above Holm's first threshold {ct.ALPHA:g}/m for m = {int(blind['m'].min())} or more pairs; "
+                 "more realizations are needed for a verdict there (the counts 'ahead' say which way the median "
+                 "paired difference points).")
+    sig = int((pairs["verdict"] != "").sum())
+    text += f" Significant after correction: {sig} of {len(pairs)} pairs."
+    return text
+
+
+def _readings(table: pd.DataFrame, primary: str) -> pd.DataFrame:
+    """Derived readings: who ranks first how often on each ranked metric (primary backend, each tuning)."""
     out = []
-    for a in SCENARIO_AXES:
-        if a in rows.columns and (a == "scenario" or rows[a].dropna().astype(str).nunique() > 1):
-            out.append(a)
-    return out
-
-
-def labelled(rows: pd.DataFrame) -> pd.DataFrame:
-    """The rows with ``method`` and ``scenario_label`` columns."""
-    out = rows.copy()
-    out["estimator"] = out["estimator"].fillna("").astype(str)
-    data = out["data"].fillna("trial").astype(str) if "data" in out.columns else "trial"
-    out["method"] = np.where(data == "ensemble", out["estimator"] + " (ensemble)", out["estimator"])
-    axes = _axes(out)
-
-    def label(r) -> str:
-        parts = []
-        for a in axes:
-            v = r[a]
-            if a in ("noise", "fs") and not (isinstance(v, str)):
-                v = f"{a} {v:g}"
-            parts.append(str(v))
-        return " / ".join(parts)
-
-    out["scenario_label"] = out.apply(label, axis=1) if len(out) else ""
-    return out
-
-
-def scores(rows: pd.DataFrame) -> pd.DataFrame:
-    """One row per method, scenario and metric: ``value`` (median over realizations and seeds), ``lo`` and
-    ``hi`` (min and max over the realizations for per-realization metrics; the basic bootstrap 90 %
-    interval over realizations for the others), ``n`` (values combined)."""
-    ok = rows[(rows["status"] == "ok") & rows["metric"].isin(list(METRICS))]
-    recs = []
-    for (method, scen, metric), g in ok.groupby(["method", "scenario_label", "metric"], sort=False):
-        v = g["value"].astype(float)
-        if METRICS[metric][2]:
-            lo, hi = float(v.min()), float(v.max())
-        else:
-            lo = float(g["p05"].min()) if "p05" in g and g["p05"].notna().any() else float(v.min())
-            hi = float(g["p95"].max()) if "p95" in g and g["p95"].notna().any() else float(v.max())
-        recs.append({"method": method, "scenario": scen, "metric": metric, "value": float(v.median()),
-                     "lo": lo, "hi": hi, "n": int(len(v))})
-    return pd.DataFrame(recs, columns=["method", "scenario", "metric", "value", "lo", "hi", "n"])
-
-
-def _fmt(v: float) -> str:
-    if not np.isfinite(v):
-        return "∞" if v > 0 else ("-∞" if v < 0 else "")
-    return f"{v:.3g}" if abs(v) < 1e4 else f"{v:.2e}"
-
-
-def best_table(sc: pd.DataFrame) -> pd.DataFrame:
-    """Per scenario, the best method on each metric: 'method value (lo to hi)'."""
-    out = []
-    for scen in dict.fromkeys(sc["scenario"]):
-        row = {"scenario": scen}
-        for metric, (head, better, _) in METRICS.items():
-            s = sc[(sc["scenario"] == scen) & (sc["metric"] == metric)]
-            s = s[np.isfinite(s["value"])] if metric != "rise_time_s" else s[s["value"].notna()]
-            if s.empty:
-                row[head] = ""
-                continue
-            r = s.loc[s["value"].idxmax() if better == "max" else s["value"].idxmin()]
-            row[head] = f"{r['method']} {_fmt(r['value'])} ({_fmt(r['lo'])} to {_fmt(r['hi'])})"
-        out.append(row)
-    return pd.DataFrame(out)
-
-
-def heat_map(sc: pd.DataFrame, rows: pd.DataFrame, folder, name: str) -> str | None:
-    """Methods x scenarios, coloured by the median VAF of the stiffness (clipped to 0-100 %); skipped
-    combinations grey ('skip'), estimates that could not be fitted 'n/f'."""
-    v = sc[sc["metric"] == "vaf_stiffness"]
-    ran = rows[(rows["estimator"] != "") & (rows["metric"] != "skipped")]
-    methods = list(dict.fromkeys(ran["method"]))          # a method skipped everywhere: in the reasons table
-    scens = list(dict.fromkeys(rows["scenario_label"]))
-    if not methods or not scens:
-        return None
-    grid = np.full((len(methods), len(scens)), np.nan)
-    for r in v.itertuples():
-        grid[methods.index(r.method), scens.index(r.scenario)] = r.value
-    state = {}
-    for metric, tag in (("skipped", "skip"), ("not_fitted", "n/f"), ("not_scored", "n/s")):
-        for r in rows[rows["metric"] == metric].itertuples():
-            state[(r.method, r.scenario_label)] = tag
-    fig, ax = new_figure(figsize=(max(6.0, 0.75 * len(scens) + 2.5), max(3.0, 0.42 * len(methods) + 1.5)))
-    import matplotlib.pyplot as plt
-
-    cmap = plt.get_cmap("viridis").with_extremes(bad="0.85")
-    im = ax.imshow(np.clip(grid, 0, 100), cmap=cmap, vmin=0, vmax=100, aspect="auto")
-    for i, m in enumerate(methods):
-        for j, s in enumerate(scens):
-            value = grid[i, j]
-            text = (state.get((m, s), "") if not np.isfinite(value) else
-                    "<-99" if value < -99 else f"{value:.0f}" if abs(value) >= 10 else f"{value:.1f}")
-            dark = np.isfinite(grid[i, j]) and grid[i, j] < 60
-            ax.text(j, i, text, ha="center", va="center", fontsize=7, color="white" if dark else "black")
-    ax.set_xticks(range(len(scens)), scens, rotation=60, ha="right", fontsize=7)
-    ax.set_yticks(range(len(methods)), methods, fontsize=8)
-    fig.colorbar(im, ax=ax, label="VAF of the stiffness (%), median over realizations")
-    ax.set_title("Methods x scenarios: VAF of the estimated stiffness, % (grey: skipped; n/f: not fitted; "
-                 "exact values in the scores file)", fontsize=9)
-    return save(fig, folder, name)
-
-
-def _bar(r) -> list | None:
-    """Error bar from the spread (clipped at the estimate, should an interval not contain it)."""
-    if not (np.isfinite(r["lo"]) and np.isfinite(r["hi"])):
-        return None
-    return [[max(0.0, r["value"] - r["lo"])], [max(0.0, r["hi"] - r["value"])]]
-
-
-def trade_off(sc: pd.DataFrame, folder, name: str) -> str | None:
-    """Random error against rise time (square-wave scenarios), one panel per scenario, one point per
-    method with its bootstrap spread: the trade-off of the framework (fast methods are noisy)."""
-    rise = sc[(sc["metric"] == "rise_time_s") & np.isfinite(sc["value"])]
-    if rise.empty:
-        return None
-    scens = list(dict.fromkeys(rise["scenario"]))
-    ncol = min(3, len(scens))
-    nrow = -(-len(scens) // ncol)
-    fig, axes = new_figure(nrow, ncol, figsize=(4.2 * ncol, 3.4 * nrow), squeeze=False)
-    methods = list(dict.fromkeys(sc["method"]))
-    import matplotlib.pyplot as plt
-
-    colors = {m: plt.get_cmap("tab20")(i % 20) for i, m in enumerate(methods)}
-    for ax, scen in zip(axes.ravel(), scens):
-        r = rise[rise["scenario"] == scen].set_index("method")
-        e = sc[(sc["scenario"] == scen) & (sc["metric"] == "random_error")].set_index("method")
-        for m in r.index.intersection(e.index):
-            x, y = r.loc[m], e.loc[m]
-            ax.errorbar(x["value"], y["value"], xerr=_bar(x), yerr=_bar(y), fmt="o", color=colors[m], label=m,
-                        ms=5, capsize=2)
-        ax.set_title(scen, fontsize=8)
-        ax.set_xlabel("rise time 10-90 % (s)")
-        ax.set_ylabel("random error (N·m/rad)")
-        ax.grid(alpha=0.3)
-    for ax in axes.ravel()[len(scens):]:
-        ax.axis("off")
-    handles, labels = axes.ravel()[0].get_legend_handles_labels()
-    seen = dict(zip(labels, handles))
-    for ax in axes.ravel()[1:len(scens)]:
-        for h, lab in zip(*ax.get_legend_handles_labels()):
-            seen.setdefault(lab, h)
-    fig.legend(list(seen.values()), list(seen.keys()), loc="lower center", ncol=min(6, len(seen)), fontsize=7,
-               bbox_to_anchor=(0.5, -0.02 - 0.02 * (len(seen) // 6)))
-    fig.suptitle("Rise time against random error (square-wave stiffness; bars: basic bootstrap 90 % intervals over "
-                 "realizations)",
-                 fontsize=9)
-    fig.tight_layout(rect=(0, 0.06, 1, 0.96))
-    return save(fig, folder, name)
-
-
-def reasons(rows: pd.DataFrame) -> pd.DataFrame:
-    """Skipped and not-fitted combinations: one line per method and reason, with the scenarios."""
-    sel = rows[rows["metric"].isin(["skipped", "not_fitted", "not_scored"])]
-    if sel.empty:
-        return pd.DataFrame()
-    out = []
-    for (metric, method, reason), g in sel.groupby(["metric", "method", "reason"], sort=False):
-        scens = list(dict.fromkeys(g["scenario_label"]))
-        out.append({"what": {"skipped": "skipped (not run)", "not_fitted": "run, refused the data",
-                             "not_scored": "fitted, nothing to score"}[metric],
-                    "method": method, "reason": reason, "scenarios": len(scens),
-                    "which": "; ".join(scens[:4]) + (f"; ... ({len(scens) - 4} more)" if len(scens) > 4 else "")})
+    t = table[(table["backend"] == primary) & (table["rank"] == 1)]
+    for tuning, g in t.groupby("tuning", sort=False):
+        for metric in [m for m in METRICS if m in set(g["metric"])]:
+            h = g[g["metric"] == metric]
+            n_cells = table[(table["backend"] == primary) & (table["tuning"] == tuning) & (table["metric"] == metric)
+                            & (table["ranked"] > 0)]["cell"].nunique()
+            counts = h.groupby("method")["cell"].nunique().sort_values(ascending=False, kind="stable")
+            out.append({"metric": METRICS[metric][0], "tuning": tuning, "ranked scenarios": n_cells,
+                        "first (scenarios)": "; ".join(f"{m} {n}" for m, n in counts.items())})
     return pd.DataFrame(out)
 
 
 @register("compare")
 def compare_figures(part, rows, curves, folder, checks) -> PartReport:
-    """Tables and figures of a comparison grid part (module docstring)."""
+    """Tables, figures and the page of a comparison grid part (module docstring)."""
     rep = PartReport()
     rows = labelled(rows)
-    sc = scores(rows)
-    sc.to_csv(folder / f"{part.name}_scores.csv", index=False)
-    n_methods, n_scen = rows["method"].replace("", np.nan).dropna().nunique(), rows["scenario_label"].nunique()
-    R = rows["realization"].dropna().nunique() if "realization" in rows.columns else 0
-    rep.text = (f"{n_methods} methods on {n_scen} scenarios, {R} realizations each. Every number is from the tidy "
-                f"rows (`cases.csv`); all scores per method and scenario are in `{part.name}_scores.csv`. "
-                "Definitions (studies.md D): VAF of k = 100 (1 - sum (k_hat - k)^2 / sum (k - mean k)^2) per "
-                "realization; bias(t) = mean over realizations of k_hat(t) - k(t), its RMS over t; random error = "
-                "RMS over t of the SD over realizations; total error = RMS over t and realizations of k_hat - k "
-                "(total^2 = bias^2 + random^2 (R-1)/R); rise time = 10-90 % of the mean estimate at each step of "
-                "a square wave, averaged over the steps. k is the static gain of the true frozen impedance; "
-                "scored between the part's discarded ends, where the estimate is valid in every realization. "
-                "Spread: min to max over realizations (per-realization metrics) or the basic bootstrap 90 % "
-                "interval over realizations (the others). The RMS bias of a resampled set of realizations "
-                "carries more of their noise than that of all R, so its bootstrap values sit above the "
-                "estimate; the basic interval reflects them about it and can therefore lie below the value "
-                "itself: read it as how much of the bias is noise.")
-    if not sc.empty:
-        rep.tables.append(("Best method per scenario (value, spread)", best_table(sc)))
-        f = heat_map(sc, rows, folder, f"{part.name}_heatmap.png")
-        if f:
-            rep.figures.append((f, "Methods x scenarios: median VAF of the estimated stiffness (%)"))
-        f = trade_off(sc, folder, f"{part.name}_tradeoff.png")
-        if f:
-            rep.figures.append((f, "Rise time against random error on the square-wave scenarios"))
-    why = reasons(rows)
+    table = ct.full_table(rows, curves)
+    table.to_csv(folder / f"{part.name}_scores.csv", index=False)
+    primary = ct.primary_backend(rows)
+    feas = ct.feasibility(table)
+    methods = sorted(dict.fromkeys(table["method"]))          # methods with a score (skipped ones: reasons)
+    cells = list(dict.fromkeys(table["cell"])) or list(dict.fromkeys(rows["cell"]))
+    tunings = [t for t in dict.fromkeys(table["tuning"]) if t]
+    backends = [b for b in dict.fromkeys(rows["backend"]) if b]
+    ranked = [c for c in cells if feas.get((c, primary), np.nan) > 0]
+    infeasible = [c for c in cells if c not in ranked and (c, primary) in feas]
+    pairs = pairs_.paired(rows, table)
+    if not pairs.empty:
+        pairs.to_csv(folder / f"{part.name}_pairs.csv", index=False)
+    page_name = f"{part.name}_comparison.html"
+
+    text = [f"{len(methods)} methods on {len(cells)} scenarios ({_axes_text(rows)}), {_r_text(rows)}; "
+            f"backend{'s' if len(backends) > 1 else ''} {_join(backends) or 'unnamed'}"
+            + (f" (rankings on {primary}; the others in one agreement line per scenario)" if len(backends) > 1 else "")
+            + f"; tuning column{'s' if len(tunings) > 1 else ''} {_join(tunings)}. Every number is from the tidy "
+            f"rows (`cases.csv`); the full table is `{part.name}_scores.csv`, the paired comparisons "
+            f"`{part.name}_pairs.csv`, and [the interactive comparison page]({page_name}) has the full table sortable "
+            "and filtered by scenario and metric, and k_hat(t) of the best methods of every scenario.",
+            f"**{len(ranked)} of {len(cells)} scenarios are ranked**"
+            + (f"; {len(infeasible)} are infeasible (no method's median VAF of k is above 0 %, i.e. none beats a "
+               f"constant at the true mean) and left out of every ranking and count: {_join(infeasible)}."
+               if infeasible else "; in every scenario some method beats a constant at the true mean."),
+            DEFINITIONS,
+            "Intervals (90 %), each containing its value: per-realization metrics (VAF of k, RMS error, output VAF, "
+            "fit time) show the median over realizations with the percentile bootstrap interval of that median "
+            f"({cs.DRAWS} resamplings of the realizations, seed {cs.SEED}); the others show the study's bootstrap "
+            "interval over realizations when it contains its value (else none is shown, and the table says so). "
+            "Ranks (#) are competition ranks among finite values, per scenario and tuning column, on the "
+            f"{primary} backend; an infinite rise time is not ranked, nor the random error of a constant estimate "
+            "(its spread measures no tracking); a metric without a finite value says 'cannot rank'.",
+            _paired_text(pairs, rows)]
+    n_bad = int(table["interval"].str.contains("excludes").sum())
+    if n_bad:
+        text.append(f"{n_bad} study intervals exclude their own value (rows from before the study re-centred its "
+                    "bootstrap): not shown.")
+    main = "error_rms" if (table["metric"] == "error_rms").any() else "vaf_stiffness"
+    for tuning in tunings:
+        s = pairs_.beats_sentences(pairs, main, tuning, top=WIN_SENTENCES)
+        if s:
+            text.append(f"The most frequent significant paired wins ({tuning} column; all in the win tables): "
+                        + "; ".join(s) + ".")
+    agree = ct.backend_agreement(table, primary)
+    if agree:
+        text.append("Backend agreement, one line per scenario:\n\n" + "\n\n".join(agree))
+    rep.text = "\n\n".join(text)
+    rep.title = (f"{len(methods)} methods on {len(cells)} scenarios ({len(ranked)} ranked), {_r_text(rows)}, "
+                 f"tuning {' and '.join(tunings)}, backend{'s' if len(backends) > 1 else ''} {', '.join(backends)}")
+
+    ident = ct.identifiability(rows, table)
+    if not ident.empty:
+        has = any(h in ident.columns for h in ct.IDENTIFIABILITY.values())
+        rep.tables.append(("Identifiability of every scenario" + ("" if has else
+                           " (the rows carry no identifiability figures: only the best VAF of k)"), ident))
+    readings = _readings(table, primary)
+    if not readings.empty:
+        rep.tables.append(("Who ranks first, counted over the ranked scenarios", readings))
+    st = ct.settings_table(rows)
+    rep.tables.append(("Settings of every method" if not st.empty else
+                       "Settings of every method: the rows carry no settings column (a run before settings "
+                       "were recorded)", st))
+    tt = ct.tuning_table(rows)
+    if not tt.empty:
+        rep.tables.append(("Tuning: candidates tried on the tuning realizations (never scored), chosen by held-out "
+                           "output VAF", tt))
+    te = pairs_.tuning_effect(rows, table)
+    if not te.empty:
+        rep.tables.append(("Tuned against paper settings, per method: paired over the same realizations of each ranked "
+                           "scenario (signed-rank, Holm over the methods of a scenario)", te))
+    for tuning in tunings:
+        for metric in ("vaf_stiffness", "error_rms"):
+            w = pairs_.wins(pairs, metric, tuning)
+            if not w.empty:
+                rep.tables.append((f"Paired wins on {METRICS[metric][0]} ({tuning}): row against column, 'w/a/n' = "
+                                   "significantly better in w, median paired difference ahead in a, of n ranked "
+                                   "scenarios", w))
+    figures = ident.set_index(["scenario", "backend"]) if not ident.empty else None
+    for cell, df, note in ct.scenario_tables(table, primary):
+        status = "ranked"
+        if cell not in ranked:
+            status = "infeasible: not ranked"
+            if figures is not None and (cell, primary) in figures.index:
+                f = figures.loc[(cell, primary)]
+                shown = [f"{h} {f[h]:.3g}" for h in ct.IDENTIFIABILITY.values() if h in f and pd.notna(f[h])]
+                status += ("; " + ", ".join(shown)) if shown else ""
+        n_m = df["method"].nunique()
+        title = f"{cell} ({primary}; {status}; {n_m} methods): value [90 % interval] #rank"
+        rep.tables.append((title + (f". {note}" if note else ""), df))
+    why = ct.reasons(rows)
     if not why.empty:
         rep.tables.append(("Combinations skipped or not fitted, and why", why))
+    design = ct.design_skips(rows)
+    if not design.empty:
+        rep.tables.append(("Combinations left out by the grid's design (not failures)", design))
+
+    sets, order = {}, {}
+    for tuning in tunings:
+        sfx = _suffix(tuning, tunings)
+        f = plots.heat_map(table, rows, primary, tuning, feas, folder, f"{part.name}_heatmap{sfx}.png")
+        if f:
+            rep.figures.append((f, f"Methods x scenarios ({tuning} column, {primary}): median VAF of k (%), diverging "
+                                   f"at 0 % (blue: better than a constant at the true mean), colour clipped at "
+                                   f"{plots.VAF_FLOOR:.0f} %, every cell printed; also as PDF"))
+        f, lines = plots.trade_off(table, primary, tuning, folder, f"{part.name}_tradeoff{sfx}.png")
+        if f:
+            rep.figures.append((f, f"Rise time against random error, square-wave scenarios ({tuning} column): bars "
+                                   "are the 90 % intervals; methods with an infinite rise time at the right edge ('>')"
+                                   + (": " + "; ".join(lines) if lines else "") + "; also as PDF"))
+        s = plots.curve_sets(curves, primary, tuning)
+        f = plots.khat_figure(s, table, primary, tuning, folder, f"{part.name}_khat{sfx}.png")
+        if f:
+            rep.figures.append((f, f"k_hat(t) against the truth ({tuning} column, {primary}): mean over realizations "
+                                   f"of the {plots.CURVES_PER_PANEL} methods with the highest median VAF of k per "
+                                   f"scenario (band: 5th-95th percentile over realizations of the best {plots.BANDS}, "
+                                   "where stored; the axis "
+                                   "spans the truth's range with a margin); more methods on the interactive page; "
+                                   "also as PDF"))
+        for cell, d in s.items():
+            sets[(cell, primary, tuning)] = d
+            order[(cell, primary, tuning)] = plots.best_methods(table, cell, primary, tuning, len(d["methods"]))
+    study = str(rows["study"].dropna().iloc[0]) if "study" in rows and rows["study"].notna().any() else ""
+    title = f"Method comparison: {study + ', part ' if study else 'part '}{part.name}"
+    intro = [re.sub(r"\[([^\]]+)\]\([^)]+\)", r"\1", p) for p in text[:2]] + [DEFINITIONS, text[3], text[4]]
+    static = [(t, df) for t, df in rep.tables if not t.startswith(tuple(cells))]
+    write_text(folder / page_name, cp.render(title, intro, cp.page_data(table, sets, order), static))
     return rep
+
+
+def _suffix(tuning: str, tunings: list[str]) -> str:
+    """File-name suffix of a tuning column's figures (none for the first: the file names of old runs)."""
+    return "" if tuning == tunings[0] else f"_{tuning}"
