@@ -213,6 +213,9 @@ class IRFFit:
         Singular vectors kept by the pseudo-inverse, and lags.
     info : dict
         Numbers for the summary.
+    directions : ndarray or None
+        The kept singular vectors (columns, ``n_lags x kept``): the lag directions the IRF is estimated in
+        (the others are set to zero by the pseudo-inverse); :mod:`estimators.ibk_irf` fits in them.
     """
 
     h: np.ndarray
@@ -221,6 +224,7 @@ class IRFFit:
     kept: int
     n_lags: int
     info: dict
+    directions: np.ndarray | None = None
 
 
 def mdl_pseudo_inverse(s: np.ndarray, V: np.ndarray, c: np.ndarray, rss0: float,
@@ -349,7 +353,7 @@ def fit_irf(name: str, trials: list[Trial], settings: LagSettings, method: Liter
         if len(kept) < n_lags / 2:
             info["advice"] = (f"the angle excites only {len(kept)} of the {n_lags} lag directions: fewer lags or "
                               f"decimation (--decimate) give the same information in a better-conditioned fit")
-    return IRFFit(h=h, cov=cov, dof=dof, kept=len(kept), n_lags=n_lags, info=info)
+    return IRFFit(h=h, cov=cov, dof=dof, kept=len(kept), n_lags=n_lags, info=info, directions=V[:, kept])
 
 
 def t_quantile(dof: int, level: float = LEVEL) -> float:
