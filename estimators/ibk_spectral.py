@@ -145,10 +145,10 @@ class IBKSpectral(Estimator):
         lo = s.fmin if band.lo <= s.fmin + slack else band.lo + EDGE * band.resolution
         hi = s.fmax if band.hi >= s.fmax - slack else band.hi - EDGE * band.resolution
         n = int(np.sum((frf.freq >= lo) & (frf.freq <= hi) & (frf.coherence > 0)))
-        if hi <= lo or n < 3:
+        if (lo, hi) != (s.fmin, s.fmax) and (hi <= lo or n < 3):
             raise InputError(f"{self.name}: {asked} lies outside the input's band {band.lo:g} ... {band.hi:g} Hz "
                              f"(significant coherence); set fmin and fmax inside it")
-        if (lo, hi) == (s.fmin, s.fmax):
+        if (lo, hi) == (s.fmin, s.fmax):          # (fewer than 3 frequencies: refused by the caller)
             return lo, hi, f"{lo:g} ... {hi:g} Hz ({asked}, within the input's band {band.text()})"
         return lo, hi, (f"{lo:g} ... {hi:g} Hz: {asked} limited to the input's band {band.text()} less {EDGE} "
                         f"frequencies at its edge (leakage); outside it H is noise (settings fmin, fmax, input_band)")
