@@ -1,24 +1,27 @@
-"""Confidence bands of the ensemble estimators by a bootstrap over realizations.
+"""Confidence bands of the ensemble estimators by a delete-a-group jackknife over realizations.
 
 Private module (the leading underscore keeps it out of the estimator registry). Used by
 :mod:`estimators.ensemble_irf`, :mod:`estimators.sds` and :mod:`estimators.guarin`, whose estimates
 have no closed-form covariance (an MDL pseudo-inverse per time, or a pseudo-inverse of a large basis
 expansion).
 
-The realizations of an ensemble are independent repetitions of one time-varying condition: drawn with
-replacement ``R`` at a time (``resamples`` times, from ``seed``), each draw is fitted again, and the
-pointwise standard error of the stiffness at every sample is the standard deviation of the refits,
-scaled by ``sqrt(R / (R - 1))`` (the bootstrap's variance is the plug-in one, biased by ``(R - 1) / R``);
-the band is ``estimate -+ t_{R-1} se``. The band describes the spread from one set of realizations to
-another (the noise and the realizations' own variation), not a bias of the method (a lag range shorter
-than the joint's memory, a basis too coarse for the time variation). Fewer than
-:data:`MIN_REALIZATIONS` realizations: no band (a bootstrap over 3 realizations is no estimate of
-anything).
+The realizations of an ensemble are independent repetitions of one time-varying condition. They are cut
+into ``G`` groups (``groups``, at most ``R``; realization ``r`` in group ``r mod G``), the ensemble is
+fitted again without each group, and the pointwise variance of the stiffness at every sample is
+``(G - 1)/G sum_g (k_g - mean k)^2``; the band is ``estimate -+ t_{G-1} se``. Deterministic: no seed.
+A resampling over realizations, but not the bootstrap: a bootstrap draw holds about 63 % of the
+realizations once or more, and a per-time pseudo-inverse with few realizations per lag (``R`` near
+``L``) is much noisier from 63 % of them than from all, so the bootstrap's spread overstated the
+estimator's (half-widths 6.8 times 1.96 standard deviations of ensemble_irf's errors, 20 realizations,
+9 lags); a jackknife replicate lacks only ``R/G`` of them. The band describes the spread from one set of
+realizations to another (the noise and the realizations' own variation), not a bias of the method (a lag
+range shorter than the joint's memory, a window or basis too coarse for the time variation). Fewer than
+:data:`MIN_REALIZATIONS` realizations: no band.
 
 References
 ----------
-Efron, B. & Tibshirani, R. J. (1993). An Introduction to the Bootstrap. Chapman & Hall, ch. 6 (the
-bootstrap estimate of standard error) and Sec. 12.5 (the t interval with a bootstrap standard error).
+Efron, B. & Stein, C. (1981). The jackknife estimate of variance. Ann. Stat. 9(3), 586-596; Efron, B. &
+Tibshirani, R. J. (1993). An Introduction to the Bootstrap. Chapman & Hall, ch. 11 (the jackknife, delete-d).
 """
 from __future__ import annotations
 
@@ -40,39 +43,37 @@ MIN_REALIZATIONS = 8
 
 @dataclasses.dataclass(frozen=True)
 class BootstrapSettings:
-    """The bootstrap over realizations of the ensemble estimators' bands."""
+    """The jackknife over realizations of the ensemble estimators' bands."""
 
-    resamples: int = param(50, ge=0, doc="bootstrap draws of the realizations for the stiffness band "
-                                         "(computed when first asked for); 0 = no band")
-    seed: int = param(0, ge=0, doc="seed of the bootstrap draws (same seed, same band)")
+    groups: int = param(20, ge=0, doc="groups of realizations left out in turn for the stiffness band (at most "
+                                      "the realizations; computed when first asked for); 0 = no band")
 
 
-def realization_bootstrap(name: str, ens: Ensemble, refit: Callable[[Ensemble], object], estimate,
+def realization_jackknife(name: str, ens: Ensemble, refit: Callable[[Ensemble], object], estimate,
                           settings: BootstrapSettings) -> Intervals | None:
-    """Pointwise stiffness band of ``estimate`` (fitted to ``ens``) from ``refit`` of bootstrap draws.
+    """Pointwise stiffness band of ``estimate`` (fitted to ``ens``) from ``refit`` without each group.
 
-    Draws that the estimator refuses (e.g. fewer distinct realizations than lags) are skipped; fewer
-    than half the draws fitted, or fewer than :data:`MIN_REALIZATIONS` realizations: None.
+    A replicate the estimator refuses (e.g. fewer realizations than lags) gives no band (None), as do
+    fewer than :data:`MIN_REALIZATIONS` realizations and ``groups = 0``.
     """
     from scipy import stats
 
     R = ens.size
-    if settings.resamples == 0 or R < MIN_REALIZATIONS:
+    G = min(settings.groups, R)
+    if G < 2 or R < MIN_REALIZATIONS:
         return None
-    rng = np.random.default_rng(settings.seed)
     t = estimate.time
     ks = []
-    for _ in range(settings.resamples):
-        idx = rng.integers(0, R, R)
+    for g in range(G):
+        keep = [r for r in range(R) if r % G != g]
         try:
-            ks.append(np.asarray(refit(ens.subset(idx)).stiffness(t), float))
+            ks.append(np.asarray(refit(ens.subset(keep)).stiffness(t), float))
         except InputError:
-            continue
-    if len(ks) < max(2, settings.resamples // 2):
-        return None
-    se = np.std(np.array(ks), axis=0, ddof=1) * np.sqrt(R / (R - 1.0))
-    q = float(stats.t.ppf(0.5 + LEVEL / 2, R - 1))
+            return None
+    ks = np.array(ks)
+    se = np.sqrt((G - 1) / G * np.sum((ks - ks.mean(axis=0)) ** 2, axis=0))
+    q = float(stats.t.ppf(0.5 + LEVEL / 2, G - 1))
     k = np.asarray(estimate.stiffness(t), float)
-    return Intervals(level=LEVEL, method=f"bootstrap over the {R} realizations ({len(ks)} draws, seed "
-                                         f"{settings.seed}; standard error x t quantile, {R - 1} dof)",
+    return Intervals(level=LEVEL, method=f"delete-a-group jackknife over the {R} realizations ({G} groups; t "
+                                         f"quantile, {G - 1} dof)",
                      bounds={"stiffness": (k - q * se, k + q * se)}, pointwise=True)

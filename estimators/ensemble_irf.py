@@ -7,7 +7,7 @@ from typing import Literal
 import numpy as np
 
 from jointbench.estimators import register
-from jointbench.estimators._resample import BootstrapSettings, realization_bootstrap
+from jointbench.estimators._resample import BootstrapSettings, realization_jackknife
 from jointbench.estimators._twosided import lag_samples as checked_lags
 from jointbench.estimators._tvirf import (EnsembleEstimator, TVLagSettings, centred, fill_invalid, gram_stack, lagged,
                                           mdl_solve)
@@ -112,7 +112,7 @@ class EnsembleIRF(EnsembleEstimator):
                 "remove_mean": s.remove_mean}
         est = TVIRFEstimate(lags=np.arange(-m1, m2 + 1), h=fill_invalid(h, valid), fs=fs, time=ens.time,
                              valid=valid, estimator=self.name, info=info)
-        return est.with_intervals(lambda: realization_bootstrap(self.name, ens, self._fit_ensemble, est, s))
+        return est.with_intervals(lambda: realization_jackknife(self.name, ens, self._fit_ensemble, est, s))
 
     def _lags(self, ens: Ensemble) -> tuple[int, int]:
         """``(M1, M2)``, refused when a nonzero lag is less than half a sample (e.g. time in ms read as s)."""

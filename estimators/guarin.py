@@ -9,7 +9,7 @@ from numpy.polynomial import legendre
 from scipy.interpolate import BSpline
 
 from jointbench.estimators import register
-from jointbench.estimators._resample import BootstrapSettings, realization_bootstrap
+from jointbench.estimators._resample import BootstrapSettings, realization_jackknife
 from jointbench.estimators._twosided import lag_samples as checked_lags
 from jointbench.estimators._tvirf import (EnsembleEstimator, TVLagSettings, centred, gram_stack, one_blas_thread)
 from jointbench.ensemble import Ensemble
@@ -216,7 +216,7 @@ class Guarin(EnsembleEstimator):
         est = GuarinEstimate(lags=np.arange(-m1, m2 + 1), h=H[:L], fs=fs, time=ens.time, valid=valid,
                               estimator=self.name, info=info, reflex_h=H[L:] if s.reflex else None,
                               reflex_delay=d, nonlinearity=s.nonlinearity)
-        return est.with_intervals(lambda: realization_bootstrap(self.name, ens, self._fit_ensemble, est, s))
+        return est.with_intervals(lambda: realization_jackknife(self.name, ens, self._fit_ensemble, est, s))
 
     def _lags(self, ens: Ensemble) -> tuple[int, int]:
         """``(M1, M2)``, refused when a nonzero lag is less than half a sample (e.g. time in ms read as s)."""

@@ -66,24 +66,24 @@ def test_command_refuses_the_catalogue_cases(tmp_path):
 
 # ------------------------------------------------------------------------------------------ the bands
 @pytest.mark.parametrize("name", ENSEMBLE)
-def test_bootstrap_band_is_reproducible_and_seeded(name):
+def test_jackknife_band_is_reproducible(name):
     ens = ensemble_of(true_irf(), 200, 12, noise=0.2)
-    a = estimators.make(name, {**SMALL[name], "resamples": 10}).fit(ens)
-    b = estimators.make(name, {**SMALL[name], "resamples": 10}).fit(ens)
-    c = estimators.make(name, {**SMALL[name], "resamples": 10, "seed": 1}).fit(ens)
+    a = estimators.make(name, {**SMALL[name], "groups": 6}).fit(ens)
+    b = estimators.make(name, {**SMALL[name], "groups": 6}).fit(ens)
+    c = estimators.make(name, {**SMALL[name], "groups": 12}).fit(ens)
     lo, hi = a.intervals.bounds["stiffness"]
     assert np.array_equal(lo, b.intervals.bounds["stiffness"][0])
     assert not np.array_equal(lo, c.intervals.bounds["stiffness"][0])
     assert np.all(hi > lo)
     frame = a.to_frame()
     assert {"stiffness_lo", "stiffness_hi"} <= set(frame.columns)
-    assert "bootstrap over the 12 realizations (10 draws, seed 0" in a.intervals.method
+    assert "jackknife over the 12 realizations (6 groups" in a.intervals.method
 
 
 @pytest.mark.parametrize("name", ENSEMBLE)
 def test_no_band_from_too_few_realizations_or_none_asked(name):
     ens = ensemble_of(true_irf(), 200, MIN_REALIZATIONS - 1, noise=0.2)
     few = {"pool": 0.01} if name == "ensemble_irf" else {}          # 7 realizations x 3 samples >= 9 lags
-    assert estimators.make(name, {**SMALL[name], **few, "resamples": 10}).fit(ens).intervals is None
+    assert estimators.make(name, {**SMALL[name], **few, "groups": 6}).fit(ens).intervals is None
     ens = ensemble_of(true_irf(), 200, 12, noise=0.2)
-    assert estimators.make(name, {**SMALL[name], "resamples": 0}).fit(ens).intervals is None
+    assert estimators.make(name, {**SMALL[name], "groups": 0}).fit(ens).intervals is None
