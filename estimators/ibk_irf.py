@@ -95,6 +95,19 @@ class IBKIRF(Estimator):
     Without band-limiting the fit uses the IRF up to the Nyquist frequency, where a band-limited
     perturbation leaves it undetermined and noisy; the paper band-limits to 20 Hz.
 
+    The input's band (issue 20): when the pseudo-inverse (``pseudo_inverse = 'mdl'``) keeps fewer lag
+    directions than lags, as it does for a band-limited input, the IRF holds the true IRF's part in those
+    directions only, and the differentiators ``h2, h1, h0`` (which have it all) would bias I, B, K by
+    whatever the input does not excite (K 113 [112, 114] for 120 on a 12 Hz multisine with the 20 Hz
+    band-limit). The model's columns are then the pseudo-inverse IRFs, in the same directions, of the
+    exact derivatives of the angle (:func:`kept_derivative_irfs`; ``differentiator_length`` does not
+    apply), and the residuals are weighted as the torque weighs them; I, B, K are unbiased whatever the
+    input's band. When those columns cannot separate I, B and K (the singular values of the scaled
+    columns below :data:`CONDITION`), the fit is refused in one line naming the input's band (Welch
+    coherence, :mod:`estimators._band`) and the lag settings. The summary's ``band`` and the estimate's
+    ``band_hz`` (CSV ``band_lo_hz``, ``band_hi_hz``) say the band the estimate rests on: 0 ... the lower of
+    the band-limit and the input's band.
+
     Parameters
     ----------
     settings : Settings
