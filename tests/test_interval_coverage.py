@@ -134,8 +134,15 @@ def test_ensemble_bands_cover(name):
     ensemble_coverage(name, seeds=8)
 
 
+#: measured misses that the slow version shows and that are not fixed (issue 20 findings, kept failing)
+SLOW_MISSES = {"irf2_corr": "22 misses of 100 (78 % coverage) on the 12 Hz input, 10 s at 250 Hz (irf2_ls: 7 on the "
+                            "same records): the correlation method's band is narrower than its error; cause not "
+                            "established (the zero-padded correlations' end effects are the suspect)"}
+
+
 @pytest.mark.slow
-@pytest.mark.parametrize("name", list(LTI) + list(LTI_SLOW))
+@pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.xfail(strict=True, reason=SLOW_MISSES[n]))
+                                  if n in SLOW_MISSES else n for n in (*LTI, *LTI_SLOW)])
 def test_slow_lti_coverage(name):
     lti_coverage(name, seeds=100)
 
