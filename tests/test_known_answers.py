@@ -24,9 +24,9 @@ FS = 100.0
 
 # ------------------------------------------------------------------------------- Guarin's reflex pathway
 def reflex_ensemble(R: int = 10, n: int = 1000, seed: int = 0):
-    """Noise-free ensemble: a 40 Hz low-passed random angle (broad band: every lag determined); torque = a two-sided intrinsic IRF (lags +-4)
-    plus a known reflex: the velocity delayed 40 ms, half-wave rectified (stretch only), through a causal
-    IRF of 10 lags. Returns the ensemble and the two IRFs."""
+    """Noise-free ensemble: a 40 Hz low-passed random angle (broad band: every lag determined); torque = a
+    two-sided intrinsic IRF (lags +-4) plus a known reflex: the velocity delayed 40 ms, half-wave rectified
+    (stretch only), through a causal IRF of 10 lags. Returns the ensemble and the two IRFs."""
     rng = np.random.default_rng(seed)
     sos = sps.butter(4, 40.0, fs=FS, output="sos")
     U = sps.sosfiltfilt(sos, rng.standard_normal((n + 200, R)), axis=0)[100:-100] * 0.05
