@@ -42,7 +42,7 @@ MIN_REALIZATIONS = 8
 
 
 @dataclasses.dataclass(frozen=True)
-class BootstrapSettings:
+class JackknifeSettings:
     """The jackknife over realizations of the ensemble estimators' bands."""
 
     groups: int = param(20, ge=0, doc="groups of realizations left out in turn for the stiffness band (at most "
@@ -50,7 +50,7 @@ class BootstrapSettings:
 
 
 def realization_jackknife(name: str, ens: Ensemble, refit: Callable[[Ensemble], object], estimate,
-                          settings: BootstrapSettings) -> Intervals | None:
+                          settings: JackknifeSettings) -> Intervals | None:
     """Pointwise stiffness band of ``estimate`` (fitted to ``ens``) from ``refit`` without each group.
 
     A replicate the estimator refuses (e.g. fewer realizations than lags) gives no band (None), as do

@@ -7,7 +7,7 @@ from typing import Literal
 import numpy as np
 
 from jointbench.estimators import register
-from jointbench.estimators._resample import BootstrapSettings, realization_jackknife
+from jointbench.estimators._resample import JackknifeSettings, realization_jackknife
 from jointbench.estimators._twosided import lag_samples as checked_lags
 from jointbench.estimators._tvirf import (EnsembleEstimator, TVLagSettings, centred, fill_invalid, gram_stack, lagged,
                                           mdl_solve)
@@ -70,7 +70,7 @@ class EnsembleIRF(EnsembleEstimator):
     accepts = frozenset({"ensemble"})
 
     @dataclasses.dataclass(frozen=True)
-    class Settings(TVLagSettings, BootstrapSettings):
+    class Settings(TVLagSettings, JackknifeSettings):
         remove_mean: Literal["ensemble", "record", "none"] = param(
             "ensemble", doc="'ensemble': the mean over realizations at every sample (MacNeil et al.); 'record': "
                             "each realization's own mean; 'none'")

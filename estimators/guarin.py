@@ -9,7 +9,7 @@ from numpy.polynomial import legendre
 from scipy.interpolate import BSpline
 
 from jointbench.estimators import register
-from jointbench.estimators._resample import BootstrapSettings, realization_jackknife
+from jointbench.estimators._resample import JackknifeSettings, realization_jackknife
 from jointbench.estimators._twosided import lag_samples as checked_lags
 from jointbench.estimators._tvirf import (EnsembleEstimator, TVLagSettings, centred, gram_stack, one_blas_thread)
 from jointbench.ensemble import Ensemble
@@ -134,7 +134,7 @@ class Guarin(EnsembleEstimator):
     accepts = frozenset({"trial", "pooled", "ensemble"})
 
     @dataclasses.dataclass(frozen=True)
-    class Settings(TVLagSettings, BootstrapSettings):
+    class Settings(TVLagSettings, JackknifeSettings):
         basis: BasisKind = param("gaussian", doc="basis functions of time: 'gaussian', 'bspline' or 'legendre'")
         n_basis: int = param(21, ge=1, doc="number of basis functions M")
         width: float = param(1.0, gt=0, doc="Gaussian width, in centre spacings")

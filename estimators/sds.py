@@ -7,7 +7,7 @@ from typing import Literal
 import numpy as np
 
 from jointbench.estimators import register
-from jointbench.estimators._resample import BootstrapSettings, realization_jackknife
+from jointbench.estimators._resample import JackknifeSettings, realization_jackknife
 from jointbench.estimators._twosided import lag_samples as checked_lags
 from jointbench.estimators._tvirf import EnsembleEstimator, TVLagSettings, fill_invalid, lagged, mdl_solve
 from jointbench.ensemble import Ensemble
@@ -64,7 +64,7 @@ class SDS(EnsembleEstimator):
     accepts = frozenset({"trial", "pooled", "ensemble"})
 
     @dataclasses.dataclass(frozen=True)
-    class Settings(TVLagSettings, BootstrapSettings):
+    class Settings(TVLagSettings, JackknifeSettings):
         window: float = param(1.0, unit="s", gt=0, doc="segment length: the IRF is taken constant over it")
         step: float | None = param(None, unit="s", gt=0, doc="distance between successive windows; none = one "
                                                               "sample")
