@@ -37,7 +37,7 @@ from jointbench.schema import param
 
 #: confidence level of the bands
 LEVEL = 0.95
-#: fewest realizations for a bootstrap band
+#: fewest realizations for a jackknife band
 MIN_REALIZATIONS = 8
 
 
