@@ -216,7 +216,7 @@ class IBKIRF(Estimator):
         scale[scale == 0] = 1.0
         sv = np.linalg.svd(A / scale, compute_uv=False)
         band = self._input_band(trials)
-        if sv[-1] <= CONDITION * sv[0]:
+        if len(sv) < 3 or sv[-1] <= CONDITION * sv[0]:     # (weighted: one row per kept direction)
             where = f"the input's band {band.lo:g} ... {band.hi:g} Hz" if band else "the angle"
             raise InputError(f"{self.name}: {where} and the lags -{m1} ... {m2} ({s.lag_before:g} s, "
                              f"{s.lag_after:g} s) leave {fit.kept} of {fit.n_lags} lag directions, too few to "
