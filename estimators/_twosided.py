@@ -47,6 +47,13 @@ MIN_SEGMENTS = 8
 #: weight of the neighbouring segments' products in the segment-robust covariance (Bartlett: 1/2)
 WEIGHT = 0.5
 
+#: directions whose singular value is below this fraction of the largest are never kept by the MDL
+#: pseudo-inverse: sqrt(eps), half the digits. The MDL ranks directions by their share of the torque only,
+#: so a direction 10^-14 below the strongest (rounding error of the QR triangle: a band-limited input's
+#: unexcited lags) could be kept for its chance share, its coordinate c / s then 10^13 times the noise
+#: (issue 20: ibk_irf and irf2_ls intervals of +-0 or +-1e13 on a 12 Hz input at 250 Hz)
+RCOND_MDL = float(np.sqrt(np.finfo(float).eps))
+
 # Rows of the regression matrix handled per QR block (bounds memory at about 16 MB per block).
 _BLOCK_VALUES = 2 ** 21
 
@@ -213,6 +220,9 @@ class IRFFit:
         Singular vectors kept by the pseudo-inverse, and lags.
     info : dict
         Numbers for the summary.
+    directions : ndarray or None
+        The kept singular vectors (columns, ``n_lags x kept``): the lag directions the IRF is estimated in
+        (the others are set to zero by the pseudo-inverse); :mod:`estimators.ibk_irf` fits in them.
     """
 
     h: np.ndarray
@@ -221,6 +231,7 @@ class IRFFit:
     kept: int
     n_lags: int
     info: dict
+    directions: np.ndarray | None = None
 
 
 def mdl_pseudo_inverse(s: np.ndarray, V: np.ndarray, c: np.ndarray, rss0: float,
@@ -232,7 +243,8 @@ def mdl_pseudo_inverse(s: np.ndarray, V: np.ndarray, c: np.ndarray, rss0: float,
     from the residual. Terms are ranked by ``c_i^2`` (their contribution to the output, not their
     singular value), and the first ``M`` are kept, ``M`` minimising
     ``MDL(M) = RSS(M) (1 + M ln(N) / N)`` with ``RSS(M) = rss0 + sum of the dropped c_i^2`` and ``N``
-    regression rows; numerically null directions (``s_i <= L eps s_max``) are never kept.
+    regression rows; numerically null directions (``s_i <= sqrt(eps) s_max``, :data:`RCOND_MDL`) are never
+    kept.
 
     Returns
     -------
@@ -246,7 +258,7 @@ def mdl_pseudo_inverse(s: np.ndarray, V: np.ndarray, c: np.ndarray, rss0: float,
     Westwick & Kearney (2003), Sec. 5.2.3.4 (pseudo-inverse, MDL); Rissanen (1978), Automatica 14.
     """
     L = len(s)
-    usable = s > L * np.finfo(float).eps * max(s.max(), np.finfo(float).tiny)
+    usable = s > max(L * np.finfo(float).eps, RCOND_MDL) * max(s.max(), np.finfo(float).tiny)
     contrib = np.where(usable, c * c, -1.0)
     order = np.argsort(-contrib, kind="stable")[:int(usable.sum())]
     total = float(np.sum(c[usable] ** 2)) + rss0
@@ -349,7 +361,7 @@ def fit_irf(name: str, trials: list[Trial], settings: LagSettings, method: Liter
         if len(kept) < n_lags / 2:
             info["advice"] = (f"the angle excites only {len(kept)} of the {n_lags} lag directions: fewer lags or "
                               f"decimation (--decimate) give the same information in a better-conditioned fit")
-    return IRFFit(h=h, cov=cov, dof=dof, kept=len(kept), n_lags=n_lags, info=info)
+    return IRFFit(h=h, cov=cov, dof=dof, kept=len(kept), n_lags=n_lags, info=info, directions=V[:, kept])
 
 
 def t_quantile(dof: int, level: float = LEVEL) -> float:

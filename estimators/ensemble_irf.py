@@ -7,8 +7,10 @@ from typing import Literal
 import numpy as np
 
 from jointbench.estimators import register
-from jointbench.estimators._tvirf import (EnsembleEstimator, TVLagSettings, centred, fill_invalid, gram_stack,
-                                          lag_samples, lagged, mdl_solve)
+from jointbench.estimators._resample import JackknifeSettings, realization_jackknife
+from jointbench.estimators._twosided import lag_samples as checked_lags
+from jointbench.estimators._tvirf import (EnsembleEstimator, TVLagSettings, centred, fill_invalid, gram_stack, lagged,
+                                          mdl_solve)
 from jointbench.ensemble import Ensemble
 from jointbench.errors import InputError
 from jointbench.estimate_tv import TVIRFEstimate
@@ -68,7 +70,7 @@ class EnsembleIRF(EnsembleEstimator):
     accepts = frozenset({"ensemble"})
 
     @dataclasses.dataclass(frozen=True)
-    class Settings(TVLagSettings):
+    class Settings(TVLagSettings, JackknifeSettings):
         remove_mean: Literal["ensemble", "record", "none"] = param(
             "ensemble", doc="'ensemble': the mean over realizations at every sample (MacNeil et al.); 'record': "
                             "each realization's own mean; 'none'")
@@ -78,7 +80,7 @@ class EnsembleIRF(EnsembleEstimator):
     def _fit_ensemble(self, ens: Ensemble) -> TVIRFEstimate:
         s = self.settings
         fs, n, R = ens.fs, ens.n, ens.size
-        m1, m2 = lag_samples(s, fs)
+        m1, m2 = self._lags(ens)
         L = m1 + m2 + 1
         P = int(round(s.pool * fs))
         width = 2 * P + 1
@@ -88,9 +90,11 @@ class EnsembleIRF(EnsembleEstimator):
                              f"equations per time for {L} lags (lag_before = {s.lag_before:g} s, lag_after = "
                              f"{s.lag_after:g} s at {fs:g} Hz); needs at least as many realizations as lags: "
                              f"shorten the lags, add realizations or pool neighbouring samples (setting 'pool')")
-        if n < L + 2 * P:
-            raise InputError(f"{self.name}: ensemble '{ens.name}' has {n} samples per realization, fewer than the "
-                             f"{L} lags plus the {2 * P} pooled samples (settings 'lag_before', 'lag_after', 'pool')")
+        if n - (L - 1) - 2 * P < L:
+            raise InputError(f"{self.name}: ensemble '{ens.name}' has {n} samples per realization: the {L} lags "
+                             f"and {2 * P} pooled samples leave {max(0, n - (L - 1) - 2 * P)} samples whose lags lie "
+                             f"in the record, fewer than the lags (need {2 * L - 1 + 2 * P} samples; settings "
+                             f"'lag_before', 'lag_after', 'pool'): too short a record to follow a time course")
         U, Y = centred(self.name, ens, s.remove_mean)
         X = lagged(U, m1, m2)                       # (n - L + 1, R, L): row i is sample i + M2
         Yv = Y[m2:n - m1]
@@ -106,5 +110,13 @@ class EnsembleIRF(EnsembleEstimator):
         info = {"realizations": R, "pool_samples": P, "equations_per_time": n_obs,
                 "order": f"{int(order.min())} ... {int(order.max())} of {L} (median {int(np.median(order))})",
                 "remove_mean": s.remove_mean}
-        return TVIRFEstimate(lags=np.arange(-m1, m2 + 1), h=fill_invalid(h, valid), fs=fs, time=ens.time,
+        est = TVIRFEstimate(lags=np.arange(-m1, m2 + 1), h=fill_invalid(h, valid), fs=fs, time=ens.time,
                              valid=valid, estimator=self.name, info=info)
+        return est.with_intervals(lambda: realization_jackknife(self.name, ens, self._fit_ensemble, est, s))
+
+    def _lags(self, ens: Ensemble) -> tuple[int, int]:
+        """``(M1, M2)``, refused when a nonzero lag is less than half a sample (e.g. time in ms read as s)."""
+        try:
+            return checked_lags(self.settings, ens.fs)
+        except InputError as exc:
+            raise InputError(f"{self.name}: ensemble '{ens.name}': {exc}") from None

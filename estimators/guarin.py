@@ -9,8 +9,9 @@ from numpy.polynomial import legendre
 from scipy.interpolate import BSpline
 
 from jointbench.estimators import register
-from jointbench.estimators._tvirf import (EnsembleEstimator, TVLagSettings, centred, gram_stack, lag_samples,
-                                          one_blas_thread)
+from jointbench.estimators._resample import JackknifeSettings, realization_jackknife
+from jointbench.estimators._twosided import lag_samples as checked_lags
+from jointbench.estimators._tvirf import (EnsembleEstimator, TVLagSettings, centred, gram_stack, one_blas_thread)
 from jointbench.ensemble import Ensemble
 from jointbench.errors import InputError
 from jointbench.estimate_tv import TVIRFEstimate
@@ -133,7 +134,7 @@ class Guarin(EnsembleEstimator):
     accepts = frozenset({"trial", "pooled", "ensemble"})
 
     @dataclasses.dataclass(frozen=True)
-    class Settings(TVLagSettings):
+    class Settings(TVLagSettings, JackknifeSettings):
         basis: BasisKind = param("gaussian", doc="basis functions of time: 'gaussian', 'bspline' or 'legendre'")
         n_basis: int = param(21, ge=1, doc="number of basis functions M")
         width: float = param(1.0, gt=0, doc="Gaussian width, in centre spacings")
@@ -155,7 +156,7 @@ class Guarin(EnsembleEstimator):
     def _fit_ensemble(self, ens: Ensemble) -> GuarinEstimate:
         s = self.settings
         fs, n, R = ens.fs, ens.n, ens.size
-        m1, m2 = lag_samples(s, fs)
+        m1, m2 = self._lags(ens)
         L = m1 + m2 + 1
         M = s.n_basis
         U, Y = centred(self.name, ens, s.remove_mean)
@@ -212,6 +213,14 @@ class Guarin(EnsembleEstimator):
         info = {"realizations": R, "basis": f"{M} {s.basis}", "unknowns": n_unknown,
                 "equations": R * n_rows, "rank": f"{int(keep.sum())} of {len(keep)}",
                 "reflex": "yes" if s.reflex else "no"}
-        return GuarinEstimate(lags=np.arange(-m1, m2 + 1), h=H[:L], fs=fs, time=ens.time, valid=valid,
+        est = GuarinEstimate(lags=np.arange(-m1, m2 + 1), h=H[:L], fs=fs, time=ens.time, valid=valid,
                               estimator=self.name, info=info, reflex_h=H[L:] if s.reflex else None,
                               reflex_delay=d, nonlinearity=s.nonlinearity)
+        return est.with_intervals(lambda: realization_jackknife(self.name, ens, self._fit_ensemble, est, s))
+
+    def _lags(self, ens: Ensemble) -> tuple[int, int]:
+        """``(M1, M2)``, refused when a nonzero lag is less than half a sample (e.g. time in ms read as s)."""
+        try:
+            return checked_lags(self.settings, ens.fs)
+        except InputError as exc:
+            raise InputError(f"{self.name}: ensemble '{ens.name}': {exc}") from None

@@ -8,13 +8,61 @@ import numpy as np
 import scipy.linalg
 
 from jointbench.estimators import Estimator, register
-from jointbench.estimators._twosided import LEVEL, Edges, LagSettings, fit_irf, irf_intervals, lag_samples, t_quantile
+from jointbench.estimators._band import input_band
+from jointbench.estimators.spectral import WelchSettings, frf_estimate
+from jointbench.estimators._twosided import (LEVEL, Edges, LagSettings, fit_irf, input_output, irf_intervals,
+                                             lag_samples, regressor, t_quantile)
 from jointbench import differentiators as dd
 from jointbench.errors import InputError
 from jointbench.estimate import IRFEstimate, Intervals, ParametricEstimate
 from jointbench.schema import param
 from jointbench.signal import bandlimit_fb
 from jointbench.types import Trial
+
+
+#: smallest ratio of the least to the largest singular value of the (column-scaled) differentiator regressors
+#: in which I, B and K are told apart; below it the fit is refused (the data leave them undetermined)
+CONDITION = 1e-6
+
+
+def kept_derivative_irfs(pairs: list[tuple[np.ndarray, np.ndarray]], m1: int, m2: int, edges: Edges,
+                         D: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The pseudo-inverse IRFs (lags ``-m1 ... m2``, in the kept directions ``D``) of ``u''``, ``u'``, ``u``,
+    and the weights of the IRF's residuals.
+
+    Columns ``c_j = D (D^T U^T U D)^-1 D^T U^T y_j`` with ``y_j`` the ``j``-th derivative of each record's
+    angle ``u`` (its DFT times ``(j w)^j``: the periodic differentiators of eqs. 12, 13 over the record) and
+    ``U`` the regressors of the IRF fit. The IRF the pseudo-inverse estimates from the torque
+    ``I u'' + B u' + K u + e`` is then ``I c_2 + B c_1 + K c_0`` plus noise, exactly: whatever the input
+    leaves unexcited (a band-limited input's lag directions, the differentiators' tails beyond the lags),
+    the model's columns lack as the IRF does.
+
+    The weights ``W = C^T D^T`` (``C C^T = D^T U^T U D``, Cholesky) make ``|W (h - A x)|^2`` the torque's
+    squared residual ``|U (h - A x)|^2``: a kept direction the input barely excites (the MDL keeps one now
+    and then for its chance share of the torque) carries a large, noisy IRF component that the torque does
+    not see, and must not carry the fit (unweighted, one seed in 20 gave K = 2844 +- 3e13 on a 12 Hz input).
+    Under white torque noise this is the generalised least-squares fit of the IRF.
+    """
+    n_lags = m1 + m2 + 1
+    G = np.zeros((n_lags, n_lags))
+    b = np.zeros((n_lags, 3))
+    block = max(n_lags, 2 ** 20 // n_lags)
+    for u, _ in pairs:
+        n = len(u)
+        w = 2j * np.pi * np.fft.rfftfreq(n)          # per sample; fs enters the columns' scale only
+        U_f = np.fft.rfft(u)
+        d1 = w.copy()
+        if n % 2 == 0:
+            d1[-1] = 0.0                             # an odd real sequence cannot carry the Nyquist term
+        Y = np.column_stack([np.fft.irfft(U_f * w ** 2, n), np.fft.irfft(U_f * d1, n), u])
+        X, rows = regressor(u, m1, m2, edges)
+        Y = Y[rows]
+        for a in range(0, len(Y), block):
+            Xa = np.ascontiguousarray(X[a:a + block])
+            G += Xa.T @ Xa
+            b += Xa.T @ Y[a:a + block]
+    Dg = D.T @ G @ D
+    return D @ np.linalg.solve(Dg, D.T @ b), np.linalg.cholesky(Dg).T @ D.T
 
 
 def _bandlimited(h: np.ndarray, m1: int, m2: int, fs: float, cutoff: float, order: int) -> np.ndarray:
@@ -46,6 +94,19 @@ class IBKIRF(Estimator):
 
     Without band-limiting the fit uses the IRF up to the Nyquist frequency, where a band-limited
     perturbation leaves it undetermined and noisy; the paper band-limits to 20 Hz.
+
+    The input's band (issue 20): when the pseudo-inverse (``pseudo_inverse = 'mdl'``) keeps fewer lag
+    directions than lags, as it does for a band-limited input, the IRF holds the true IRF's part in those
+    directions only, and the differentiators ``h2, h1, h0`` (which have it all) would bias I, B, K by
+    whatever the input does not excite (K 113 [112, 114] for 120 on a 12 Hz multisine with the 20 Hz
+    band-limit). The model's columns are then the pseudo-inverse IRFs, in the same directions, of the
+    exact derivatives of the angle (:func:`kept_derivative_irfs`; ``differentiator_length`` does not
+    apply), and the residuals are weighted as the torque weighs them; I, B, K are unbiased whatever the
+    input's band. When those columns cannot separate I, B and K (the singular values of the scaled
+    columns below :data:`CONDITION`), the fit is refused in one line naming the input's band (Welch
+    coherence, :mod:`estimators._band`) and the lag settings. The summary's ``band`` and the estimate's
+    ``band_hz`` (CSV ``band_lo_hz``, ``band_hi_hz``) say the band the estimate rests on: 0 ... the lower of
+    the band-limit and the input's band.
 
     Parameters
     ----------
@@ -97,6 +158,18 @@ class IBKIRF(Estimator):
                 raise ValueError(f"differentiator_length must be 0 (record length) or >= 4 samples, "
                                  f"got {self.differentiator_length}")
 
+    def _input_band(self, trials: list[Trial]):
+        """The input's band (:func:`estimators._band.input_band`) from Welch spectra of 2 s segments (shorter
+        when the records are: at least 8 per record), or None when it cannot be told."""
+        fs = trials[0].fs
+        seg = min(2.0, min(t.n for t in trials) / fs / 8)
+        if seg * fs < 16:
+            return None
+        try:
+            return input_band(frf_estimate(self.name, trials, WelchSettings(segment=seg), "spectral"))
+        except InputError:
+            return None
+
     def _fit(self, trials: list[Trial]) -> ParametricEstimate:
         s = self.settings
         fs = trials[0].fs
@@ -111,29 +184,59 @@ class IBKIRF(Estimator):
                              f"range M1+M2+1 = {m1 + m2 + 1} samples; the lags would wrap around")
         periodic = (dd.h2(n, fs), dd.h1(n, fs), dd.h0(n))
         h = irf.h
-        if s.bandlimit is not None:
-            if not s.bandlimit < fs / 2:
-                raise InputError(f"{self.name}: bandlimit = {s.bandlimit:g} Hz must be below the Nyquist "
-                                 f"frequency {fs / 2:g} Hz")
-            h = bandlimit_fb(h, fs, s.bandlimit, s.bandlimit_order)
+        if s.bandlimit is not None and not s.bandlimit < fs / 2:
+            raise InputError(f"{self.name}: bandlimit = {s.bandlimit:g} Hz must be below the Nyquist "
+                             f"frequency {fs / 2:g} Hz")
+        projected = fit.directions is not None and fit.kept < fit.n_lags
+        if projected:
+            # the pseudo-inverse IRF holds the true IRF's part in the kept directions only: so must the model
+            pairs = input_output(self.name, trials, s.remove_mean)
+            edges = "zero" if s.irf_method == "corr" else (s.edges or "valid")
+            c, Wr = kept_derivative_irfs(pairs, m1, m2, edges, fit.directions)
+            cols = [c[:, 0] * fs ** 2, c[:, 1] * fs, c[:, 2]]
+            if s.bandlimit is not None:
+                cols = [bandlimit_fb(c, fs, s.bandlimit, s.bandlimit_order) for c in cols]
+        elif s.bandlimit is not None:
             cols = [_bandlimited(p, m1, m2, fs, s.bandlimit, s.bandlimit_order) for p in periodic]
-            F = np.column_stack([bandlimit_fb(e, fs, s.bandlimit, s.bandlimit_order) for e in np.eye(len(h))])
+            Wr = None
         else:
             cols = [dd.two_sided(p, m1, m2)[1] for p in periodic]
+            Wr = None
+        if s.bandlimit is not None:
+            h = bandlimit_fb(h, fs, s.bandlimit, s.bandlimit_order)
+            F = np.column_stack([bandlimit_fb(e, fs, s.bandlimit, s.bandlimit_order) for e in np.eye(len(h))])
+        else:
             F = np.eye(len(h))
         A = np.column_stack(cols)
+        if Wr is not None:             # residuals weighted as the torque weighs them (see kept_derivative_irfs)
+            A, hw, F = Wr @ A, Wr @ h, Wr @ F
+        else:
+            hw = h
         scale = np.linalg.norm(A, axis=0)
         scale[scale == 0] = 1.0
-        x, _, rank, _ = scipy.linalg.lstsq(A / scale, h)
+        sv = np.linalg.svd(A / scale, compute_uv=False)
+        band = self._input_band(trials)
+        if len(sv) < 3 or sv[-1] <= CONDITION * sv[0]:     # (weighted: one row per kept direction)
+            where = f"the input's band {band.lo:g} ... {band.hi:g} Hz" if band else "the angle"
+            raise InputError(f"{self.name}: {where} and the lags -{m1} ... {m2} ({s.lag_before:g} s, "
+                             f"{s.lag_after:g} s) leave {fit.kept} of {fit.n_lags} lag directions, too few to "
+                             f"separate I, B and K; lengthen lag_before/lag_after or broaden the perturbation")
+        x, _, rank, _ = scipy.linalg.lstsq(A / scale, hw)
         if rank < 3:
             raise InputError(f"{self.name}: {m1 + m2 + 1} lag(s) cannot separate I, B and K; lengthen the lags")
         I, B, K = (float(v) for v in x / scale)
         label = irf.estimator if s.bandlimit is None else f"{irf.estimator}, band-limited to {s.bandlimit:g} Hz"
         basis = IRFEstimate(lags=irf.lags, h=h, fs=fs, time=irf.time, estimator=label)
-        band = None if s.bandlimit is None else (0.0, s.bandlimit)
+        top = fs / 2 if s.bandlimit is None else s.bandlimit
+        info = dict(fit.info)
+        if band is not None and band.hi < top:
+            top = band.hi
+        info["band"] = (f"0 ... {top:g} Hz; the input's band " + (band.text() if band else "unknown")
+                        + (f"; bandlimit {s.bandlimit:g} Hz" if s.bandlimit is not None else "; no bandlimit")
+                        + ("; I, B, K fitted in the IRF's kept lag directions" if projected else ""))
         est = ParametricEstimate(I=I, B=B, K=K, fs=fs, time=trials[0].time, estimator=self.name, basis=basis,
-                                 band_hz=band)
-        est.fit_info = fit.info
+                                 band_hz=(0.0, top))
+        est.fit_info = info
         if fit.cov is None:
             return est
         G = (np.linalg.pinv(A / scale) / scale[:, None]) @ F       # x = G h_raw
@@ -142,7 +245,8 @@ class IBKIRF(Estimator):
         se = np.sqrt(np.maximum(np.diag(cov), 0.0))
         bounds = {k: (v - q * e, v + q * e) for k, v, e in zip("IBK", (I, B, K), se)}
         bounds["stiffness"] = bounds["K"]
-        se_h = np.sqrt(np.maximum(np.diag(F @ fit.cov @ F.T), 0.0))
+        Fh = F if Wr is None else np.linalg.pinv(Wr) @ F            # the band-limited IRF's own filter
+        se_h = np.sqrt(np.maximum(np.diag(Fh @ fit.cov @ Fh.T), 0.0))
         basis.with_intervals(Intervals(level=LEVEL, method=irf_intervals(fit).method, response={
             "h": (h - q * se_h, h + q * se_h)}))
         return est.with_intervals(Intervals(level=LEVEL, method=irf_intervals(fit).method, bounds=bounds,

@@ -8,6 +8,7 @@ import scipy.linalg
 from scipy import stats
 
 from jointbench.estimators import Estimator, register
+from jointbench.estimators._band import EDGE, MAX_GAP, input_band
 from jointbench.estimators.spectral import LEVEL, WelchSettings, frf_estimate, segment_spectra
 from jointbench.errors import InputError
 from jointbench.estimate import Intervals, ParametricEstimate
@@ -53,12 +54,17 @@ class IBKSpectral(Estimator):
     with ``gamma^2`` the squared coherence: each frequency contributes a real row
     ``K - I w^2 = Re H`` and an imaginary row ``B w = Im H``, both scaled by ``gamma`` so that the
     squared residual carries the weight ``gamma^2``. Frequencies outside the band get zero weight
-    (the paper: "points at frequencies above 20 Hz were assigned zero weight").
+    (the paper: "points at frequencies above 20 Hz were assigned zero weight"). The band is first limited
+    to the input's band (:mod:`estimators._band`): above a band-limited input's top, ``H`` is noise over
+    the window's leakage and a few frequencies of chance coherence dominate the weighted fit (I, B, K off
+    by factors, a negative VAF). The band used is printed (``band``) and is the estimate's
+    :attr:`~jointbench.estimate.ParametricEstimate.band_hz` (the CSV's ``band_lo_hz``, ``band_hi_hz``).
 
     Parameters
     ----------
     settings : Settings
-        ``fmin``, ``fmax`` (Hz, default 0 and 20): fitted band, ``fmax > fmin``; and the Welch settings
+        ``fmin``, ``fmax`` (Hz, default 0 and 20): fitted band, ``fmax > fmin``, limited to the input's band
+        unless ``input_band`` is false (:meth:`_band`, :mod:`estimators._band`); and the Welch settings
         of :class:`estimators.spectral.Spectral`: ``segment`` (s, default 2.0), ``overlap`` (default
         0.5), ``window`` (default 'hann'), ``detrend`` (default 'constant').
 
@@ -83,6 +89,9 @@ class IBKSpectral(Estimator):
     class Settings(WelchSettings):
         fmin: float = param(0.0, unit="Hz", ge=0, doc="lowest frequency given weight in the fit")
         fmax: float = param(20.0, unit="Hz", gt=0, doc="highest frequency given weight in the fit")
+        input_band: bool = param(True, doc="limit fmin ... fmax to the input's band (where the coherence is "
+                                           "significant, estimators._band); false: the paper's rule, every "
+                                           "frequency of fmin ... fmax with nonzero coherence")
 
         def __post_init__(self):
             super().__post_init__()
@@ -94,14 +103,16 @@ class IBKSpectral(Estimator):
         fs = trials[0].fs
         frf = frf_estimate(self.name, trials, s, "spectral")
         f, H, coh = frf.freq, frf.H, frf.coherence
-        sel = (f >= s.fmin) & (f <= s.fmax) & (coh > 0)
+        lo, hi, note = self._band(frf)
+        sel = (f >= lo) & (f <= hi) & (coh > 0)
         if sel.sum() < 3:
             raise InputError(f"{self.name}: only {int(sel.sum())} frequency point(s) with nonzero coherence in "
                              f"fmin ... fmax = {s.fmin:g} ... {s.fmax:g} Hz (resolution {f[1]:g} Hz from "
                              f"segment = {s.segment:g} s); need at least 3: widen the band or lengthen 'segment'")
-        I, B, K = weighted_ibk_fit(f[sel], H[sel], coh[sel], self.name, f"the band {s.fmin:g} ... {s.fmax:g} Hz")
+        I, B, K = weighted_ibk_fit(f[sel], H[sel], coh[sel], self.name, f"the band {lo:g} ... {hi:g} Hz")
         est = ParametricEstimate(I=I, B=B, K=K, fs=fs, time=trials[0].time, estimator=self.name, basis=frf,
-                                 band_hz=(s.fmin, s.fmax))
+                                 band_hz=(lo, hi))
+        est.fit_info = {"band": note}
         jack = self._jackknife(trials, sel)
         if jack is None:
             return est
@@ -112,6 +123,35 @@ class IBKSpectral(Estimator):
         bounds["stiffness"] = bounds["K"]
         return est.with_intervals(Intervals(level=LEVEL, method=f"delete-a-group jackknife over the Welch segments "
                                             f"({dof + 1} groups; t quantile)", bounds=bounds, pointwise=False))
+
+    def _band(self, frf) -> tuple[float, float, str]:
+        """The fitted band ``(lo, hi, description)``: ``fmin ... fmax`` limited to the input's band.
+
+        An edge of the input's band within ``MAX_GAP + 1`` frequencies of the asked edge counts as reaching
+        it (the asked edge is kept); an edge of the input's band that limits the fit is moved
+        :data:`~estimators._band.EDGE` frequencies inwards. Raises :class:`InputError` when the input has no
+        band (no run of excited frequencies) or when its band and ``fmin ... fmax`` leave fewer than 3 frequencies.
+        """
+        s = self.settings
+        asked = f"fmin ... fmax = {s.fmin:g} ... {s.fmax:g} Hz"
+        if not s.input_band:
+            return s.fmin, s.fmax, f"{asked} (input_band = false: not checked against the input)"
+        band = input_band(frf)
+        if band is None:
+            raise InputError(f"{self.name}: the angle excites no band (no 3 adjacent frequencies of significant "
+                             f"coherence at resolution {frf.freq[1]:g} Hz): nothing to fit; use a perturbation with "
+                             f"more power, longer records, or set input_band = false to fit {asked} regardless")
+        slack = (MAX_GAP + 1) * band.resolution
+        lo = s.fmin if band.lo <= s.fmin + slack else band.lo + EDGE * band.resolution
+        hi = s.fmax if band.hi >= s.fmax - slack else band.hi - EDGE * band.resolution
+        n = int(np.sum((frf.freq >= lo) & (frf.freq <= hi) & (frf.coherence > 0)))
+        if (lo, hi) != (s.fmin, s.fmax) and (hi <= lo or n < 3):
+            raise InputError(f"{self.name}: {asked} lies outside the input's band {band.lo:g} ... {band.hi:g} Hz "
+                             f"(significant coherence); set fmin and fmax inside it")
+        if (lo, hi) == (s.fmin, s.fmax):          # (fewer than 3 frequencies: refused by the caller)
+            return lo, hi, f"{lo:g} ... {hi:g} Hz ({asked}, within the input's band {band.text()})"
+        return lo, hi, (f"{lo:g} ... {hi:g} Hz: {asked} limited to the input's band {band.text()} less {EDGE} "
+                        f"frequencies at its edge (leakage); outside it H is noise (settings fmin, fmax, input_band)")
 
     def _jackknife(self, trials: list[Trial], sel: np.ndarray) -> tuple[np.ndarray, int] | None:
         """Covariance of (I, B, K) by the delete-a-group jackknife over the Welch segments, and its dof.

@@ -7,7 +7,9 @@ from typing import Literal
 import numpy as np
 
 from jointbench.estimators import register
-from jointbench.estimators._tvirf import EnsembleEstimator, TVLagSettings, fill_invalid, lag_samples, lagged, mdl_solve
+from jointbench.estimators._resample import JackknifeSettings, realization_jackknife
+from jointbench.estimators._twosided import lag_samples as checked_lags
+from jointbench.estimators._tvirf import EnsembleEstimator, TVLagSettings, fill_invalid, lagged, mdl_solve
 from jointbench.ensemble import Ensemble
 from jointbench.errors import InputError
 from jointbench.estimate_tv import TVIRFEstimate
@@ -62,7 +64,7 @@ class SDS(EnsembleEstimator):
     accepts = frozenset({"trial", "pooled", "ensemble"})
 
     @dataclasses.dataclass(frozen=True)
-    class Settings(TVLagSettings):
+    class Settings(TVLagSettings, JackknifeSettings):
         window: float = param(1.0, unit="s", gt=0, doc="segment length: the IRF is taken constant over it")
         step: float | None = param(None, unit="s", gt=0, doc="distance between successive windows; none = one "
                                                               "sample")
@@ -72,7 +74,7 @@ class SDS(EnsembleEstimator):
     def _fit_ensemble(self, ens: Ensemble) -> TVIRFEstimate:
         s = self.settings
         fs, n, R = ens.fs, ens.n, ens.size
-        m1, m2 = lag_samples(s, fs)
+        m1, m2 = self._lags(ens)
         L = m1 + m2 + 1
         W = int(round(s.window * fs))
         rows = W - L + 1
@@ -141,5 +143,13 @@ class SDS(EnsembleEstimator):
         info = {"realizations": R, "window_samples": W, "rows_per_segment": rows, "windows": len(starts),
                 "step_samples": step,
                 "order": f"{int(order.min())} ... {int(order.max())} of {L} (median {int(np.median(order))})"}
-        return TVIRFEstimate(lags=np.arange(-m1, m2 + 1), h=fill_invalid(h, valid), fs=fs, time=ens.time,
+        est = TVIRFEstimate(lags=np.arange(-m1, m2 + 1), h=fill_invalid(h, valid), fs=fs, time=ens.time,
                              valid=valid, estimator=self.name, info=info)
+        return est.with_intervals(lambda: realization_jackknife(self.name, ens, self._fit_ensemble, est, s))
+
+    def _lags(self, ens: Ensemble) -> tuple[int, int]:
+        """``(M1, M2)``, refused when a nonzero lag is less than half a sample (e.g. time in ms read as s)."""
+        try:
+            return checked_lags(self.settings, ens.fs)
+        except InputError as exc:
+            raise InputError(f"{self.name}: ensemble '{ens.name}': {exc}") from None

@@ -92,7 +92,8 @@ class Ensemble:
         Raises
         ------
         InputError
-            Arrays that are not 2-D or differ in shape, or names that do not match the realizations.
+            Arrays that are not 2-D or differ in shape, fewer samples (rows) than realizations (columns: the
+            arrays look transposed), or names that do not match the realizations.
         """
         a = np.asarray(angle, float)
         y = np.asarray(torque, float)
@@ -102,6 +103,9 @@ class Ensemble:
                              f"{a.shape} and {y.shape}")
         if a.shape != y.shape:
             raise InputError(f"{where}: angle {a.shape} and torque {y.shape} differ in shape")
+        if a.shape[0] < a.shape[1]:
+            raise InputError(f"{where}: angle and torque are {a.shape[0]} x {a.shape[1]}, fewer samples than "
+                             f"realizations: transposed? an ensemble is samples x realizations (transpose them)")
         labels = list(names) if names is not None else [f"{name}[{r}]" for r in range(a.shape[1])]
         if len(labels) != a.shape[1]:
             raise InputError(f"{where}: {len(labels)} names for {a.shape[1]} realizations")

@@ -363,6 +363,14 @@ class ParametricEstimate(Estimate):
     def stiffness(self, t) -> np.ndarray:
         return self._on(self.K, t)
 
+    def to_frame(self) -> pd.DataFrame:
+        """:meth:`Estimate.to_frame`, with the fitted band (:attr:`band_hz`) as columns ``band_lo_hz``,
+        ``band_hi_hz`` when it is set (the band a CSV's numbers hold in)."""
+        frame = super().to_frame()
+        if self.band_hz is not None:
+            frame["band_lo_hz"], frame["band_hi_hz"] = float(self.band_hz[0]), float(self.band_hz[1])
+        return frame
+
     def predict(self, u: np.ndarray) -> np.ndarray:
         """Torque from angle with central-difference derivatives (second order accurate)."""
         u = np.asarray(u, float)

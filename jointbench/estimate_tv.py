@@ -122,10 +122,12 @@ class TVIRFEstimate(Estimate):
         return H[0] if np.ndim(t) == 0 else H
 
     def to_frame(self) -> pd.DataFrame:
-        """``time``, ``stiffness`` and ``valid``."""
+        """``time``, ``stiffness`` (with ``stiffness_lo``, ``stiffness_hi`` when :attr:`intervals` has them)
+        and ``valid``."""
         import pandas as pd
 
-        return pd.DataFrame({"time": self.time, "stiffness": self.h.sum(axis=0), "valid": self.valid})
+        frame = pd.DataFrame({"time": self.time, "stiffness": self.h.sum(axis=0), "valid": self.valid})
+        return self.add_interval_columns(frame)
 
     def response_frame(self) -> pd.DataFrame:
         """The IRF in long form: ``time, lag, lag_s, h`` (one row per sample and lag)."""

@@ -39,7 +39,7 @@ def test_npz_ensemble_gives_stiffness_and_long_irf(tmp_path, capsys):
     out = tmp_path / "o.csv"
     assert cli(["-e", "ensemble_irf", "-i", tmp_path / "ens.npz", "-o", out]) == 0
     frame = pd.read_csv(out)
-    assert list(frame.columns) == ["time", "stiffness", "valid"] and len(frame) == 1500
+    assert list(frame.columns) == ["time", "stiffness", "stiffness_lo", "stiffness_hi", "valid"] and len(frame) == 1500
     v = frame["valid"].to_numpy()
     assert np.allclose(frame["stiffness"][v], k[v], rtol=1e-6)
     irf = pd.read_csv(tmp_path / "o_irf.csv")

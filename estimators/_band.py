@@ -1,0 +1,88 @@
+"""The input's band: where the angle excites the joint measurably, for the estimators that fit over a band.
+
+Private module (the leading underscore keeps it out of the estimator registry). Used by
+:mod:`estimators.ibk_spectral` (the fitted band limited to it) and :mod:`estimators.ibk_irf` (reported,
+and named in its refusals).
+
+A frequency is *excited* when its squared coherence is significant at 95 % (the test of
+:meth:`jointbench.estimate.FRFEstimate.significant`, Carter, Knapp & Nuttall 1973). Above the band of
+a band-limited input, single frequencies pass that test by chance (5 % of them), with ``H`` there the
+ratio of noise to the window's leakage (10^3 - 10^4 times the joint's impedance): one of them given the
+weight of its coherence dominates a least-squares fit. The input's band is therefore the span of
+*runs* of excited frequencies: runs of at least :data:`MIN_RUN` adjacent excited frequencies (three by
+chance: 0.05^3, about 1 in 8000 per position), joined across gaps of at most :data:`MAX_GAP` frequencies
+(a dip of the coherence inside the band), the joined group with the most excited frequencies kept.
+Frequencies at which the angle has no power at all (numerically zero: between the lines of a periodic
+input whose period divides the segment) are neither excited nor gaps: they are skipped.
+
+References
+----------
+Westwick, D. T. & Perreault, E. J. (2012). Estimates of acausal joint impedance models. IEEE Trans.
+Biomed. Eng. 59(10), doi:10.1109/TBME.2012.2213339 (the input's bandwidth and the fitted band).
+
+Carter, G. C., Knapp, C. H. & Nuttall, A. H. (1973). Estimation of the magnitude-squared coherence
+function via overlapped fast Fourier transform processing. IEEE Trans. Audio Electroacoust. 21(4).
+"""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from jointbench.estimate import FRFEstimate
+
+#: fewest adjacent excited frequencies that count as a run of the input's band
+MIN_RUN = 3
+#: most unexcited frequencies inside the band between two runs (a dip of the coherence)
+MAX_GAP = 2
+#: frequencies left out inside an edge of the input's band when it limits a fit: the half width of the
+#: Hann window's main lobe (2 frequencies). There ``H`` is the leakage-weighted mean of ``H`` over the
+#: excited side only, not ``H`` at the frequency (on a multisine to 12 Hz, 2 s Hann segments, keeping
+#: them biased I and K of ibk_spectral by 2-3 interval half widths)
+EDGE = 2
+
+
+@dataclasses.dataclass(frozen=True)
+class InputBand:
+    """The input's band: ``lo ... hi`` (Hz), with ``excited`` of ``powered`` frequencies significant."""
+
+    lo: float
+    hi: float
+    excited: int
+    powered: int
+    resolution: float
+
+    def text(self) -> str:
+        return (f"{self.lo:g} ... {self.hi:g} Hz (squared coherence significant at 95 % at {self.excited} "
+                f"frequencies, resolution {self.resolution:g} Hz)")
+
+
+def input_band(frf: FRFEstimate) -> InputBand | None:
+    """The input's band of a Welch estimate (module docstring), or None when no run of :data:`MIN_RUN`
+    adjacent excited frequencies exists."""
+    f = np.asarray(frf.freq, float)
+    sig = np.asarray(frf.significant(), bool)
+    powered = np.flatnonzero(np.asarray(frf.coherence, float) > 0)
+    if len(powered) == 0:
+        return None
+    s = sig[powered]
+    runs, start = [], None          # runs of excited frequencies, as positions in `powered`
+    for i, v in enumerate(np.append(s, False)):
+        if v and start is None:
+            start = i
+        elif not v and start is not None:
+            if i - start >= MIN_RUN:
+                runs.append([start, i - 1, i - start])
+            start = None
+    if not runs:
+        return None
+    groups = [runs[0]]
+    for a, b, n in runs[1:]:
+        if a - groups[-1][1] - 1 <= MAX_GAP:
+            groups[-1] = [groups[-1][0], b, groups[-1][2] + n]
+        else:
+            groups.append([a, b, n])
+    a, b, n = max(groups, key=lambda g: g[2])       # ties: the lowest (max keeps the first)
+    res = float(f[1] - f[0]) if len(f) > 1 else 0.0
+    return InputBand(lo=float(f[powered[a]]), hi=float(f[powered[b]]), excited=int(n), powered=len(powered),
+                     resolution=res)

@@ -1,0 +1,133 @@
+"""Estimators that fit over a frequency band or a lag range check the input's band first (issue 20).
+
+The record of the issue: a random-phase multisine angle to 12 Hz (lines every 0.1 Hz, whole cycles in its
+10 s period), 30 s at 500 Hz, the torque ``I θ'' + B θ' + K θ`` exact at every sample (I 0.02, B 0.6,
+K 120) plus white noise of 10 % of its variance. Before the check ``ibk_spectral`` (0-20 Hz) printed
+K = 267 [-705, 1238] with VAF -152 %, and ``ibk_irf`` intervals that excluded the truth (K 113 [112, 114]
+at +-40 ms).
+"""
+import numpy as np
+import pandas as pd
+import pytest
+
+from jointbench import estimators
+from jointbench.errors import InputError
+from jointbench.estimators._band import input_band
+from jointbench.types import Trial
+from tests.estimate_data import one_blas_thread, run, save  # noqa: F401 (autouse fixture)
+
+TRUTH = {"I": 0.02, "B": 0.6, "K": 120.0}
+
+
+def narrow_band(seed: int, fmax: float = 12.0, fs: float = 500.0, duration: float = 30.0,
+                noise: float = 0.1) -> Trial:
+    """The issue's record: multisine angle to ``fmax``, exact impedance torque plus white noise of ``noise``
+    times its variance."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(int(round(duration * fs))) / fs
+    lines = np.arange(1, int(round(fmax * 10)) + 1) / 10.0
+    amp = np.full(len(lines), 0.02 / np.sqrt(len(lines) / 2))
+    w = 2 * np.pi * lines
+    Z = TRUTH["K"] + 1j * w * TRUTH["B"] - TRUTH["I"] * w ** 2
+    arg = np.outer(t, w) + rng.uniform(0, 2 * np.pi, len(lines))
+    angle = np.cos(arg) @ amp
+    torque = np.cos(arg + np.angle(Z)) @ (amp * np.abs(Z))
+    torque = torque + rng.standard_normal(len(t)) * np.sqrt(noise * np.var(torque))
+    return Trial.from_arrays(angle, torque, fs, name=f"narrow{seed}")
+
+
+def inside(est) -> dict[str, bool]:
+    return {k: bool(est.intervals.bounds[k][0] <= TRUTH[k] <= est.intervals.bounds[k][1]) for k in "IBK"}
+
+
+def test_the_exact_regressors_give_the_truth():
+    """The record is what it says: least squares on the exact regressors recovers I, B, K (to 2 %)."""
+    tr = narrow_band(0)
+    n = len(tr.time)
+    f = np.fft.rfftfreq(n, 1 / tr.fs)
+    A = np.fft.rfft(tr.angle)
+    d1, d2 = np.fft.irfft(A * 2j * np.pi * f, n), np.fft.irfft(A * (2j * np.pi * f) ** 2, n)
+    x = np.linalg.lstsq(np.column_stack([d2, d1, tr.angle]), tr.torque, rcond=None)[0]
+    assert np.allclose(x, [TRUTH["I"], TRUTH["B"], TRUTH["K"]], rtol=0.02)
+
+
+def test_input_band_is_the_multisine_band():
+    est = estimators.make("spectral").fit(narrow_band(1))
+    band = input_band(est)
+    assert band.lo == 0.0 and band.hi == pytest.approx(12.5)     # 12 Hz plus the Hann window's leakage bin
+    # single frequencies of chance coherence above the band exist (why the band is made of runs) ...
+    f = est.freq
+    assert np.any(est.significant() & (f > 13.0))
+    # ... and do not extend it
+    assert band.hi < 13.0
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_ibk_spectral_fits_the_input_band_and_covers_the_truth(seed):
+    est = estimators.make("ibk_spectral").fit(narrow_band(seed))
+    assert est.band_hz == (0.0, pytest.approx(11.5))
+    assert "limited to the input's band" in est.fit_info["band"]
+    assert all(inside(est).values()), (est.I, est.B, est.K, est.intervals.bounds)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+@pytest.mark.parametrize("lag", [0.04, 0.1])
+def test_ibk_irf_fits_in_the_kept_directions_and_covers_the_truth(seed, lag):
+    est = estimators.make("ibk_irf", {"lag_before": lag, "lag_after": lag}).fit(narrow_band(seed))
+    assert est.band_hz == (0.0, pytest.approx(12.5))
+    assert "kept lag directions" in est.fit_info["band"]
+    assert all(inside(est).values()), (est.I, est.B, est.K, est.intervals.bounds)
+
+
+def test_broadband_input_keeps_the_asked_band():
+    """An input to 40 Hz: the 0-20 Hz fit is not limited (the band check changes nothing there)."""
+    est = estimators.make("ibk_spectral").fit(narrow_band(3, fmax=40.0))
+    assert est.band_hz == (0.0, 20.0)
+    assert "within the input's band" in est.fit_info["band"]
+    assert all(inside(est).values())
+
+
+def test_ibk_spectral_refuses_a_band_outside_the_input():
+    with pytest.raises(InputError, match=r"fmin \.\.\. fmax = 15 \.\.\. 20 Hz lies outside the input's band "
+                                         r"0 \.\.\. 12\.5 Hz.*set fmin and fmax"):
+        estimators.make("ibk_spectral", {"fmin": 15, "fmax": 20}).fit(narrow_band(0))
+
+
+def test_ibk_spectral_unchecked_is_the_old_fit():
+    """input_band = false is the paper's rule (every frequency with coherence): on this record it is the
+    wrong answer the issue found, which is why it is not the default."""
+    tr = narrow_band(1)
+    est = estimators.make("ibk_spectral", {"input_band": False}).fit(tr)
+    assert est.band_hz == (0.0, 20.0)
+    lo, hi = est.intervals.bounds["K"]
+    assert hi - lo > TRUTH["K"] and est.prediction(tr).vaf() < 0       # K +- 190 N m/rad, VAF -366 %
+
+
+def test_ibk_irf_refuses_lags_the_input_cannot_separate():
+    """+-4 ms at 500 Hz on a 2 Hz input: 5 lags, of which the input excites 2, too few for I, B and K (on the
+    12 Hz input, 3 lags of +-2 ms still separate them: the torque is exactly second order)."""
+    with pytest.raises(InputError, match=r"ibk_irf: the input's band 0 \.\.\. [\d.]+ Hz and the lags -2 \.\.\. 2 "
+                                         r".*leave 2 of 5 lag directions, too few to separate I, B and K; lengthen "
+                                         r"lag_before/lag_after"):
+        estimators.make("ibk_irf", {"lag_before": 0.004, "lag_after": 0.004}).fit(narrow_band(0, fmax=2.0))
+    est = estimators.make("ibk_irf", {"lag_before": 0.002, "lag_after": 0.002}).fit(narrow_band(0))
+    assert all(inside(est).values())
+
+
+@pytest.mark.parametrize("name", ["ibk_spectral", "ibk_irf"])
+def test_command_prints_and_writes_the_band_and_never_a_negative_vaf(tmp_path, name):
+    """The acceptance command: estimates whose intervals hold the truth, the band in the output and the CSV,
+    VAF above 0."""
+    rec = save(tmp_path / "narrow.npz", narrow_band(1))
+    out = tmp_path / "est.csv"
+    code, text, err = run(["-e", name, "-i", rec, "-o", out, "--set", "lag_before=40ms", "--set",
+                           "lag_after=40ms"] if name == "ibk_irf" else ["-e", name, "-i", rec, "-o", out])
+    assert code == 0, err
+    assert "  band: 0 ... " in text
+    vaf = float(text.split("narrow.npz")[-1].split("%")[0])
+    assert vaf > 90.0
+    frame = pd.read_csv(out)
+    assert {"band_lo_hz", "band_hi_hz"} <= set(frame.columns)
+    assert frame["band_hi_hz"].iloc[0] <= 12.5
+    for k in "IBK":
+        assert frame[f"{k}_lo"].iloc[0] <= TRUTH[k] <= frame[f"{k}_hi"].iloc[0], (name, k)
