@@ -59,8 +59,11 @@ $(STAMP): pyproject.toml
 
 venv: $(STAMP)
 
+# The tests on TEST_WORKERS processes (pytest-xdist; each test module stays on one worker, so its shared
+# fixtures are made once: tests/conftest.py); TEST_WORKERS=0 runs them in this process, one after another.
+TEST_WORKERS ?= 2
 test: $(STAMP)
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q $(if $(filter 0,$(TEST_WORKERS)),,-n $(TEST_WORKERS) --dist loadgroup)
 
 # Lint (ruff, installed with the test extra; the rules are pyproject.toml's [tool.ruff]): .ci/run calls it.
 lint: $(STAMP)

@@ -1,12 +1,26 @@
-"""``--slow`` runs the tests marked ``slow`` (full studies, minutes each); without it they are skipped."""
+"""``--slow`` runs the tests marked ``slow`` (full studies, minutes each); without it they are skipped.
+
+With pytest-xdist (``make test`` runs ``-n 2 --dist loadgroup``), each test module is one group, run on one
+worker, so that its module-scoped fixtures (a built wheel, a study's smoke run) are computed once; the
+modules in :data:`SPLIT` hold independent tests without costly shared fixtures and are spread over the
+workers test by test.
+"""
 import pytest
+
+#: modules whose tests are spread over the xdist workers one by one (each test sets up what it needs)
+SPLIT = frozenset({"tests.test_dask_faults", "tests.test_runner_faults", "tests.test_estimators"})
 
 
 def pytest_addoption(parser):
     parser.addoption("--slow", action="store_true", default=False, help="run the tests marked slow (full studies)")
 
 
+@pytest.hookimpl(tryfirst=True)          # before xdist reads the groups
 def pytest_collection_modifyitems(config, items):
+    for item in items:
+        module = getattr(item.module, "__name__", "") if getattr(item, "module", None) else ""
+        if module and module not in SPLIT and item.get_closest_marker("xdist_group") is None:
+            item.add_marker(pytest.mark.xdist_group(module))
     if config.getoption("--slow"):
         return
     skip = pytest.mark.skip(reason="slow: full study (run with --slow, or make test-slow)")
