@@ -7,18 +7,31 @@ workers test by test.
 """
 import pytest
 
-#: modules whose tests are spread over the xdist workers one by one (each test sets up what it needs)
-SPLIT = frozenset({"tests.test_dask_faults", "tests.test_runner_faults", "tests.test_estimators"})
+#: modules whose tests are spread over the xdist workers one by one (no costly module-scoped fixture: each
+#: test sets up what it needs)
+SPLIT = frozenset({"tests.test_dask_faults", "tests.test_runner_faults", "tests.test_outputs_set",
+                   "tests.test_cli_estimate", "tests.test_history"})
+#: the longest modules (minutes of processes, builds and whole-study runs; pytest --durations), run first, so
+#: that the workers finish together rather than one of them starting a long module at the end
+FIRST = ("tests.test_plugins", "tests.test_outputs_set", "tests.test_dask_faults", "tests.test_runner_faults",
+         "tests.test_wheel", "tests.test_nightly", "tests.test_history", "tests.test_cli_estimate",
+         "tests.test_nightly_alarms")
 
 
 def pytest_addoption(parser):
     parser.addoption("--slow", action="store_true", default=False, help="run the tests marked slow (full studies)")
 
 
+def _module(item) -> str:
+    return getattr(getattr(item, "module", None), "__name__", "")
+
+
 @pytest.hookimpl(tryfirst=True)          # before xdist reads the groups
 def pytest_collection_modifyitems(config, items):
+    rank = {m: i for i, m in enumerate(FIRST)}
+    items.sort(key=lambda item: rank.get(_module(item), len(FIRST)))       # stable: the order within a module kept
     for item in items:
-        module = getattr(item.module, "__name__", "") if getattr(item, "module", None) else ""
+        module = _module(item)
         if module and module not in SPLIT and item.get_closest_marker("xdist_group") is None:
             item.add_marker(pytest.mark.xdist_group(module))
     if config.getoption("--slow"):
