@@ -5,6 +5,8 @@ worker, so that its module-scoped fixtures (a built wheel, a study's smoke run) 
 modules in :data:`SPLIT` hold independent tests without costly shared fixtures and are spread over the
 workers test by test.
 """
+import os
+
 import pytest
 
 #: modules whose tests are spread over the xdist workers one by one (no costly module-scoped fixture: each
@@ -16,6 +18,21 @@ SPLIT = frozenset({"tests.test_dask_faults", "tests.test_runner_faults", "tests.
 FIRST = ("tests.test_plugins", "tests.test_outputs_set", "tests.test_dask_faults", "tests.test_runner_faults",
          "tests.test_wheel", "tests.test_nightly", "tests.test_history", "tests.test_cli_estimate",
          "tests.test_nightly_alarms")
+
+
+def pytest_configure(config):
+    """On an xdist worker, one BLAS thread: two workers with a BLAS pool each on two cores wait on each other
+    (an estimator's many small products then took ten times as long); a test's own processes are not
+    affected (threadpoolctl limits this process only)."""
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        import numpy  # noqa: F401 - the BLAS libraries must be loaded to be limited: numpy's and scipy's own
+        import scipy.linalg  # noqa: F401
+        from threadpoolctl import threadpool_limits
+
+        config.stash[_BLAS_LIMIT] = threadpool_limits(limits=1)
+
+
+_BLAS_LIMIT = pytest.StashKey()
 
 
 def pytest_addoption(parser):
