@@ -21,7 +21,8 @@ PAPER_STUDIES := westwick2012 xu1998 vanderuit2018_table1
 
 help:
 	@echo "make reproduce   run every implemented paper study (results/<study>/report.md)"
-	@echo "make test        run the tests (creates .venv when missing; installs every extra: .[all,test])"
+	@echo "make test        run the tests (creates .venv when missing; installs every extra: .[all,test]) on two"
+	@echo "                 processes (pytest-xdist; TEST_WORKERS=0 for one process, TEST_WORKERS=N for N)"
 	@echo "make lint        ruff on the code (what .ci/run calls after the tests)"
 	@echo "make test-slow   exact-value tests of the full studies (slow marker)"
 	@echo "make bench       speed benchmarks against the last stored run (fails on a ratio to the same-run"
