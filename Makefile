@@ -21,7 +21,8 @@ PAPER_STUDIES := westwick2012 xu1998 vanderuit2018_table1
 
 help:
 	@echo "make reproduce   run every implemented paper study (results/<study>/report.md)"
-	@echo "make test        run the tests (creates .venv when missing; installs every extra: .[all,test])"
+	@echo "make test        run the tests (creates .venv when missing; installs every extra: .[all,test]) on two"
+	@echo "                 processes (pytest-xdist; TEST_WORKERS=0 for one process, TEST_WORKERS=N for N)"
 	@echo "make lint        ruff on the code (what .ci/run calls after the tests)"
 	@echo "make test-slow   exact-value tests of the full studies (slow marker)"
 	@echo "make bench       speed benchmarks against the last stored run (fails on a ratio to the same-run"
@@ -59,8 +60,11 @@ $(STAMP): pyproject.toml
 
 venv: $(STAMP)
 
+# The tests on TEST_WORKERS processes (pytest-xdist; each test module stays on one worker, so its shared
+# fixtures are made once: tests/conftest.py); TEST_WORKERS=0 runs them in this process, one after another.
+TEST_WORKERS ?= 2
 test: $(STAMP)
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q $(if $(filter 0,$(TEST_WORKERS)),,-n $(TEST_WORKERS) --dist loadgroup)
 
 # Lint (ruff, installed with the test extra; the rules are pyproject.toml's [tool.ruff]): .ci/run calls it.
 lint: $(STAMP)

@@ -13,9 +13,8 @@ doi:10.1109/TCST.2018.2881664, eqs. 9, 15, 16 and B.1.
 from __future__ import annotations
 
 import numpy as np
-import scipy.linalg
 
-from jointbench.estimators._kbr_solve import System, _stack
+from jointbench.estimators._kbr_solve import System, _stack, r_factor
 
 
 def posterior(system: System, weights: np.ndarray) -> tuple[float, np.ndarray]:
@@ -42,7 +41,7 @@ def posterior(system: System, weights: np.ndarray) -> tuple[float, np.ndarray]:
     b = _stack(-system.F0 * sw)
     scale = np.linalg.norm(Ac, axis=0)
     scale[scale == 0] = 1.0
-    R = scipy.linalg.qr(np.column_stack([Ac / scale, Az, b]), mode="r", check_finite=False)[0]
+    R = r_factor(np.column_stack([Ac / scale, Az, b]))
     R11 = R[:P, :P]
     R22 = R[P:P + q, P:P + q]
     r2 = R[P:P + q, -1]
@@ -50,8 +49,7 @@ def posterior(system: System, weights: np.ndarray) -> tuple[float, np.ndarray]:
     if R22.shape[0] < q:
         R22 = np.vstack([R22, np.zeros((q - R22.shape[0], q))])
         r2 = np.concatenate([r2, np.zeros(q - len(r2))])
-    Rz = scipy.linalg.qr(np.vstack([np.column_stack([R22, r2]), np.column_stack([np.eye(q), np.zeros(q)])]),
-                         mode="r", check_finite=False)[0]
+    Rz = r_factor(np.vstack([np.column_stack([R22, r2]), np.column_stack([np.eye(q), np.zeros(q)])]))
     cost = rho2 + float(Rz[q, q] ** 2) if Rz.shape[0] > q else rho2
     tiny = np.finfo(float).tiny
     neg2 = (2.0 * cost + 2.0 * np.sum(np.log(np.maximum(np.abs(np.diag(Rz[:q, :q])), tiny)))

@@ -197,6 +197,15 @@ def _stack(x: np.ndarray) -> np.ndarray:
     return np.concatenate([x.real, x.imag])
 
 
+def r_factor(A: np.ndarray) -> np.ndarray:
+    """The R factor of a Householder QR of ``A`` (LAPACK ``geqrf``): its first ``min(M, N)`` rows.
+
+    The same factorization as ``scipy.linalg.qr(A, mode='r')``, whose ``M x N`` result is zero below
+    row ``N``: the rows below are not formed (for the tall systems here, most of the matrix), and ``A``,
+    a temporary of the caller, is factorized in place."""
+    return scipy.linalg.qr(A, mode="raw", overwrite_a=True, check_finite=False)[1]
+
+
 def ridge_solve(Ac: np.ndarray, Az: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Minimise ``||Ac c + Az z - b||^2 + ||z||^2`` over ``c`` (free) and ``z`` (real arrays).
 
@@ -210,14 +219,13 @@ def ridge_solve(Ac: np.ndarray, Az: np.ndarray, b: np.ndarray) -> tuple[np.ndarr
     p, q = Ac.shape[1], Az.shape[1]
     scale = np.linalg.norm(Ac, axis=0)
     scale[scale == 0] = 1.0
-    R = scipy.linalg.qr(np.column_stack([Ac / scale, Az, b]), mode="r", check_finite=False)[0]
+    R = r_factor(np.column_stack([Ac / scale, Az, b]))
     R11, R12, r1 = R[:p, :p], R[:p, p:p + q], R[:p, -1]
     R22, r2 = R[p:p + q, p:p + q], R[p:p + q, -1]
     if R22.shape[0] < q:                          # fewer equations than unknowns: pad with zero rows
         R22 = np.vstack([R22, np.zeros((q - R22.shape[0], q))])
         r2 = np.concatenate([r2, np.zeros(q - len(r2))])
-    Rz = scipy.linalg.qr(np.vstack([np.column_stack([R22, r2]), np.column_stack([np.eye(q), np.zeros(q)])]),
-                         mode="r", check_finite=False)[0]
+    Rz = r_factor(np.vstack([np.column_stack([R22, r2]), np.column_stack([np.eye(q), np.zeros(q)])]))
     z = scipy.linalg.solve_triangular(Rz[:q, :q], Rz[:q, -1], check_finite=False)
     c = scipy.linalg.solve_triangular(R11, r1 - R12 @ z, check_finite=False) / scale
     return c, z
@@ -301,6 +309,11 @@ def refine(system: System, Db: np.ndarray, mask: np.ndarray, sv2: np.ndarray, c:
         return a, q, E, float(np.sum(np.abs(E) ** 2 / (sv2 * q)) + np.sum(z ** 2))
 
     a, q, E, cost = parts(c, z)
+    CT = np.concatenate([system.C, Tf], axis=1)
+    dA = np.zeros((nk, P + P * r), complex)       # dAbar/d(c, z): the same at every step
+    for n in range(na):
+        dA[:, n] = Db[n + 1]
+        dA[:, P + n * r:P + (n + 1) * r] = g[n] * np.outer(Db[n + 1], m)
     done = 0
     for done in range(1, iterations + 1):
         # residuals rotated by the unit phase phi = conj(Abar)/|Abar| (the cost is unchanged): for a
@@ -311,19 +324,16 @@ def refine(system: System, Db: np.ndarray, mask: np.ndarray, sv2: np.ndarray, c:
         # dq/dc_n = 2 Re(conj(Abar) D_n), dq/dz_nj = 2 g_n Re(D_n conj(mean_t A Phi_j));
         # dAbar/dc_n = D_n, dAbar/dz_nj = g_n D_n mean_t Phi_j
         dq = np.zeros((nk, P + P * r))
-        dA = np.zeros((nk, P + P * r), complex)
         for n in range(na):
             cols = slice(P + n * r, P + (n + 1) * r)
             dq[:, n] = 2 * (Abar.conj() * Db[n + 1]).real
             dq[:, cols] = 2 * g[n] * (Db[n + 1][:, None] * APhi.conj()).real
-            dA[:, n] = Db[n + 1]
-            dA[:, cols] = g[n] * np.outer(Db[n + 1], m)
         absA = np.maximum(np.abs(Abar), 1e-300)
         psi = Abar / absA
         dphi = -1j * psi.conj()[:, None] * (psi.conj()[:, None] * dA).imag / absA[:, None]
         phi = psi.conj()
         sd = np.sqrt(sv2 * q)
-        J = (np.concatenate([system.C, Tf], axis=1) * phi[:, None] + E[:, None] * dphi
+        J = (CT * phi[:, None] + E[:, None] * dphi
              - (E * phi / (2 * q))[:, None] * dq) / sd[:, None]
         Jc, Jz = _stack(J[:, :P]), _stack(J[:, P:])
         b = Jc @ c + Jz @ z.ravel() - _stack(E * phi / sd)

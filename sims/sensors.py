@@ -29,6 +29,15 @@ def _design(kind: str, order: int, cutoff: float, fs: float) -> np.ndarray:
     return sos
 
 
+@functools.lru_cache(maxsize=16)
+def _advance(n: int, fs: float, delay: float) -> np.ndarray:
+    """``exp(2j pi f delay)`` at the ``rfft`` bins of ``n`` samples: an advance by ``delay`` seconds; cached
+    (every trial of a study has the same length, rate and filter; read-only, so it cannot be changed)."""
+    shift = np.exp(2j * np.pi * np.fft.rfftfreq(n, 1.0 / fs) * delay)
+    shift.flags.writeable = False
+    return shift
+
+
 @functools.lru_cache(maxsize=64)
 def _delay(kind: str, order: int, cutoff: float, fs: float) -> float:
     """Group delay (s) of :func:`_design`'s filter at 1 % of its cutoff; cached."""
@@ -85,8 +94,7 @@ class SensorFilter:
         if not self.delay_correction:
             return y
         n = y.shape[0]
-        f = np.fft.rfftfreq(n, 1.0 / fs)
-        shift = np.exp(2j * np.pi * f * self.delay(fs))
+        shift = _advance(n, float(fs), self.delay(fs))
         Y = np.fft.rfft(y, axis=0)
         return np.fft.irfft(Y * (shift if y.ndim == 1 else shift[:, None]), n, axis=0)
 

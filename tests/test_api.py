@@ -11,6 +11,7 @@ import pytest
 from jointbench import api, estimators
 from jointbench.errors import ConfigError, InputError
 from tests.estimate_data import gated_wrist
+from tests.harness_studies import cli_here
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -27,8 +28,7 @@ def gated_record(tmp_path_factory):
 def test_a_notebook_fit_and_jointbench_estimate_give_the_same_numbers(gated_record, tmp_path):
     trial, path = gated_record
     out = tmp_path / "skirt.csv"
-    cmd = subprocess.run([sys.executable, "-m", "jointbench.benchmarks", "estimate", "-e", "skirt", "-i", path,
-                          "-o", out], capture_output=True, text=True, cwd=tmp_path, timeout=600)
+    cmd = cli_here("estimate", "-e", "skirt", "-i", path, "-o", out)        # in-process: both paths absolute
     assert cmd.returncode == 0, cmd.stderr
     assert "gated multisine" in cmd.stdout
     fit = api.fit("skirt", path)                                  # what a notebook does, no options

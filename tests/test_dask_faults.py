@@ -153,7 +153,7 @@ def _numbers(path: Path) -> pd.DataFrame:
 
 def test_a_lost_worker_is_survived_with_identical_rows_and_the_report_says_so(tmp_path, cluster):
     study = tiny_study(tmp_path / "cfg", seeds=12, duration="60 s")
-    serial = cli("run", study, "--out", tmp_path / "serial", "--quiet", "--serial", timeout=600)
+    serial = cli_here("run", study, "--out", tmp_path / "serial", "--quiet", "--serial")
     assert serial.returncode == 0, serial.stderr
     out = tmp_path / "out"
     c = cluster(workers=2)

@@ -15,7 +15,7 @@ import yaml
 from jointbench.benchmarks.cli import main
 from jointbench.benchmarks.harness.history import History
 from jointbench.errors import OutputError
-from tests.harness_studies import REPO, cli, cli_env, tiny_study
+from tests.harness_studies import REPO, cli_env, cli_here as cli, tiny_study
 
 
 def _snapshot(folder: Path) -> dict[str, bytes]:

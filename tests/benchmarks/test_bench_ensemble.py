@@ -83,6 +83,18 @@ def test_bench_ensemble_irf_eigh_floor(benchmark, ens50):
 
 
 @pytest.mark.benchmark(group="ensemble_irf-1000x50x9")
+def test_bench_ensemble_irf_eigvalsh_floor(benchmark, ens50):
+    """The eigenvalues alone (numpy.linalg.eigvalsh) of the same matrices: what the MDL order would cost if
+    it needed no eigenvectors. It needs the projections of phi on them, so the fit pays eigh, whose median
+    on this machine (about 6.6 ms of CPU time, issue 22) is above issue 22's 4 ms target for the whole fit."""
+    ens, _ = ens50
+    X = sliding_window_view(ens.inputs - ens.inputs.mean(axis=1, keepdims=True), len(LAGS), axis=0)[..., ::-1]
+    Phi = np.matmul(X.transpose(0, 2, 1), X) / ens.size
+    s = benchmark(np.linalg.eigvalsh, Phi)
+    assert np.allclose(s, np.linalg.eigh(Phi)[0], rtol=1e-12, atol=0)
+
+
+@pytest.mark.benchmark(group="ensemble_irf-1000x50x9")
 def test_bench_ensemble_irf_pinv_loop_baseline(benchmark, ens50):
     ens, _ = ens50
     h = benchmark(pinv_loop, ens)
