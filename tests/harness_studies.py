@@ -87,12 +87,24 @@ def cli_here(*args, timeout: float | None = None) -> subprocess.CompletedProcess
     return subprocess.CompletedProcess(list(args), code, out.getvalue(), err.getvalue())
 
 
+def _as_a_terminal_job() -> None:
+    """In the child before exec: SIGINT and SIGTERM at their default dispositions, as a terminal's job
+    has them. A test process may run with SIGINT ignored (a pytest-xdist worker, a job started in the
+    background by a non-interactive shell); a child inherits an ignored signal across exec, and Python
+    installs no KeyboardInterrupt handler for a SIGINT it finds ignored."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
 def start(*args, log: Path, prefix: list[str] | None = None) -> subprocess.Popen:
     """``jointbench ARGS`` in the background, in its own session (its own process group, as a
-    terminal's foreground job), stdout and stderr to ``log``."""
+    terminal's foreground job, its signals at their defaults), stdout and stderr to ``log``."""
     f = open(log, "w")
     return subprocess.Popen([*(prefix or []), sys.executable, "-m", "jointbench.benchmarks", *map(str, args)], cwd=REPO,
-                            stdout=f, stderr=subprocess.STDOUT, env=cli_env(), start_new_session=True)
+                            stdout=f, stderr=subprocess.STDOUT, env=cli_env(), start_new_session=True,
+                            preexec_fn=_as_a_terminal_job)
 
 
 def children(pid: int) -> list[int]:
