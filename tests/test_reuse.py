@@ -107,11 +107,12 @@ def test_grouped_cases_are_bit_identical_to_every_case_alone(tmp_path):
 
 
 def test_the_full_studies_need_the_counts_of_the_issue():
-    """vanderuit2018_table1: 240 cases of 2 trials = 480 simulated trials, 40 distinct responses (4
-    variations x 10 seeds); xu1998's readings part: 600 cases, 120 distinct responses (2 conditions x 2 f_v x
-    3 damping ratios x 10 seeds; the issue counted 520 cases before the two exact-derivative variants)."""
+    """vanderuit2018_table1: 300 cases of 2 trials = 600 simulated trials (with the N_p = 7 skirt part of
+    reading R12, 60 cases), still 40 distinct responses (4 variations x 10 seeds); xu1998's readings part:
+    600 cases, 120 distinct responses (2 conditions x 2 f_v x 3 damping ratios x 10 seeds; the issue counted
+    520 cases before the two exact-derivative variants)."""
     vdr = expand(load_study("vanderuit2018_table1"))
-    assert len(vdr) == 240 and len(group_cases(vdr)) == 40
+    assert len(vdr) == 300 and len(group_cases(vdr)) == 40
     xu = expand(load_study("xu1998"), ["readings"])
     assert len(xu) == 600 and len(group_cases(xu)) == 120
 
