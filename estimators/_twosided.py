@@ -299,9 +299,10 @@ def segment_covariance(pairs: list[tuple[np.ndarray, np.ndarray]], m1: int, m2: 
                        h: np.ndarray, gram_pinv: np.ndarray) -> tuple[np.ndarray | None, int]:
     """Segment-robust covariance of a least-squares IRF: ``P Omega P G / (G - 1)``.
 
-    Each record's regression rows (:func:`regression_rows`: those of the fit, ``rows``) are cut into contiguous segments (at most :data:`MAX_SEGMENTS` in
-    all, each at least :data:`SEGMENT_LAGS` times the lag range); ``s_g = U_g^T e_g`` is segment ``g``'s
-    score with the residuals ``e = y - U h`` and ``P`` the (pseudo-)inverse of ``U^T U`` used for ``h``;
+    Each record's regression rows (:func:`regression_rows`: those of the fit, ``rows``) are cut into
+    contiguous segments (at most :data:`MAX_SEGMENTS` in all, each at least :data:`SEGMENT_LAGS` times the
+    lag range); ``s_g = U_g^T e_g`` is segment ``g``'s score with the residuals ``e = y - U h`` and ``P`` the
+    (pseudo-)inverse of ``U^T U`` used for ``h``;
     ``Omega = sum_g s_g s_g^T`` plus half the products of neighbouring segments of a record
     (``s_g s_{g+1}^T`` and its transpose: Newey & West's Bartlett window over segments, positive
     semidefinite).
@@ -366,6 +367,9 @@ def fit_irf(name: str, trials: list[Trial], settings: LagSettings, method: Liter
     if mode == "mdl":
         h, kept = mdl_pseudo_inverse(s, V, c, rss0, n_rows)
     else:
+        null = int(np.sum(s <= RCOND_MDL * s.max()))
+        if null:
+            raise InputError(unexcited_lags(name, trials, settings, m1, m2, null))
         if method == "ls":
             h = scipy.linalg.lstsq(R, z, check_finite=False)[0]
         else:
@@ -405,6 +409,21 @@ def correlation_end_effect(name: str, trials: list[Trial], settings: LagSettings
     except InputError:
         return None
     return h - ref.h
+
+
+def unexcited_lags(name: str, trials: list[Trial], settings: LagSettings, m1: int, m2: int, null: int) -> str:
+    """The one-line refusal of plain least squares (``pseudo_inverse = 'off'``) when ``null`` of the lag
+    directions are numerically unexcited (singular value at most sqrt(eps) of the largest,
+    :data:`RCOND_MDL`): their coordinates would be rounding error times 10^8 or more (issue 20: intervals of
+    +-1e13 on a 12 Hz input), naming the input's band (:func:`estimators._band.band_of_trials`)."""
+    from jointbench.estimators._band import band_of_trials
+
+    band = band_of_trials(name, trials)
+    where = f"the input's band {band.lo:g} ... {band.hi:g} Hz" if band else "the angle"
+    return (f"{name}: {where} leaves {null} of the {m1 + m2 + 1} lag directions of -{m1} ... {m2} "
+            f"(lag_before {settings.lag_before:g} s, lag_after {settings.lag_after:g} s) unexcited, so plain least "
+            f"squares (pseudo_inverse = off) is rounding error there; set pseudo_inverse = mdl, shorten the lags, "
+            f"decimate or broaden the perturbation")
 
 
 def t_quantile(dof: int, level: float = LEVEL) -> float:
@@ -471,5 +490,10 @@ def estimate_irf(name: str, trials: list[Trial], settings: LagSettings, method: 
     m1, m2 = lag_samples(settings, fs)
     fit = fit_irf(name, trials, settings, method, edges)
     est = IRFEstimate(lags=np.arange(-m1, m2 + 1), h=fit.h, fs=fs, time=trials[0].time, estimator=estimator)
-    est.fit_info = fit.info
+    from jointbench.estimators._band import band_of_trials
+
+    band = band_of_trials(name, trials)
+    est.fit_info = {**fit.info, "band": "the input's band " + (band.text() if band else "unknown") + (
+        f"; the IRF estimated in {fit.kept} of its {fit.n_lags} lag directions (MDL pseudo-inverse)"
+        if fit.kept < fit.n_lags else f"; all {fit.n_lags} lag directions estimated")}
     return est.with_intervals(irf_intervals(fit))

@@ -131,3 +131,38 @@ def test_command_prints_and_writes_the_band_and_never_a_negative_vaf(tmp_path, n
     assert frame["band_hi_hz"].iloc[0] <= 12.5
     for k in "IBK":
         assert frame[f"{k}_lo"].iloc[0] <= TRUTH[k] <= frame[f"{k}_hi"].iloc[0], (name, k)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+@pytest.mark.parametrize("lag", [0.04, 0.1])
+@pytest.mark.parametrize("name", ["irf2_ls", "irf2_corr"])
+def test_two_sided_irfs_say_the_kept_directions_and_cover_the_stiffness(name, seed, lag):
+    """The MDL pseudo-inverse keeps the lag directions the 12 Hz input excites (5-9 of 41 or 101): the summary
+    names them and the input's band, and the stiffness interval holds K."""
+    est = estimators.make(name, {"lag_before": lag, "lag_after": lag}).fit(narrow_band(seed))
+    n_lags = 2 * round(lag * 500) + 1
+    assert f"of its {n_lags} lag directions (MDL pseudo-inverse)" in est.fit_info["band"]
+    assert "the input's band 0 ... 12.5 Hz" in est.fit_info["band"]
+    lo, hi = (float(np.mean(b)) for b in est.intervals.bounds["stiffness"])
+    assert lo <= TRUTH["K"] <= hi, (lo, hi)
+
+
+@pytest.mark.parametrize("name", ["irf2_ls", "ibk_irf"])
+def test_plain_least_squares_refuses_unexcited_lags(name):
+    """pseudo_inverse = off on the 12 Hz input: 30 of the 41 lag directions have singular values of rounding
+    size (intervals of +-1e12 before the check): refused in one line naming the band and the settings."""
+    with pytest.raises(InputError, match=rf"^{name}: the input's band 0 \.\.\. 12\.5 Hz leaves 30 of the 41 lag "
+                                         r"directions of -20 \.\.\. 20 .*unexcited.*set pseudo_inverse = mdl, "
+                                         r"shorten the lags") as err:
+        estimators.make(name, {"lag_before": 0.04, "lag_after": 0.04, "pseudo_inverse": "off"}).fit(narrow_band(0))
+    assert "\n" not in str(err.value)
+
+
+def test_correlation_plain_fit_is_not_refused_and_covers():
+    """The zero-padded correlations' Toeplitz matrix has no unexcited direction (the padding's steps excite
+    every frequency a little): eq. 15 as printed is fitted, its interval holds K."""
+    est = estimators.make("irf2_corr", {"lag_before": 0.04, "lag_after": 0.04, "pseudo_inverse": "off"}).fit(
+        narrow_band(0))
+    assert "all 41 lag directions estimated" in est.fit_info["band"]
+    lo, hi = (float(np.mean(b)) for b in est.intervals.bounds["stiffness"])
+    assert lo <= TRUTH["K"] <= hi
