@@ -2,9 +2,8 @@
 
 Private module (the leading underscore keeps it out of the estimator registry). Used by
 :mod:`estimators.ibk_spectral` (the fitted band limited to it), :mod:`estimators.ibk_irf`,
-:mod:`estimators.irf_ls` and :mod:`estimators.irf_corr` (reported, and named in their refusals;
-:func:`band_of_trials`) and :mod:`estimators.fsewls` (its filter's band against the input's,
-:func:`power_in_band`).
+:mod:`estimators.irf_ls`, :mod:`estimators.irf_corr` and :mod:`estimators.fsewls` (reported, and named in
+their refusals; :func:`band_of_trials`).
 
 A frequency is *excited* when its squared coherence is significant at 95 % (the test of
 :meth:`jointbench.estimate.FRFEstimate.significant`, Carter, Knapp & Nuttall 1973). Above the band of
@@ -92,13 +91,13 @@ def input_band(frf: FRFEstimate) -> InputBand | None:
                      resolution=res)
 
 
-def band_of_trials(name: str, trials: list[Trial]) -> InputBand | None:
-    """The input's band (:func:`input_band`) of records, from Welch spectra of 2 s segments (shorter when the
-    records are: at least 8 per record), or None when it cannot be told (records under 128 samples)."""
+def band_of_trials(name: str, trials: list[Trial], segment: float = 2.0) -> InputBand | None:
+    """The input's band (:func:`input_band`) of records, from Welch spectra of ``segment`` s segments (shorter
+    when the records are: at least 8 per record), or None when it cannot be told (segments under 16 samples)."""
     from jointbench.estimators.spectral import WelchSettings, frf_estimate
 
     fs = trials[0].fs
-    seg = min(2.0, min(t.n for t in trials) / fs / 8)
+    seg = min(segment, min(t.n for t in trials) / fs / 8)
     if seg * fs < 16:
         return None
     try:
