@@ -229,8 +229,17 @@ def test_kbr_relaxation_band_is_a_spread_not_a_confidence_interval():
     assert -np.median(err) > np.median((hi - lo) / 2)
 
 
+#: measured misses of the slow version, not fixed (issue 20 findings, kept failing: strict xfail)
+SLOW_MISSES = {"kbr": "37 misses of 120 (coverage 69 %) on k(t) = 5.6 + 0.9 sin(2 pi t / 20 s) with refine: "
+                      "the errors' robust SD is 0.36 N m/rad, the band's half-width 0.35 (1.96 SD would be 0.70; "
+                      "time-invariant wrist: SD 0.15, half-width 0.43, covers). The band is the posterior at fixed "
+                      "kernel hyperparameters and noise weights, linearised: it does not hold the kernel smoothing's "
+                      "error of a varying stiffness; cause not established further"}
+
+
 @pytest.mark.slow
-@pytest.mark.parametrize("name", list(MULTISINE))
+@pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.xfail(strict=True, reason=SLOW_MISSES[n]))
+                                  if n in SLOW_MISSES else n for n in MULTISINE])
 def test_slow_multisine_bands_cover_a_varying_stiffness(name):
     multisine_coverage(name, 40, wrist_ltv, 3)
 
