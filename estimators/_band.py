@@ -1,8 +1,9 @@
 """The input's band: where the angle excites the joint measurably, for the estimators that fit over a band.
 
 Private module (the leading underscore keeps it out of the estimator registry). Used by
-:mod:`estimators.ibk_spectral` (the fitted band limited to it) and :mod:`estimators.ibk_irf` (reported,
-and named in its refusals).
+:mod:`estimators.ibk_spectral` (the fitted band limited to it), :mod:`estimators.ibk_irf`,
+:mod:`estimators.irf_ls`, :mod:`estimators.irf_corr` and :mod:`estimators.fsewls` (reported, and named in
+their refusals; :func:`band_of_trials`).
 
 A frequency is *excited* when its squared coherence is significant at 95 % (the test of
 :meth:`jointbench.estimate.FRFEstimate.significant`, Carter, Knapp & Nuttall 1973). Above the band of
@@ -29,7 +30,9 @@ import dataclasses
 
 import numpy as np
 
+from jointbench.errors import InputError
 from jointbench.estimate import FRFEstimate
+from jointbench.types import Trial
 
 #: fewest adjacent excited frequencies that count as a run of the input's band
 MIN_RUN = 3
@@ -86,3 +89,18 @@ def input_band(frf: FRFEstimate) -> InputBand | None:
     res = float(f[1] - f[0]) if len(f) > 1 else 0.0
     return InputBand(lo=float(f[powered[a]]), hi=float(f[powered[b]]), excited=int(n), powered=len(powered),
                      resolution=res)
+
+
+def band_of_trials(name: str, trials: list[Trial], segment: float = 2.0) -> InputBand | None:
+    """The input's band (:func:`input_band`) of records, from Welch spectra of ``segment`` s segments (shorter
+    when the records are: at least 8 per record), or None when it cannot be told (segments under 16 samples)."""
+    from jointbench.estimators.spectral import WelchSettings, frf_estimate
+
+    fs = trials[0].fs
+    seg = min(segment, min(t.n for t in trials) / fs / 8)
+    if seg * fs < 16:
+        return None
+    try:
+        return input_band(frf_estimate(name, trials, WelchSettings(segment=seg), "spectral"))
+    except InputError:
+        return None

@@ -8,8 +8,7 @@ import numpy as np
 import scipy.linalg
 
 from jointbench.estimators import Estimator, register
-from jointbench.estimators._band import input_band
-from jointbench.estimators.spectral import WelchSettings, frf_estimate
+from jointbench.estimators._band import band_of_trials
 from jointbench.estimators._twosided import (LEVEL, Edges, LagSettings, fit_irf, input_output, irf_intervals,
                                              lag_samples, regressor, t_quantile)
 from jointbench import differentiators as dd
@@ -158,18 +157,6 @@ class IBKIRF(Estimator):
                 raise ValueError(f"differentiator_length must be 0 (record length) or >= 4 samples, "
                                  f"got {self.differentiator_length}")
 
-    def _input_band(self, trials: list[Trial]):
-        """The input's band (:func:`estimators._band.input_band`) from Welch spectra of 2 s segments (shorter
-        when the records are: at least 8 per record), or None when it cannot be told."""
-        fs = trials[0].fs
-        seg = min(2.0, min(t.n for t in trials) / fs / 8)
-        if seg * fs < 16:
-            return None
-        try:
-            return input_band(frf_estimate(self.name, trials, WelchSettings(segment=seg), "spectral"))
-        except InputError:
-            return None
-
     def _fit(self, trials: list[Trial]) -> ParametricEstimate:
         s = self.settings
         fs = trials[0].fs
@@ -215,7 +202,7 @@ class IBKIRF(Estimator):
         scale = np.linalg.norm(A, axis=0)
         scale[scale == 0] = 1.0
         sv = np.linalg.svd(A / scale, compute_uv=False)
-        band = self._input_band(trials)
+        band = band_of_trials(self.name, trials)
         if len(sv) < 3 or sv[-1] <= CONDITION * sv[0]:     # (weighted: one row per kept direction)
             where = f"the input's band {band.lo:g} ... {band.hi:g} Hz" if band else "the angle"
             raise InputError(f"{self.name}: {where} and the lags -{m1} ... {m2} ({s.lag_before:g} s, "
