@@ -52,6 +52,15 @@ class EnsembleEstimator(Estimator):
     def _fit(self, trials: list[Trial]):
         return self._fit_ensemble(as_ensemble(self.name, trials))
 
+    def _lags(self, ens: Ensemble) -> tuple[int, int]:
+        """``(M1, M2)``, refused when a nonzero lag is less than half a sample (e.g. time in ms read as s)."""
+        try:
+            from jointbench.estimators._twosided import lag_samples
+
+            return lag_samples(self.settings, ens.fs)
+        except InputError as exc:
+            raise InputError(f"{self.name}: ensemble '{ens.name}': {exc}") from None
+
 
 def lag_samples(settings: TVLagSettings, fs: float) -> tuple[int, int]:
     """``(M1, M2)`` in samples."""

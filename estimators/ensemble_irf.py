@@ -8,7 +8,6 @@ import numpy as np
 
 from jointbench.estimators import register
 from jointbench.estimators._resample import JackknifeSettings, realization_jackknife
-from jointbench.estimators._twosided import lag_samples as checked_lags
 from jointbench.estimators._tvirf import (EnsembleEstimator, TVLagSettings, centred, fill_invalid, gram_stack, lagged,
                                           mdl_solve)
 from jointbench.ensemble import Ensemble
@@ -113,10 +112,3 @@ class EnsembleIRF(EnsembleEstimator):
         est = TVIRFEstimate(lags=np.arange(-m1, m2 + 1), h=fill_invalid(h, valid), fs=fs, time=ens.time,
                              valid=valid, estimator=self.name, info=info)
         return est.with_intervals(lambda: realization_jackknife(self.name, ens, self._fit_ensemble, est, s))
-
-    def _lags(self, ens: Ensemble) -> tuple[int, int]:
-        """``(M1, M2)``, refused when a nonzero lag is less than half a sample (e.g. time in ms read as s)."""
-        try:
-            return checked_lags(self.settings, ens.fs)
-        except InputError as exc:
-            raise InputError(f"{self.name}: ensemble '{ens.name}': {exc}") from None

@@ -10,7 +10,6 @@ from scipy.interpolate import BSpline
 
 from jointbench.estimators import register
 from jointbench.estimators._resample import JackknifeSettings, realization_jackknife
-from jointbench.estimators._twosided import lag_samples as checked_lags
 from jointbench.estimators._tvirf import (EnsembleEstimator, TVLagSettings, centred, gram_stack, one_blas_thread)
 from jointbench.ensemble import Ensemble
 from jointbench.errors import InputError
@@ -217,10 +216,3 @@ class Guarin(EnsembleEstimator):
                               estimator=self.name, info=info, reflex_h=H[L:] if s.reflex else None,
                               reflex_delay=d, nonlinearity=s.nonlinearity)
         return est.with_intervals(lambda: realization_jackknife(self.name, ens, self._fit_ensemble, est, s))
-
-    def _lags(self, ens: Ensemble) -> tuple[int, int]:
-        """``(M1, M2)``, refused when a nonzero lag is less than half a sample (e.g. time in ms read as s)."""
-        try:
-            return checked_lags(self.settings, ens.fs)
-        except InputError as exc:
-            raise InputError(f"{self.name}: ensemble '{ens.name}': {exc}") from None
