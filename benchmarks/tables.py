@@ -362,7 +362,7 @@ def fidelity(comparison: pd.DataFrame) -> pd.DataFrame:
     comp["_target"] = [_target(r) for r in comp.to_dict("records")]
     comp["_diff"] = _is_difference(comp)
     ev = comp["evidence"].fillna("unrecorded") if "evidence" in comp else pd.Series("unrecorded", index=comp.index)
-    cause = (comp["cause"].fillna("").astype(str).replace("nan", "") if "cause" in comp
+    cause = (comp["cause"].astype(object).fillna("").astype(str).replace("nan", "") if "cause" in comp
              else pd.Series("", index=comp.index))
     recs = []
     for target in dict.fromkeys(comp["_target"]):
