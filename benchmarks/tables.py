@@ -349,6 +349,7 @@ def _target(row) -> str:
     fam = str(row["check"]).split("-")[0]
     src = str(row.get("source", "") or "")
     head = src.replace("'", ":").split(":")[0].split(";")[0].strip().rstrip(",")
+    head += ")" * max(0, head.count("(") - head.count(")"))   # a cut inside a bracket closes it
     return f"{fam} ({head})" if head and head != "nan" else fam
 
 

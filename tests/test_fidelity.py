@@ -127,3 +127,12 @@ def test_prefilter_noise_ratio_and_the_ratio_a_published_row_implies():
     assert prefilter_noise_ratio(5.0, 15.0, 2, 50.0, 22.0) < prefilter_noise_ratio(5.0, 15.0, 2, 50.0, 50.0)
     # Table I, KBR sine 20 s at 5 dB: VAF_val 89.7, VAF_optim 99.7 -> r = (1 - 0.897 - 0.003)/0.897
     assert inferred_noise_ratio(89.7, 99.7) == pytest.approx(0.1 / 0.897)
+
+
+def test_fidelity_target_names_its_source_up_to_the_first_colon_with_brackets_closed():
+    from jointbench.benchmarks.tables import _target
+    assert _target({"check": "A1-prediction-2s", "source": "Sec. II-A, eqs. 3-8 (prediction: reading R7)"}) \
+        == "A1 (Sec. II-A, eqs. 3-8 (prediction))"
+    assert _target({"check": "X1-posture", "source": "Sec. III-B, Fig. 2: 'better for posture'"}) \
+        == "X1 (Sec. III-B, Fig. 2)"
+    assert _target({"check": "T1-x", "source": "", "target": "Table I"}) == "Table I"
