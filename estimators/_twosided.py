@@ -496,4 +496,5 @@ def estimate_irf(name: str, trials: list[Trial], settings: LagSettings, method: 
     est.fit_info = {**fit.info, "band": "the input's band " + (band.text() if band else "unknown") + (
         f"; the IRF estimated in {fit.kept} of its {fit.n_lags} lag directions (MDL pseudo-inverse)"
         if fit.kept < fit.n_lags else f"; all {fit.n_lags} lag directions estimated")}
+    est.band_hz = None if band is None else (band.lo, band.hi)     # the CSV's band_lo_hz, band_hi_hz
     return est.with_intervals(irf_intervals(fit))

@@ -256,6 +256,8 @@ class FSEWLS(Estimator):
                              predicted_filtered_torque=np.einsum("rni,ni->rn", Phi, Theta),
                              transient=self.transient(), highpassed=highpassed)
         est.fit_info = {**est.fit_info, "band": band}
+        # the fitted band as the CSV's band_lo_hz, band_hi_hz (the summary's band line)
+        est.band_hz = (0.0 if s.highpass_cutoff is None else float(s.highpass_cutoff), float(s.svf_cutoff))
         return est.with_intervals(lambda: self.bands(Phi, y, Theta, est.steady(), fs))   # on first use
 
     def holdout_delay(self, fs: float) -> int:

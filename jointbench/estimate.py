@@ -103,6 +103,9 @@ class Estimate(ABC):
     _intervals: Intervals | Callable[[], Intervals | None] | None = None
     #: numbers about the fit worth printing (regularisation chosen, ...), shown by :meth:`summary`
     fit_info: Mapping[str, object] = _EMPTY
+    #: (low, high) band (Hz) the estimate rests on, set by estimators that fit over a band (columns
+    #: ``band_lo_hz``, ``band_hi_hz`` of :meth:`to_frame`); None = not stated
+    band_hz: tuple[float, float] | None = None
 
     @abstractmethod
     def predict(self, u: np.ndarray) -> np.ndarray:
@@ -118,12 +121,19 @@ class Estimate(ABC):
 
     def to_frame(self) -> pd.DataFrame:
         """``time`` plus whichever of ``I``, ``B``, ``K`` exist, and ``stiffness``; each followed by its
-        ``*_lo``, ``*_hi`` confidence limits when :attr:`intervals` has them."""
+        ``*_lo``, ``*_hi`` confidence limits when :attr:`intervals` has them; then ``band_lo_hz``,
+        ``band_hi_hz`` when :attr:`band_hz` is set (the band a CSV's numbers hold in)."""
         import pandas as pd
         cols = {"time": self.time}
         cols.update(self.parameters())
         cols["stiffness"] = self.stiffness(self.time)
-        return self.add_interval_columns(pd.DataFrame(cols))
+        return self.add_band_columns(self.add_interval_columns(pd.DataFrame(cols)))
+
+    def add_band_columns(self, frame: pd.DataFrame) -> pd.DataFrame:
+        """``frame`` with columns ``band_lo_hz``, ``band_hi_hz`` (:attr:`band_hz`) when it is set."""
+        if self.band_hz is not None:
+            frame["band_lo_hz"], frame["band_hi_hz"] = float(self.band_hz[0]), float(self.band_hz[1])
+        return frame
 
     def response_frame(self) -> pd.DataFrame | None:
         """Impulse or frequency response as a table, or ``None``."""
@@ -362,14 +372,6 @@ class ParametricEstimate(Estimate):
 
     def stiffness(self, t) -> np.ndarray:
         return self._on(self.K, t)
-
-    def to_frame(self) -> pd.DataFrame:
-        """:meth:`Estimate.to_frame`, with the fitted band (:attr:`band_hz`) as columns ``band_lo_hz``,
-        ``band_hi_hz`` when it is set (the band a CSV's numbers hold in)."""
-        frame = super().to_frame()
-        if self.band_hz is not None:
-            frame["band_lo_hz"], frame["band_hi_hz"] = float(self.band_hz[0]), float(self.band_hz[1])
-        return frame
 
     def predict(self, u: np.ndarray) -> np.ndarray:
         """Torque from angle with central-difference derivatives (second order accurate)."""

@@ -221,3 +221,23 @@ def test_fsewls_states_its_band_and_fits_the_slow_input_without_the_high_pass():
     assert est.fit_info["band"].startswith("fitted 0 Hz (high-pass) ... state-variable filter cutoff 3.2 Hz")
     lo, hi = (float(np.median(b)) for b in est.intervals.bounds["K"])
     assert lo <= 40.0 <= hi
+
+
+@pytest.mark.parametrize("name", ["irf2_ls", "irf2_corr", "fsewls"])
+def test_csv_states_the_band_of_irf2_and_fsewls(tmp_path, name):
+    """The CSV carries the band printed in the summary (issue 20): ``band_lo_hz``, ``band_hi_hz`` are the
+    input's band (irf2_*: 0 ... 12.5 Hz on the 12 Hz multisine) or the fitted band (fsewls: high-pass 1 Hz ...
+    state-variable filter cutoff)."""
+    rec = save(tmp_path / "narrow.npz", narrow_band(0))
+    out = tmp_path / "est.csv"
+    code, text, err = run(["-e", name, "-i", rec, "-o", out])
+    assert code == 0, err
+    frame = pd.read_csv(out)
+    lo, hi = frame["band_lo_hz"].iloc[0], frame["band_hi_hz"].iloc[0]
+    if name == "fsewls":
+        svf = estimators.make("fsewls").settings.svf_cutoff
+        assert (lo, hi) == (1.0, svf)
+        assert f"fitted 1 Hz (high-pass) ... state-variable filter cutoff {svf:g} Hz" in text
+    else:
+        assert (lo, hi) == (0.0, 12.5)
+        assert "the input's band 0 ... 12.5 Hz" in text
