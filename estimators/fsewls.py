@@ -108,8 +108,8 @@ class FSEWLSEstimate(ParametricEstimate):
         return H[0] if ts.ndim == 0 else H
 
     def to_frame(self) -> pd.DataFrame:
-        """``time``, ``I``, ``B``, ``K``, ``stiffness``, ``steady``, then per record ``filtered_torque``
-        and ``predicted_filtered_torque`` (suffixed ``_1``, ``_2`` ... from the second record on)."""
+        """``time``, ``I``, ``B``, ``K``, ``stiffness`` (with their limits), the fitted band, ``steady``, then
+        per record ``filtered_torque`` and ``predicted_filtered_torque`` (suffixed ``_1``, ``_2`` ... from the second record on)."""
         frame = super().to_frame()
         frame["steady"] = self.steady()
         for k, (y, yhat) in enumerate(zip(self.filtered_torque, self.predicted_filtered_torque)):

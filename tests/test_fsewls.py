@@ -132,8 +132,8 @@ def test_estimate_interface(steady_elbow):
     assert np.abs(est.damping_ratio()[keep] / ZETA - 1).max() < 0.01
     frame = est.to_frame()
     assert list(frame.columns) == ["time", "I", "I_lo", "I_hi", "B", "B_lo", "B_hi", "K", "K_lo", "K_hi",
-                                   "stiffness", "stiffness_lo", "stiffness_hi", "steady", "filtered_torque",
-                                   "predicted_filtered_torque"]
+                                   "stiffness", "stiffness_lo", "stiffness_hi", "band_lo_hz", "band_hi_hz",
+                                   "steady", "filtered_torque", "predicted_filtered_torque"]
     assert frame["steady"].sum() == keep.sum() and frame.notna().all().all()
     assert est.filtered_torque.shape == est.predicted_filtered_torque.shape == (1, trial.n)
     H = est.frequency_response(np.array([0.0, 2.0]), np.array([5.0, 6.0]))
