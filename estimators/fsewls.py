@@ -109,7 +109,8 @@ class FSEWLSEstimate(ParametricEstimate):
 
     def to_frame(self) -> pd.DataFrame:
         """``time``, ``I``, ``B``, ``K``, ``stiffness`` (with their limits), the fitted band, ``steady``, then
-        per record ``filtered_torque`` and ``predicted_filtered_torque`` (suffixed ``_1``, ``_2`` ... from the second record on)."""
+        per record ``filtered_torque`` and ``predicted_filtered_torque`` (suffixed ``_1``, ``_2`` ... from the
+        second record on)."""
         frame = super().to_frame()
         frame["steady"] = self.steady()
         for k, (y, yhat) in enumerate(zip(self.filtered_torque, self.predicted_filtered_torque)):
