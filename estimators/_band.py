@@ -3,7 +3,7 @@
 Private module (the leading underscore keeps it out of the estimator registry). Used by
 :mod:`estimators.ibk_spectral` (the fitted band limited to it), :mod:`estimators.ibk_irf`,
 :mod:`estimators.irf_ls`, :mod:`estimators.irf_corr` and :mod:`estimators.fsewls` (reported, and named in
-their refusals; :func:`band_of_trials`).
+their refusals; :func:`band_of_trials`; fsewls also its fitted band's share, :func:`excited_share`).
 
 A frequency is *excited* when its squared coherence is significant at 95 % (the test of
 :meth:`jointbench.estimate.FRFEstimate.significant`, Carter, Knapp & Nuttall 1973). Above the band of
@@ -27,6 +27,7 @@ function via overlapped fast Fourier transform processing. IEEE Trans. Audio Ele
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import numpy as np
 
@@ -60,12 +61,14 @@ class InputBand:
                 f"frequencies, resolution {self.resolution:g} Hz)")
 
 
-def input_band(frf: FRFEstimate) -> InputBand | None:
+def input_band(frf: FRFEstimate, lo: float = 0.0, hi: float = np.inf) -> InputBand | None:
     """The input's band of a Welch estimate (module docstring), or None when no run of :data:`MIN_RUN`
-    adjacent excited frequencies exists."""
+    adjacent excited frequencies exists; only the frequencies from ``lo`` to ``hi`` Hz when given."""
     f = np.asarray(frf.freq, float)
-    sig = np.asarray(frf.significant(), bool)
-    powered = np.flatnonzero(np.asarray(frf.coherence, float) > 0)
+    res = float(f[1] - f[0]) if len(f) > 1 else 0.0
+    inside = (f >= lo) & (f <= hi)
+    f, sig, coh = f[inside], np.asarray(frf.significant(), bool)[inside], np.asarray(frf.coherence, float)[inside]
+    powered = np.flatnonzero(coh > 0)
     if len(powered) == 0:
         return None
     s = sig[powered]
@@ -86,14 +89,13 @@ def input_band(frf: FRFEstimate) -> InputBand | None:
         else:
             groups.append([a, b, n])
     a, b, n = max(groups, key=lambda g: g[2])       # ties: the lowest (max keeps the first)
-    res = float(f[1] - f[0]) if len(f) > 1 else 0.0
     return InputBand(lo=float(f[powered[a]]), hi=float(f[powered[b]]), excited=int(n), powered=len(powered),
                      resolution=res)
 
 
-def band_of_trials(name: str, trials: list[Trial], segment: float = 2.0) -> InputBand | None:
-    """The input's band (:func:`input_band`) of records, from Welch spectra of ``segment`` s segments (shorter
-    when the records are: at least 8 per record), or None when it cannot be told (segments under 16 samples)."""
+def welch_of_trials(name: str, trials: list[Trial], segment: float = 2.0) -> FRFEstimate | None:
+    """Welch estimate (angle to torque) of records from ``segment`` s segments (shorter when the records are:
+    at least 8 per record), or None when it cannot be told (segments under 16 samples, no input power)."""
     from jointbench.estimators.spectral import WelchSettings, frf_estimate
 
     fs = trials[0].fs
@@ -101,6 +103,34 @@ def band_of_trials(name: str, trials: list[Trial], segment: float = 2.0) -> Inpu
     if seg * fs < 16:
         return None
     try:
-        return input_band(frf_estimate(name, trials, WelchSettings(segment=seg), "spectral"))
+        return frf_estimate(name, trials, WelchSettings(segment=seg), "spectral")
     except InputError:
         return None
+
+
+def band_of_trials(name: str, trials: list[Trial], segment: float = 2.0) -> InputBand | None:
+    """The input's band (:func:`input_band`) of records, from Welch spectra of ``segment`` s segments (shorter
+    when the records are: at least 8 per record), or None when it cannot be told (segments under 16 samples)."""
+    frf = welch_of_trials(name, trials, segment)
+    return None if frf is None else input_band(frf)
+
+
+def excited_share(frf: FRFEstimate, lo: float, hi: float) -> tuple[int, int]:
+    """``(excited, powered)``: frequencies of ``lo ... hi`` Hz (inclusive) whose squared coherence is
+    significant at 95 %, of those at which the angle has power."""
+    f = np.asarray(frf.freq, float)
+    sel = (f >= lo) & (f <= hi) & (np.asarray(frf.coherence, float) > 0)
+    return int(np.count_nonzero(np.asarray(frf.significant(), bool) & sel)), int(np.count_nonzero(sel))
+
+
+def chance(excited: int, powered: int, level: float = 0.95) -> float:
+    """Probability that ``excited`` or more of ``powered`` frequencies pass the coherence test by chance (each
+    at ``1 - level`` without input: the binomial tail), i.e. how well a band's count is explained without an
+    input. ``chance(0, n) == 1``."""
+    p = 1.0 - level
+    if excited <= 0:
+        return 1.0
+    logs = [math.lgamma(powered + 1) - math.lgamma(j + 1) - math.lgamma(powered - j + 1)
+            + j * math.log(p) + (powered - j) * math.log1p(-p) for j in range(excited, powered + 1)]
+    top = max(logs) if logs else -math.inf
+    return float(min(1.0, math.exp(top) * sum(math.exp(v - top) for v in logs))) if logs else 0.0

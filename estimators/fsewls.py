@@ -12,7 +12,7 @@ import numpy as np
 import pandas as pd
 
 from jointbench.estimators import Estimator, register
-from jointbench.estimators._band import band_of_trials
+from jointbench.estimators._band import MIN_RUN, band_of_trials, chance, excited_share, input_band, welch_of_trials
 from jointbench.estimators._ewls_band import forgetting_table, pointwise_bands
 from jointbench.estimators._fsewls_kernels import (  # noqa: F401 - the kernels are public here too
     _IU, highpass, _highpass_sos, highpass_time_constant, svf_pole, _odd_fast_len, svf,
@@ -223,19 +223,62 @@ class FSEWLS(Estimator):
                              f"needs 2 x {self.transient():.3g} s of transients (from highpass_cutoff, "
                              f"svf_cutoff and forgetting) + init_window {s.init_window:g} s = {need:.3g} s")
 
-    def _input_band(self, trials: list[Trial], highpassed: np.ndarray) -> str:
-        """The input's band against the fitted one (issue 20), as the summary's ``band`` line.
+    #: the refusal's threshold: the probability that the fitted band's count of coherent frequencies arises by
+    #: chance (no input there) above which the fit is refused (1 in 1000: a rare false refusal)
+    REFUSE_CHANCE: ClassVar[float] = 1e-3
+    #: upper edge of the band checked, in svf_cutoff: L's stiffness regressor (a^n s^(n-2) / (s + a)^n) is down
+    #: 40 dB at 10 svf_cutoff; its inertia regressor is not, so the band is not [highpass, svf_cutoff]
+    CHECKED_UP_TO: ClassVar[float] = 10.0
 
-        No refusal from the share of the imposed signal's variance that passes the high-pass H: a voluntary
-        movement below the cutoff dominates that variance by design (frequency separation; the lpv study's
-        slow movement passes < 1 %), so a share cannot tell a missing perturbation (not done: issue 20).
+    def _input_band(self, trials: list[Trial], highpassed: np.ndarray) -> str:
+        """The input's band against the fitted one (issue 20), as the summary's ``band`` line; a refusal when
+        the fitted band holds too little of the input.
+
+        The band is that of the high-passed angle and torque (what the regression sees; eq. 3), on the samples
+        ``3 T_hp`` or more from either end (the high-pass's edge transients are coherent in both signals). The
+        fit is refused when, from ``highpass_cutoff`` to :data:`CHECKED_UP_TO` ``svf_cutoff``, they are
+        coherent (:func:`estimators._band.excited_share`) at no more frequencies than chance explains
+        (:func:`estimators._band.chance` above :data:`REFUSE_CHANCE`) and in no run of
+        :data:`estimators._band.MIN_RUN` adjacent frequencies (a narrow band, e.g. 0.1 ... 0.4 Hz with the
+        high-pass off, is a run; the count of a narrow band in a wide one is not beyond chance): a
+        perturbation below the high-pass. A
+        share of the imposed signal's variance passing H cannot tell that: a voluntary movement below the
+        cutoff dominates the variance by design (frequency separation; the lpv study's slow movement),
+        whereas coherence is per frequency. The band checked is wider than ``highpass ... svf_cutoff``: a
+        movement (or a fast variation of K) there makes the LTI coherence fall at its frequencies while the
+        perturbation above still informs the fit (xu1998's movement at f_v = 1.5 Hz).
+
+        Raises
+        ------
+        InputError
+            The fitted band holds too little of the input (one line: the share, the input's band, the
+            settings to change).
         """
-        s = self.settings
-        band = band_of_trials(self.name, trials)
-        hp = 0.0 if s.highpass_cutoff is None else s.highpass_cutoff
+        s, fs = self.settings, trials[0].fs
+        hp = 0.0 if s.highpass_cutoff is None else float(s.highpass_cutoff)
+        m = 0 if s.highpass_cutoff is None else int(np.ceil(3.0 * highpass_time_constant(
+            s.highpass_cutoff, s.highpass_order, s.highpass_ripple) * fs))
+        hp_trials = [Trial.from_arrays(highpassed[0, r, m:highpassed.shape[-1] - m],
+                                       highpassed[1, r, m:highpassed.shape[-1] - m], fs, imposed=t.imposed,
+                                       name=t.name) for r, t in enumerate(trials)]
+        frf = welch_of_trials(self.name, hp_trials)
+        band = None if frf is None else input_band(frf)
+        fitted = (f"fitted {hp:g} Hz (high-pass) ... state-variable filter cutoff {s.svf_cutoff:g} Hz "
+                  f"({s.svf_cutoff_means})")
+        if frf is not None:
+            top = min(self.CHECKED_UP_TO * s.svf_cutoff, fs / 2)
+            excited, powered = excited_share(frf, hp, top)
+            p = chance(excited, powered)
+            if p > self.REFUSE_CHANCE and input_band(frf, hp, top) is None:
+                raw = band_of_trials(self.name, trials, segment=8.0 / max(hp, 0.25))
+                raise InputError(
+                    f"{self.name}: trial '{trials[0].name}': the {fitted} holds no measurable input: from "
+                    f"{hp:g} to {top:g} Hz the high-passed angle and torque are coherent (95 %) at {excited} of "
+                    f"{powered} frequencies, as chance would be (p = {p:.2g}), in no run of {MIN_RUN} adjacent "
+                    f"ones (the input's band {'unknown' if raw is None else raw.text()}); lower highpass_cutoff "
+                    f"below the perturbation's band")
         text = "unknown" if band is None else band.text()
-        return (f"fitted {hp:g} Hz (high-pass) ... state-variable filter cutoff {s.svf_cutoff:g} Hz "
-                f"({s.svf_cutoff_means}); the input's band {text}")
+        return f"{fitted}; the high-passed input's band {text}"
 
     def _fit(self, trials: list[Trial]) -> FSEWLSEstimate:
         if self.settings.forgetting == "auto":
