@@ -181,10 +181,10 @@ def wrist_ltv(name: str, seed: int):
     return t.replace(torque=_noisy(t.angle, t.torque, seed)), np.abs(impedance(0.1, k_sine(t.time)))
 
 
-#: settings of each multisine estimator's coverage check. kbr with refine: its default (the paper's relaxation
+#: settings of each multisine estimator's coverage check. kbr with refine here; its default (the paper's relaxation
 #: of App. B, stopped at a fixed point of the weights, not the minimiser of eq. B.1) is biased by noise
-#: (tests/test_kbr.py::test_noisy_trial_needs_the_gauss_newton_refinement), and its band is the posterior spread
-#: around that fixed point: see test_kbr_relaxation_band_is_a_spread_not_a_confidence_interval
+#: (tests/test_kbr.py::test_noisy_trial_needs_the_gauss_newton_refinement) and has its own check:
+#: test_kbr_relaxation_band_covers
 MULTISINE = {"kbr": {"refine": True}, "skirt": {}}
 
 
@@ -205,28 +205,25 @@ def test_multisine_bands_cover(name):
     multisine_coverage(name, 20, wrist_lti, 1)
 
 
-@pytest.mark.xfail(strict=True, reason="kbr's default relaxation is biased by noise (-0.54 N m/rad at 0.1 Hz, "
-                                       "half-width 0.43): 16 misses of 20 on the time-invariant wrist")
 def test_kbr_relaxation_band_covers():
+    """kbr's default (the relaxation alone) is biased by noise (-0.48 N m/rad here, 2.2 robust SDs of its errors):
+    its posterior spread alone missed the truth in 16 of 20 seeds. Its interval is the refined minimiser's,
+    widened to hold the relaxation's estimate: it covers, and is not vast (WIDTH against the relaxation's spread)."""
     multisine_coverage("kbr", 20, wrist_lti, 1, settings={})
 
 
-def test_kbr_relaxation_band_is_a_spread_not_a_confidence_interval():
-    """What kbr's default band claims: the posterior spread of the kernel regression at its noise weights. Its
-    width matches the spread of the estimates (WIDTH), while its centre carries the relaxation's bias (more
-    than a half-width): a band of precision, not a confidence interval of the truth."""
-    rows = []
-    for seed in range(20):
-        trial, truth = wrist_lti("kbr", seed)
-        est = estimators.make("kbr").fit(trial)
-        lo, hi = est.intervals.bounds["stiffness"]
-        i = trial.n // 2
-        rows.append((est.stiffness(trial.time)[i], lo[i], hi[i], truth[i]))
-    v, lo, hi, truth = np.array(rows).T
-    err = v - truth
-    spread = 1.4826 * np.median(np.abs(err - np.median(err)))
-    assert WIDTH[0] <= float(np.median((hi - lo) / 2) / (1.96 * spread)) <= WIDTH[1]
-    assert -np.median(err) > np.median((hi - lo) / 2)
+def test_kbr_relaxation_band_is_the_refined_band_holding_the_estimate():
+    """What the default band is: the band of ``refine: true`` (same data) widened just enough to hold the
+    relaxation's own estimate, at every sample; never narrower than the refined band."""
+    trial, _ = wrist_lti("kbr", 3)
+    relax, refined = (estimators.make("kbr", st).fit(trial) for st in ({}, {"refine": True}))
+    lo, hi = relax.intervals.bounds["stiffness"]
+    rlo, rhi = refined.intervals.bounds["stiffness"]
+    k = relax.stiffness(trial.time)
+    assert np.all(lo <= k) and np.all(k <= hi)
+    assert np.allclose(lo, np.minimum(rlo, k), rtol=1e-6) and np.allclose(hi, np.maximum(rhi, k), rtol=1e-6)
+    assert np.any(k < rlo) or np.any(k > rhi)       # the widening does something on this noisy record
+    assert "widened to hold the relaxation's estimate" in relax.intervals.method
 
 
 #: measured misses of the slow version, not fixed (issue 20 findings, kept failing: strict xfail)
