@@ -31,6 +31,14 @@ def test_ratio_to_the_groups_baseline_and_the_recorded_figures():
     assert "-dirty" not in md and "-dirty" in render({**REPORT, "commit_info": {"id": "abc", "dirty": True}})
 
 
+def test_the_fresh_clone_time_is_reported_when_measured():
+    fresh = {"commit": "abcdef0", "wall_s": "57.3", "cpu_s": "101.2", "cpus": 2, "load_before": "0.05",
+             "load_after": "1.90", "exit": 0}
+    md = render(REPORT, fresh=fresh)
+    assert "fresh clone of `abcdef0`" in md and "**57.3 s wall**, 101.2 CPU-s, exit 0" in md
+    assert "fresh clone" not in render(REPORT)
+
+
 def test_every_benchmark_module_parses():
     names = first_sentences()
     assert "test_bench_fsewls_45s" in names and "test_bench_sds" in names

@@ -16,8 +16,14 @@
    committed results are not touched), their wall times appended to ``.benchmarks/study_times.csv``
    with the commit, the number of cases and the load average, and printed beside the previous time.
    Recorded, not judged: the machine may be shared; compare times taken on an idle machine.
-3. ``results/benchmarks.md`` (committed; the README points to it), generated from the JSON report and
-   the study times of this run (:mod:`tests.benchmarks.summary`): no benchmark figure is typed by hand.
+3. ``make reproduce`` on a fresh clone (``--fresh-clone``, also part of a full ``make bench``): the commit
+   cloned into a temporary folder, its ``.venv`` made (not timed), then ``make reproduce`` timed with an
+   empty cache (``XDG_CACHE_HOME`` a new folder: no cached case, no matplotlib font cache), as a
+   newcomer's first run; wall and CPU seconds (the children's) appended to
+   ``.benchmarks/reproduce_times.csv``. Issue 22's target is under 60 s on 2 idle cores.
+4. ``results/benchmarks.md`` (committed; the README points to it), generated from the JSON report, the
+   study times and the fresh-clone time of this run (:mod:`tests.benchmarks.summary`): no benchmark
+   figure is typed by hand.
 """
 from __future__ import annotations
 
@@ -167,7 +173,46 @@ def studies() -> tuple[int, list[dict]]:
     return rc, rows
 
 
-def write_summary(study_rows: list[dict], load: tuple[str, str] | None, reference: Path | None = None) -> None:
+def fresh_clone() -> tuple[int, dict]:
+    """``make reproduce`` on a fresh clone of HEAD with an empty cache (module docstring, 3); its row."""
+    import shutil
+
+    fields = ["date", "commit", "wall_s", "cpu_s", "cpus", "load_before", "load_after", "exit"]
+    with tempfile.TemporaryDirectory(prefix="jointbench-fresh-") as tmp:
+        clone, cache = Path(tmp) / "clone", Path(tmp) / "cache"
+        subprocess.run(["git", "clone", "--quiet", "--no-hardlinks", str(REPO), str(clone)], check=True)
+        print("fresh clone: making its .venv (not timed) ...", flush=True)
+        subprocess.run(["make", "venv"], cwd=clone, check=True, stdout=subprocess.DEVNULL)
+        env = {**os.environ, "XDG_CACHE_HOME": str(cache), "MPLCONFIGDIR": str(cache / "matplotlib")}
+        load0 = os.getloadavg()[0]
+        import resource
+
+        kids0 = resource.getrusage(resource.RUSAGE_CHILDREN)
+        t0 = time.perf_counter()
+        print("fresh clone: make reproduce (timed) ...", flush=True)
+        done = subprocess.run(["make", "reproduce"], cwd=clone, env=env, stdout=subprocess.DEVNULL)
+        wall = time.perf_counter() - t0
+        kids = resource.getrusage(resource.RUSAGE_CHILDREN)
+        cpu = (kids.ru_utime - kids0.ru_utime) + (kids.ru_stime - kids0.ru_stime)
+        shutil.rmtree(clone / ".venv", ignore_errors=True)
+    row = {"date": datetime.datetime.now().isoformat(timespec="seconds"), "commit": _commit(),
+           "wall_s": f"{wall:.1f}", "cpu_s": f"{cpu:.1f}", "cpus": os.cpu_count(), "load_before": f"{load0:.2f}",
+           "load_after": f"{os.getloadavg()[0]:.2f}", "exit": done.returncode}
+    STORAGE.mkdir(exist_ok=True)
+    log = STORAGE / "reproduce_times.csv"
+    new_file = not log.is_file()
+    with open(log, "a", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=fields)
+        if new_file:
+            w.writeheader()
+        w.writerow(row)
+    print(f"fresh clone: make reproduce {row['wall_s']} s wall, {row['cpu_s']} CPU-s, exit {done.returncode} "
+          f"(load {row['load_before']}/{row['load_after']}; appended to {log.relative_to(REPO)})")
+    return (0 if done.returncode == 0 else 1), row
+
+
+def write_summary(study_rows: list[dict], load: tuple[str, str] | None, reference: Path | None = None,
+                  fresh: dict | None = None) -> None:
     """``results/benchmarks.md`` from ``results/benchmarks.json``, this run's study rows and the stored
     run it was compared with."""
     import json
@@ -179,7 +224,7 @@ def write_summary(study_rows: list[dict], load: tuple[str, str] | None, referenc
         return
     out = REPO / "results" / "benchmarks.md"
     ref = json.loads(reference.read_text()) if reference is not None and reference.is_file() else None
-    out.write_text(render(json.loads(src.read_text()), study_rows, load, ref, RATIO_FACTOR))
+    out.write_text(render(json.loads(src.read_text()), study_rows, load, ref, RATIO_FACTOR, fresh))
     print(f"wrote {out.relative_to(REPO)}")
 
 
@@ -189,15 +234,19 @@ def main(argv: list[str] | None = None) -> int:
     mode.add_argument("--save-only", action="store_true", help="store the benchmark run without comparing")
     mode.add_argument("--studies-only", action="store_true", help="only the study wall times")
     mode.add_argument("--no-studies", action="store_true", help="only the pytest benchmarks")
+    mode.add_argument("--fresh-clone", action="store_true", help="only make reproduce on a fresh clone")
     a = ap.parse_args(argv)
-    rc, rows, load, reference = 0, [], None, None
+    rc, rows, load, reference, fresh = 0, [], None, None, None
+    if a.fresh_clone:
+        return fresh_clone()[0]
     if not a.studies_only:
         rc, load, reference = micro(compare=not a.save_only)
     if not (a.no_studies or a.save_only):
         rc_studies, rows = studies()
-        rc = rc or rc_studies
+        rc_fresh, fresh = fresh_clone()
+        rc = rc or rc_studies or rc_fresh
     if not a.studies_only and (rows or a.no_studies or a.save_only):
-        write_summary(rows, load, reference)             # the micro-benchmarks of this run, with its studies if run
+        write_summary(rows, load, reference, fresh)      # the micro-benchmarks of this run, with its studies if run
     return rc
 
 

@@ -133,7 +133,7 @@ def to_recheck(report: dict, names: list[str]) -> list[str]:
 
 
 def render(report: dict, studies: list[dict] | None = None, load: tuple[str, str] | None = None,
-           reference: dict | None = None, factor: float = RATIO_FACTOR) -> str:
+           reference: dict | None = None, factor: float = RATIO_FACTOR, fresh: dict | None = None) -> str:
     """Markdown of a pytest-benchmark JSON ``report`` (and the study rows of the same run).
 
     Parameters
@@ -189,4 +189,10 @@ def render(report: dict, studies: list[dict] | None = None, load: tuple[str, str
         lines.append(f"| total | {sum(int(r['cases']) for r in studies)} | "
                      f"{sum(float(r['wall_s']) for r in studies):.1f} | "
                      f"{sum(float(r['cpu_s']) for r in studies):.1f} | |")
+    if fresh:
+        lines += ["", f"`make reproduce` on a fresh clone of `{fresh['commit']}` (its `.venv` made first, not timed), "
+                  f"with an empty cache (no cached case, no matplotlib font cache), the four studies side by side "
+                  f"on {fresh['cpus']} cores: **{fresh['wall_s']} s wall**, {fresh['cpu_s']} CPU-s, exit "
+                  f"{fresh['exit']}, 1-minute load average {fresh['load_before']} before and {fresh['load_after']} "
+                  f"after."]
     return "\n".join(lines) + "\n"
