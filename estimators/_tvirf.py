@@ -87,21 +87,26 @@ def centred(name: str, ens: Ensemble, mode: str) -> tuple[np.ndarray, np.ndarray
         The input is zero after the removal (e.g. the same perturbation in every realization with
         ``'ensemble'``).
     """
-    U, Y = ens.inputs, ens.outputs
-    scale = float(np.abs(U).max()) or 1.0
+    U, Y = ens.inputs, ens.outputs              # stacked anew at every call (Ensemble.inputs): centred in place
+    scale = _abs_max(U) or 1.0
     if mode == "ensemble":
-        U = U - U.mean(axis=1, keepdims=True)
-        Y = Y - Y.mean(axis=1, keepdims=True)
+        U -= U.mean(axis=1, keepdims=True)
+        Y -= Y.mean(axis=1, keepdims=True)
     elif mode == "record":
-        U = U - U.mean(axis=0)
-        Y = Y - Y.mean(axis=0)
-    if not np.abs(U).max() > 1e-9 * scale:
+        U -= U.mean(axis=0)
+        Y -= Y.mean(axis=0)
+    if not _abs_max(U) > 1e-9 * scale:
         if mode == "ensemble" and ens.size > 1:
             raise InputError(f"{name}: the input is the same in every realization of ensemble '{ens.name}', so "
                              f"removing the ensemble mean (remove_mean = 'ensemble') leaves nothing to identify; "
                              f"give each realization its own perturbation or use remove_mean = 'record'")
         raise InputError(f"{name}: the input (imposed {ens.imposed}) is constant; nothing to identify")
     return U, Y
+
+
+def _abs_max(a: np.ndarray) -> float:
+    """``max |a|`` without the temporary ``|a|``."""
+    return float(max(a.max(), -a.min()))
 
 
 def lagged(U: np.ndarray, m1: int, m2: int) -> np.ndarray:

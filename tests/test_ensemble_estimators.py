@@ -3,6 +3,7 @@ import numpy as np
 import pytest
 
 from jointbench import estimators
+from jointbench.estimators import ensemble_irf
 from jointbench.estimators._tvirf import mdl_solve
 from jointbench.estimators.guarin import GuarinEstimate, time_basis
 from jointbench.ensemble import Ensemble, data_kind, valid_mask
@@ -149,6 +150,52 @@ def test_mdl_order_on_hand_made_normal_equations():
     # by hand: MDL(1) = (1 + ln20/20) * 0.01 = 0.0115, MDL(2) = (1 + 2 ln20/20) * (0.01 - 1e-8) = 0.0130 at time 0
     h, order = mdl_solve(Phi, phi, yvar, n_obs=20, solver="full", rcond=1e-10)
     assert list(order) == [2, 2] and np.allclose(h[0], [1.0, 0.01])
+
+
+def mdl_pinv_loop(ens: Ensemble, m: int = 4) -> tuple[np.ndarray, np.ndarray]:
+    """Reference: at every time the SVD of the R x L lagged inputs (ensemble mean removed), the MDL order
+    (Westwick & Kearney 1997) and the truncated pseudo-inverse, one time after another."""
+    U = ens.inputs - ens.inputs.mean(axis=1, keepdims=True)
+    Y = ens.outputs - ens.outputs.mean(axis=1, keepdims=True)
+    R, L = ens.size, 2 * m + 1
+    hs, orders = [], []
+    for i in range(ens.n - L + 1):
+        A = np.column_stack([U[i + L - 1 - j] for j in range(L)]) / np.sqrt(R)      # column j: lag j - m
+        y = Y[i + m] / np.sqrt(R)
+        _, sv, Vt = np.linalg.svd(A, full_matrices=False)
+        gain = Vt @ (A.T @ y) / sv ** 2                   # coefficient on each right singular vector
+        residual = y @ y - np.cumsum(gain ** 2 * sv ** 2)
+        d = np.arange(1, L + 1)
+        order = int(np.argmin((1 + d * np.log(R) / R) * residual)) + 1
+        hs.append(Vt[:order].T @ gain[:order])
+        orders.append(order)
+    return np.array(hs).T, np.array(orders)
+
+
+@pytest.mark.parametrize("data", ["narrow", "white"])
+def test_ensemble_irf_is_the_mdl_pseudo_inverse_at_every_time(data, monkeypatch):
+    """The batched solution equals the per-time SVD with its MDL order: where the order varies (few
+    realizations of a narrow-band input) and where it is mostly full (white input)."""
+    if data == "narrow":
+        rng = np.random.default_rng(3)
+        U = np.cumsum(rng.standard_normal((300, 14)), axis=0)
+        Y = np.column_stack([IRFEstimate(LAGS, true_irf(), FS, np.arange(300) / FS).predict(U[:, r])
+                             for r in range(14)])
+        ens = Ensemble.from_arrays(U, Y + 0.2 * Y.std() * rng.standard_normal(Y.shape), FS)
+    else:
+        ens = ensemble_of(true_irf(), 200, 40, noise=0.05)
+    orders = []
+    solve = ensemble_irf.mdl_solve
+
+    def recorded(*args):
+        h, order = solve(*args)
+        orders.append(order)
+        return h, order
+    monkeypatch.setattr(ensemble_irf, "mdl_solve", recorded)
+    est = estimators.make("ensemble_irf").fit(ens)
+    h, order = mdl_pinv_loop(ens)
+    assert np.array_equal(orders[0], order) and len(set(order)) > (2 if data == "narrow" else 0)
+    assert np.allclose(est.h[:, est.valid], h, rtol=1e-9, atol=1e-12 * np.abs(h).max())
 
 
 def test_ensemble_irf_mdl_truncates_when_the_input_is_narrow_band():
