@@ -148,12 +148,12 @@ class Ensemble:
     @property
     def inputs(self) -> np.ndarray:
         """The imposed signals, shape ``(n, R)``."""
-        return np.column_stack([t.input for t in self.realizations])
+        return np.stack([t.input for t in self.realizations], axis=1)
 
     @property
     def outputs(self) -> np.ndarray:
         """The measured responses, shape ``(n, R)``."""
-        return np.column_stack([t.output for t in self.realizations])
+        return np.stack([t.output for t in self.realizations], axis=1)
 
     def subset(self, indices: Sequence[int], name: str | None = None) -> "Ensemble":
         """The ensemble of the realizations at ``indices`` (e.g. all but a validation trial)."""
