@@ -94,13 +94,17 @@ def input_band(frf: FRFEstimate) -> InputBand | None:
 def band_of_trials(name: str, trials: list[Trial], segment: float = 2.0) -> InputBand | None:
     """The input's band (:func:`input_band`) of records, from Welch spectra of ``segment`` s segments (shorter
     when the records are: at least 8 per record), or None when it cannot be told (segments under 16 samples)."""
-    from jointbench.estimators.spectral import WelchSettings, frf_estimate
+    from jointbench.estimators.spectral import WelchSettings, effective_averages, welch_frf
 
     fs = trials[0].fs
     seg = min(segment, min(t.n for t in trials) / fs / 8)
     if seg * fs < 16:
         return None
+    s = WelchSettings(segment=seg)
     try:
-        return input_band(frf_estimate(name, trials, WelchSettings(segment=seg), "spectral"))
+        f, H, coh = welch_frf(name, trials, s)
     except InputError:
         return None
+    # the Welch estimate of estimators.spectral without its confidence band (the test needs the coherence only)
+    return input_band(FRFEstimate(freq=f, H=H, coherence=coh, fs=fs, time=trials[0].time, estimator="spectral",
+                                  n_averages=effective_averages(trials, s)))
