@@ -171,11 +171,17 @@ class _Frozen:
     K: np.ndarray
 
     def coefficients_at(self, t):
+        """I, B, K linearly interpolated at ``t`` (:func:`numpy.interp`). At the grid's own instants (the
+        simulator asks for them once per run) that is the values themselves: returned as copies, no search."""
+        t = np.asarray(t, float)
+        if t.shape == self.t.shape and np.array_equal(t, self.t):
+            return tuple(np.array(v, float) for v in (self.I, self.B, self.K))
         return tuple(np.interp(t, self.t, v) for v in (self.I, self.B, self.K))
 
 
-def output_vafs(fit, trial, keep: np.ndarray) -> dict[str, float]:
-    """VAF (%) of the three candidate 'output predictions' on the scored samples.
+def output_vafs(fit, trial, keep: np.ndarray, signals=OUTPUTS) -> dict[str, float]:
+    """VAF (%) of the candidate 'output predictions' named in ``signals`` (default all three) on the scored
+    samples.
 
     - ``filtered_torque``: ``y = L H tau`` against ``Phi^T Theta_hat`` (eq. 5: the regression's own output);
     - ``torque``: ``H tau`` against ``I_hat theta~'' + B_hat theta~' + K_hat theta~``, derivatives of the
@@ -184,12 +190,19 @@ def output_vafs(fit, trial, keep: np.ndarray) -> dict[str, float]:
       (the torque-driven system's own output), started from the measured state at the window's start.
     """
     theta, tau = fit.highpassed[0, 0], fit.highpassed[1, 0]   # what the estimate fitted: H theta, H tau
-    out = {"filtered_torque": vaf(fit.filtered_torque[0, keep], fit.predicted_filtered_torque[0, keep])}
+    out = {}
+    if "filtered_torque" in signals:
+        out["filtered_torque"] = vaf(fit.filtered_torque[0, keep], fit.predicted_filtered_torque[0, keep])
+    if "torque" not in signals and "angle" not in signals:
+        return out
     dt = 1.0 / trial.fs
     d1 = np.gradient(theta, dt, edge_order=2)
-    d2 = np.gradient(d1, dt, edge_order=2)
-    pred = fit.I * d2 + fit.B * d1 + fit.K * theta
-    out["torque"] = vaf(tau[keep], pred[keep])
+    if "torque" in signals:
+        d2 = np.gradient(d1, dt, edge_order=2)
+        pred = fit.I * d2 + fit.B * d1 + fit.K * theta
+        out["torque"] = vaf(tau[keep], pred[keep])
+    if "angle" not in signals:
+        return out
     idx = np.flatnonzero(keep)
     i0, i1 = idx[0], idx[-1] + 1
     t = np.arange(i1 - i0) * dt
@@ -323,7 +336,7 @@ def track(ctx: Context) -> None:
             clean = clean.replace(torque=clean.torque + np.asarray(clean.truth.signals["voluntary"]))
         fit0 = est.fit(clean)
         s0 = _scores(fit0, trial.truth, keep, dt)
-        o0 = output_vafs(fit0, clean, keep)
+        o0 = output_vafs(fit0, clean, keep, signals=(p.output,))   # only the one signal's drop is recorded
         s0["vaf_output"] = o0[p.output]
         for k in ("vafm_K", "vafv_K", "vafm_B", "vafv_B", "vafm_I", "vafv_I", "vaf_output"):
             scores[f"drop_{k}"] = s0[k] - scores[k]
