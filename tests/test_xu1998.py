@@ -156,6 +156,24 @@ def test_output_vafs_of_a_subset_are_those_of_all(elbow):
         assert X.output_vafs(fit, trial, keep, signals=(name,)) == {name: full[name]}
 
 
+def test_fits_are_kept_for_the_same_trial_and_settings_only(elbow, monkeypatch):
+    exp, est = elbow
+    exp = X.case_experiment(dataclasses.replace(exp, duration=10.0), _params())
+    monkeypatch.setattr(X, "_FITS", type(X._FITS)())
+    calls = []
+    real_fit = type(est).fit
+    monkeypatch.setattr(type(est), "fit", lambda self, trial: calls.append(1) or real_fit(self, trial))
+    trial = sims.simulate(exp, 0)
+    a = X.fitted(est, exp, 0, False, trial)
+    assert X.fitted(est, exp, 0, False, trial) is a and len(calls) == 1
+    other = type(est)(dataclasses.replace(est.settings, forgetting=est.settings.forgetting * 1.1))
+    b = X.fitted(other, exp, 0, False, trial)
+    c = X.fitted(est, exp, 1, False, sims.simulate(exp, 1))
+    assert len(calls) == 3 and b is not a and c is not a
+    assert not np.array_equal(b.K, a.K) and not np.array_equal(c.K, a.K)
+    assert len(X._FITS) == X._FITS_KEPT
+
+
 # ----------------------------------------------------------------------------------------- smoke run
 @pytest.fixture(scope="module")
 def smoke(tmp_path_factory):

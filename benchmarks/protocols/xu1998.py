@@ -18,7 +18,9 @@ Sec. IV-B (calibration arm, Fig. 5), Appendices A-B.
 """
 from __future__ import annotations
 
+import collections
 import dataclasses
+import pickle
 from typing import Literal
 
 import numpy as np
@@ -216,6 +218,31 @@ def output_vafs(fit, trial, keep: np.ndarray, signals=OUTPUTS) -> dict[str, floa
     return out
 
 
+# ----------------------------------------------------------------------------------------- fits kept
+#: the last fits of this process, by (experiment, seed, measured_voluntary, estimator, settings): a trial is a
+#: function of its experiment and seed (sims.simulate) and the fit of its trial and settings, so a hit is the
+#: same estimate. Fig. 3's paired noise-free record is the same for every NSR of a seed (those cases run one
+#: after another in one group: they share the response), and so is its fit; without this it was refitted per NSR
+_FITS: collections.OrderedDict = collections.OrderedDict()
+_FITS_KEPT = 2
+
+
+def fitted(est, exp: sims.Experiment, seed: int, measured_voluntary: bool, trial):
+    """``est.fit(trial)`` for the trial ``sims.simulate(exp, seed)`` (with ``measured_voluntary`` applied), or
+    the same estimate kept from an earlier case of this process (read only: the scoring does not change it)."""
+    try:
+        key = pickle.dumps((exp, seed, measured_voluntary, type(est).__qualname__, est.settings), protocol=4)
+    except (pickle.PicklingError, TypeError, AttributeError):
+        return est.fit(trial)
+    if key in _FITS:
+        _FITS.move_to_end(key)
+        return _FITS[key]
+    fit = _FITS[key] = est.fit(trial)
+    while len(_FITS) > _FITS_KEPT:
+        _FITS.popitem(last=False)
+    return fit
+
+
 # ------------------------------------------------------------------------------- exact-derivative control
 @dataclasses.dataclass(frozen=True)
 class _ExactFit:
@@ -316,7 +343,10 @@ def track(ctx: Context) -> None:
     trial = sims.simulate(exp, ctx.seed)
     if p.measured_voluntary and exp.voluntary.active:
         trial = trial.replace(torque=trial.torque + np.asarray(trial.truth.signals["voluntary"]))
-    fit = est.fit(trial) if p.regressors == "filtered" else exact_fit(est, trial)
+    if p.regressors == "filtered":
+        fit = fitted(est, exp, ctx.seed, p.measured_voluntary, trial)
+    else:
+        fit = exact_fit(est, trial)
     keep = scored_window(trial.n, trial.fs, p.discard, valid_mask(fit) if p.regressors == "filtered" else None)
     dt = 1.0 / trial.fs
     labels = {"condition": p.condition}
@@ -331,10 +361,11 @@ def track(ctx: Context) -> None:
         scores["vaf_output"] = vaf(fit.y[keep], fit.yhat[keep])
     scores["scored_s"] = keep.sum() * dt
     if p.paired_noise_free:   # the same record (same perturbation) without the noise of 'nsr'
-        clean = sims.simulate(case_experiment(ctx.experiment, dataclasses.replace(p, nsr=0.0)), ctx.seed)
+        exp0 = case_experiment(ctx.experiment, dataclasses.replace(p, nsr=0.0))
+        clean = sims.simulate(exp0, ctx.seed)
         if p.measured_voluntary and exp.voluntary.active:
             clean = clean.replace(torque=clean.torque + np.asarray(clean.truth.signals["voluntary"]))
-        fit0 = est.fit(clean)
+        fit0 = fitted(est, exp0, ctx.seed, p.measured_voluntary, clean)   # the same for every nsr of this seed
         s0 = _scores(fit0, trial.truth, keep, dt)
         o0 = output_vafs(fit0, clean, keep, signals=(p.output,))   # only the one signal's drop is recorded
         s0["vaf_output"] = o0[p.output]
