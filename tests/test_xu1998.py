@@ -164,14 +164,23 @@ def test_fits_are_kept_for_the_same_trial_and_settings_only(elbow, monkeypatch):
     real_fit = type(est).fit
     monkeypatch.setattr(type(est), "fit", lambda self, trial: calls.append(1) or real_fit(self, trial))
     trial = sims.simulate(exp, 0)
-    a = X.fitted(est, exp, 0, False, trial)
-    assert X.fitted(est, exp, 0, False, trial) is a and len(calls) == 1
+    a, derived = X.fitted(est, exp, 0, False, trial)
+    assert X.fitted(est, dataclasses.replace(exp, where="elsewhere"), 0, False, trial)[0] is a and len(calls) == 1
     other = type(est)(dataclasses.replace(est.settings, forgetting=est.settings.forgetting * 1.1))
-    b = X.fitted(other, exp, 0, False, trial)
-    c = X.fitted(est, exp, 1, False, sims.simulate(exp, 1))
-    assert len(calls) == 3 and b is not a and c is not a
+    b, _ = X.fitted(other, exp, 0, False, trial)
+    c, _ = X.fitted(est, exp, 1, False, sims.simulate(exp, 1))
+    d, _ = X.fitted(est, exp, 0, True, trial)
+    assert len(calls) == 4 and all(x is not a for x in (b, c, d))
     assert not np.array_equal(b.K, a.K) and not np.array_equal(c.K, a.K)
-    assert len(X._FITS) == X._FITS_KEPT
+    for k in range(X._FITS_KEPT):
+        X.fitted(est, exp, 10 + k, False, trial)
+    assert len(X._FITS) == X._FITS_KEPT and X.fitted(est, exp, 0, False, trial)[0] is not a   # a was dropped
+    keep = X.scored_window(trial.n, trial.fs, 2.0, valid_mask(a))
+    first = X.kept_output_vafs(a, derived, trial, keep)
+    assert first == X.output_vafs(a, trial, keep) and len(derived) == 1
+    assert X.kept_output_vafs(a, derived, trial, keep) == first and len(derived) == 1
+    X.kept_output_vafs(a, derived, trial, keep, signals=("angle",))
+    assert len(derived) == 2
 
 
 # ----------------------------------------------------------------------------------------- smoke run
