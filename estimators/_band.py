@@ -95,17 +95,22 @@ def input_band(frf: FRFEstimate, lo: float = 0.0, hi: float = np.inf) -> InputBa
 
 def welch_of_trials(name: str, trials: list[Trial], segment: float = 2.0) -> FRFEstimate | None:
     """Welch estimate (angle to torque) of records from ``segment`` s segments (shorter when the records are:
-    at least 8 per record), or None when it cannot be told (segments under 16 samples, no input power)."""
-    from jointbench.estimators.spectral import WelchSettings, frf_estimate
+    at least 8 per record), or None when it cannot be told (segments under 16 samples, no input power). The
+    estimate of :mod:`estimators.spectral` without its confidence band (the band tests need the coherence and
+    the number of averages only)."""
+    from jointbench.estimators.spectral import WelchSettings, effective_averages, welch_frf
 
     fs = trials[0].fs
     seg = min(segment, min(t.n for t in trials) / fs / 8)
     if seg * fs < 16:
         return None
+    s = WelchSettings(segment=seg)
     try:
-        return frf_estimate(name, trials, WelchSettings(segment=seg), "spectral")
+        f, H, coh = welch_frf(name, trials, s)
     except InputError:
         return None
+    return FRFEstimate(freq=f, H=H, coherence=coh, fs=fs, time=trials[0].time, estimator="spectral",
+                       n_averages=effective_averages(trials, s))
 
 
 def band_of_trials(name: str, trials: list[Trial], segment: float = 2.0) -> InputBand | None:

@@ -5,6 +5,7 @@ import dataclasses
 from typing import Literal
 
 import numpy as np
+import scipy.fft
 from scipy import signal as sps
 
 from jointbench.estimators import Estimator, register
@@ -39,6 +40,8 @@ def welch_frf(name: str, trials: list[Trial], s: WelchSettings) -> tuple[np.ndar
     ``u`` is the angle and ``y`` the torque. :func:`scipy.signal.csd` ``(u, y)`` averages
     ``conj(U) Y``, so for ``y = h * u`` the ratio is ``H`` itself (not its conjugate). Each record's
     spectra are weighted by its number of segments, i.e. every segment of every record counts once.
+    The segments' FFTs are computed once per signal and all three spectra formed from them: the numbers
+    of three :func:`scipy.signal.csd` calls, bit for bit (same taper, detrending, products and means).
     """
     fs = trials[0].fs
     nseg = int(round(s.segment * fs))
@@ -49,19 +52,20 @@ def welch_frf(name: str, trials: list[Trial], s: WelchSettings) -> tuple[np.ndar
         raise InputError(f"{name}: segment = {s.segment:g} s ({nseg} samples) is longer than record "
                          f"'{shortest.name}' ({shortest.n} samples, {shortest.n / fs:g} s); shorten 'segment'")
     nover = min(int(round(s.overlap * nseg)), nseg - 1)
-    detrend = False if s.detrend == "none" else s.detrend
-
-    def cross(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        return sps.csd(a, b, fs=fs, window=s.window, nperseg=nseg, noverlap=nover, detrend=detrend)
+    # scipy.signal.csd's segmenting: its taper scaled to a density, its frequencies
+    sft = sps.ShortTimeFFT(sps.get_window(s.window, nseg), nseg - nover, fs, fft_mode="onesided", mfft=nseg,
+                           scale_to="psd")
+    f, win = sft.f, sft.win
 
     suu = syy = suy = 0.0
     count = 0
     for t in trials:
         w = 1 + (t.n - nseg) // (nseg - nover)  # segments in this record
-        f, puy = cross(t.angle, t.torque)
-        suu = suu + w * cross(t.angle, t.angle)[1].real
-        syy = syy + w * cross(t.torque, t.torque)[1].real
-        suy = suy + w * puy
+        FU = _segment_ffts(t.angle, nseg, nseg - nover, w, win, s.detrend)
+        FY = _segment_ffts(t.torque, nseg, nseg - nover, w, win, s.detrend)
+        suu = suu + w * _onesided_mean(FU.real ** 2 + FU.imag ** 2, nseg)
+        syy = syy + w * _onesided_mean(FY.real ** 2 + FY.imag ** 2, nseg)
+        suy = suy + w * _onesided_mean(FY * FU.conj(), nseg)
         count += w
     suu, syy, suy = suu / count, syy / count, suy / count
     if not (np.all(np.isfinite(suu)) and np.all(np.isfinite(syy)) and np.all(np.isfinite(np.abs(suy)))):
@@ -75,6 +79,25 @@ def welch_frf(name: str, trials: list[Trial], s: WelchSettings) -> tuple[np.ndar
     den = suu * syy
     coh = np.where(ok & (den > tiny), np.abs(suy) ** 2 / np.where(den > tiny, den, 1.0), 0.0)
     return f, H, np.clip(coh, 0.0, 1.0)
+
+
+def _segment_ffts(x: np.ndarray, nseg: int, step: int, count: int, win: np.ndarray, detrend: str) -> np.ndarray:
+    """FFTs of the ``count`` detrended, tapered segments of ``x`` (frequencies x segments, C order): what
+    :func:`scipy.signal.csd` computes one segment at a time, here all at once (bit for bit the same numbers)."""
+    seg = np.lib.stride_tricks.sliding_window_view(x, nseg)[:step * count:step].copy()
+    if detrend == "constant":     # scipy.signal.detrend's 'constant', in place
+        seg -= np.mean(seg, axis=-1, keepdims=True)
+    elif detrend == "linear":     # one segment at a time: a least-squares fit over many gives other last bits
+        seg = np.array([sps.detrend(r, type="linear") for r in seg])
+    seg *= win
+    return scipy.fft.rfft(seg, axis=-1).T.copy()
+
+
+def _onesided_mean(P: np.ndarray, nfft: int) -> np.ndarray:
+    """Mean over segments (last axis) of a one-sided density of ``nfft``-point FFTs, its rows doubled but
+    DC (and Nyquist for even ``nfft``), as :func:`scipy.signal.csd` does, in the same order of operations."""
+    P[1:-1 if nfft % 2 == 0 else None] *= 2
+    return P.mean(axis=-1)
 
 
 def segment_spectra(trials: list[Trial], s: WelchSettings) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

@@ -73,23 +73,70 @@ def step_coefficients(p: np.ndarray, q: np.ndarray, h: float):
 
 
 def _series(p: np.ndarray, q: np.ndarray, h: float, m: int):
-    """:func:`step_coefficients` for one chunk, with the number ``m`` of doublings given."""
+    """:func:`step_coefficients` for one chunk, with the number ``m`` of doublings given.
+
+    The arithmetic runs in preallocated buffers (``out=``, in-place operators); each block computes the
+    formula of its comment with the same operations in the same order (``x + y`` as ``y + x`` at most,
+    which IEEE addition does not tell apart), so the numbers are those of the plain expressions."""
     tau = h / 2.0 ** m
     tp, tq = p * tau, q * tau
+    w = np.empty_like(tp)                                   # scratch
     # S_2 by Horner, then S_1 = I + X S_2 and E = S_0 = I + X S_1
     a, b = np.full_like(tp, 1.0 / math.factorial(_TAYLOR_TERMS + 2)), np.zeros_like(tp)
+    b_new = np.empty_like(tp)
     for k in range(_TAYLOR_TERMS - 1, -1, -1):
-        a, b = tp * b + 1.0 / math.factorial(k + 2), tau * a + tq * b
-    s1a, s1b = tp * b + 1.0, tau * a + tq * b
-    E = (tp * s1b + 1.0, tau * s1a + tq * s1b)
-    J1 = (s1a * tau, s1b * tau)
-    J2 = (a * (tau * tau), b * (tau * tau))
+        # a, b = tp b + 1 / (k + 2)!, tau a + tq b
+        np.multiply(a, tau, out=b_new)
+        b_new += np.multiply(tq, b, out=w)
+        np.multiply(tp, b, out=a)
+        a += 1.0 / math.factorial(k + 2)
+        b, b_new = b_new, b
+    # s1a, s1b = tp b + 1, tau a + tq b
+    s1a = tp * b
+    s1a += 1.0
+    s1b = np.multiply(a, tau, out=b_new)
+    s1b += np.multiply(tq, b, out=w)
+    # E = (tp s1b + 1, tau s1a + tq s1b)
+    ea = np.multiply(tp, s1b, out=tp)
+    ea += 1.0
+    eb = np.multiply(s1a, tau, out=w)
+    eb += np.multiply(tq, s1b, out=tq)
+    # J1 = (s1a tau, s1b tau), J2 = (a tau^2, b tau^2)
+    s1a *= tau
+    s1b *= tau
+    a *= tau * tau
+    b *= tau * tau
+    E, J1, J2 = (ea, eb), (s1a, s1b), (a, b)
     for _ in range(m):
         (ea, eb), (j1a, j1b), (j2a, j2b) = E, J1, J2
-        pe, qe = p * eb, q * eb      # E (x I + y A) = (ea x + pe y) I + (ea y + eb x + qe y) A
-        J2 = (j2a + tau * j1a + ea * j2a + pe * j2b, j2b + tau * j1b + ea * j2b + eb * j2a + qe * j2b)
-        J1 = (j1a + ea * j1a + pe * j1b, j1b + ea * j1b + eb * j1a + qe * j1b)
-        E = (ea * ea + pe * eb, 2.0 * ea * eb + qe * eb)
+        # E (x I + y A) = (ea x + pe y) I + (ea y + eb x + qe y) A
+        pe, qe = p * eb, q * eb
+        t = np.empty_like(ea)
+        # J2 = (j2a + tau j1a + ea j2a + pe j2b, j2b + tau j1b + ea j2b + eb j2a + qe j2b)
+        n2a = np.multiply(j1a, tau)
+        n2a += j2a
+        n2a += np.multiply(ea, j2a, out=t)
+        n2a += np.multiply(pe, j2b, out=t)
+        n2b = np.multiply(j1b, tau)
+        n2b += j2b
+        n2b += np.multiply(ea, j2b, out=t)
+        n2b += np.multiply(eb, j2a, out=t)
+        n2b += np.multiply(qe, j2b, out=t)
+        # J1 = (j1a + ea j1a + pe j1b, j1b + ea j1b + eb j1a + qe j1b), in J2's old buffers
+        n1a = np.multiply(ea, j1a, out=j2a)
+        n1a += j1a
+        n1a += np.multiply(pe, j1b, out=t)
+        n1b = np.multiply(ea, j1b, out=j2b)
+        n1b += j1b
+        n1b += np.multiply(eb, j1a, out=t)
+        n1b += np.multiply(qe, j1b, out=t)
+        # E = (ea ea + pe eb, 2 ea eb + qe eb), in J1's old buffers
+        nea = np.multiply(ea, ea, out=j1a)
+        nea += np.multiply(pe, eb, out=t)
+        neb = np.multiply(ea, 2.0, out=j1b)
+        neb *= eb
+        neb += np.multiply(qe, eb, out=qe)
+        E, J1, J2 = (nea, neb), (n1a, n1b), (n2a, n2b)
         tau *= 2.0
     return E, J1, J2
 

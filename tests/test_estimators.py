@@ -185,6 +185,35 @@ def test_spectral_matches_impedance_sign_convention(elbow):
     assert np.allclose(irf.frequency_response(frf.freq), frf.H, atol=0.02)
 
 
+@pytest.mark.parametrize("window, overlap, detrend, segment", [("hann", 0.5, "constant", 2.0),
+                                                               ("hamming", 0.3, "linear", 0.75),
+                                                               ("boxcar", 0.0, "none", 0.501)])
+def test_welch_frf_is_scipy_csd_bit_for_bit(window, overlap, detrend, segment):
+    """welch_frf forms the three spectra from one set of segment FFTs: the numbers of scipy.signal.csd exactly."""
+    from jointbench.estimators.spectral import WelchSettings, welch_frf
+
+    rng = np.random.default_rng(3)
+    trials = [Trial.from_arrays(np.cumsum(rng.standard_normal(n)) * 0.01, rng.standard_normal(n), FS, name=f"r{n}")
+              for n in (3000, 2311)]
+    s = WelchSettings(segment=segment, overlap=overlap, window=window, detrend=detrend)
+    nseg = int(round(segment * FS))
+    nover = min(int(round(overlap * nseg)), nseg - 1)
+    kw = dict(fs=FS, window=window, nperseg=nseg, noverlap=nover, detrend=False if detrend == "none" else detrend)
+    suu = syy = suy = 0.0
+    for t in trials:
+        w = 1 + (t.n - nseg) // (nseg - nover)
+        f, puy = sps.csd(t.angle, t.torque, **kw)
+        suu = suu + w * sps.csd(t.angle, t.angle, **kw)[1].real
+        syy = syy + w * sps.csd(t.torque, t.torque, **kw)[1].real
+        suy = suy + w * puy
+    count = sum(1 + (t.n - nseg) // (nseg - nover) for t in trials)
+    suu, syy, suy = suu / count, syy / count, suy / count
+    f2, H, coh = welch_frf("spectral", trials, s)
+    assert np.array_equal(f2, f)
+    assert np.array_equal(H, suy / suu)   # the angle has power at every frequency here
+    assert np.array_equal(coh, np.clip(np.abs(suy) ** 2 / (suu * syy), 0.0, 1.0))
+
+
 def test_ibk_irf_unbandlimited_on_white_input():
     n, fs = 6000, 100.0
     u = np.random.default_rng(5).standard_normal(n)

@@ -123,6 +123,37 @@ def test_step_coefficients_shortcuts_are_bit_identical():
             assert all(np.array_equal(g, w) for g, w in zip(got, want))
 
 
+def _series_plain(p, q, h, m):
+    """_series as plain expressions (no buffers): the reference for its in-place arithmetic."""
+    import math
+    from jointbench.sims.backend_ltv import _TAYLOR_TERMS
+    tau = h / 2.0 ** m
+    tp, tq = p * tau, q * tau
+    a, b = np.full_like(tp, 1.0 / math.factorial(_TAYLOR_TERMS + 2)), np.zeros_like(tp)
+    for k in range(_TAYLOR_TERMS - 1, -1, -1):
+        a, b = tp * b + 1.0 / math.factorial(k + 2), tau * a + tq * b
+    s1a, s1b = tp * b + 1.0, tau * a + tq * b
+    E, J1, J2 = (tp * s1b + 1.0, tau * s1a + tq * s1b), (s1a * tau, s1b * tau), (a * (tau * tau), b * (tau * tau))
+    for _ in range(m):
+        (ea, eb), (j1a, j1b), (j2a, j2b) = E, J1, J2
+        pe, qe = p * eb, q * eb
+        J2 = (j2a + tau * j1a + ea * j2a + pe * j2b, j2b + tau * j1b + ea * j2b + eb * j2a + qe * j2b)
+        J1 = (j1a + ea * j1a + pe * j1b, j1b + ea * j1b + eb * j1a + qe * j1b)
+        E = (ea * ea + pe * eb, 2.0 * ea * eb + qe * eb)
+        tau *= 2.0
+    return E, J1, J2
+
+
+@pytest.mark.parametrize("m", [0, 1, 2, 5])
+def test_series_in_buffers_is_the_plain_arithmetic(m):
+    """The in-place Taylor series and doublings give exactly the numbers of the plain expressions."""
+    from jointbench.sims.backend_ltv import _series
+    rng = np.random.default_rng(m)
+    p, q = -rng.uniform(0, 1e4, 1000), rng.uniform(-50, 50, 1000)
+    for got, want in zip(_series(p, q, 1e-3, m), _series_plain(p, q, 1e-3, m)):
+        assert all(np.array_equal(g, w) for g, w in zip(got, want))
+
+
 @pytest.mark.parametrize("n", [2, 20, 33, 35, 777, 32 * 32 + 3, 32 * 32 * 32 + 100])
 def test_affine_recursion_equals_loop(n):
     """Blocks of 32 steps: within one block, exactly one, one and a bit, two and three levels of blocks."""

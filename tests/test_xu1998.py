@@ -132,6 +132,57 @@ def test_scores_use_the_metrics_of_eq_8():
     assert s["abs_err_pct_I"] == pytest.approx(abs(100 * (Ih.mean() - 0.06) / 0.06))
 
 
+def test_frozen_model_interpolates_as_numpy_interp():
+    """At the grid's own instants the values themselves (copies), elsewhere np.interp: the same numbers."""
+    rng = np.random.default_rng(4)
+    t = np.arange(500) * (1 / 1000.0)
+    model = X._Frozen(t, *(rng.standard_normal(500) for _ in range(3)))
+    for at in (t, t[:-1] + 0.0005, np.arange(500) / 1000.0, np.array([-1.0, 0.2501, 9.0])):
+        got = model.coefficients_at(at)
+        for g, v in zip(got, (model.I, model.B, model.K)):
+            assert np.array_equal(g, np.interp(at, t, v))
+    assert not np.shares_memory(model.coefficients_at(t)[2], model.K)
+
+
+def test_output_vafs_of_a_subset_are_those_of_all(elbow):
+    exp, est = elbow
+    exp = X.case_experiment(dataclasses.replace(exp, duration=14.0), _params(f_v=0.5))
+    trial = sims.simulate(exp, 0)
+    fit = est.fit(trial)
+    keep = X.scored_window(trial.n, trial.fs, 4.0, valid_mask(fit))
+    full = X.output_vafs(fit, trial, keep)
+    assert set(full) == set(X.OUTPUTS)
+    for name in X.OUTPUTS:
+        assert X.output_vafs(fit, trial, keep, signals=(name,)) == {name: full[name]}
+
+
+def test_fits_are_kept_for_the_same_trial_and_settings_only(elbow, monkeypatch):
+    exp, est = elbow
+    exp = X.case_experiment(dataclasses.replace(exp, duration=10.0), _params())
+    monkeypatch.setattr(X, "_FITS", type(X._FITS)())
+    calls = []
+    real_fit = type(est).fit
+    monkeypatch.setattr(type(est), "fit", lambda self, trial: calls.append(1) or real_fit(self, trial))
+    trial = sims.simulate(exp, 0)
+    a, derived = X.fitted(est, exp, 0, False, trial)
+    assert X.fitted(est, dataclasses.replace(exp, where="elsewhere"), 0, False, trial)[0] is a and len(calls) == 1
+    other = type(est)(dataclasses.replace(est.settings, forgetting=est.settings.forgetting * 1.1))
+    b, _ = X.fitted(other, exp, 0, False, trial)
+    c, _ = X.fitted(est, exp, 1, False, sims.simulate(exp, 1))
+    d, _ = X.fitted(est, exp, 0, True, trial)
+    assert len(calls) == 4 and all(x is not a for x in (b, c, d))
+    assert not np.array_equal(b.K, a.K) and not np.array_equal(c.K, a.K)
+    for k in range(X._FITS_KEPT):
+        X.fitted(est, exp, 10 + k, False, trial)
+    assert len(X._FITS) == X._FITS_KEPT and X.fitted(est, exp, 0, False, trial)[0] is not a   # a was dropped
+    keep = X.scored_window(trial.n, trial.fs, 2.0, valid_mask(a))
+    first = X.kept_output_vafs(a, derived, trial, keep)
+    assert first == X.output_vafs(a, trial, keep) and len(derived) == 1
+    assert X.kept_output_vafs(a, derived, trial, keep) == first and len(derived) == 1
+    X.kept_output_vafs(a, derived, trial, keep, signals=("angle",))
+    assert len(derived) == 2
+
+
 # ----------------------------------------------------------------------------------------- smoke run
 @pytest.fixture(scope="module")
 def smoke(tmp_path_factory):
