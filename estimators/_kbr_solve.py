@@ -23,6 +23,7 @@ identification with a frequency-domain kernel-based estimator. IET Control Theor
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 
 import numpy as np
@@ -167,6 +168,12 @@ class System:
         """Coefficients ``c_p + g_p Phi z_p`` on the samples (``P x N``)."""
         return c[:, None] + self.gains[:, None] * (z @ self.Phi.T)
 
+    @functools.cached_property
+    def rows(self) -> np.ndarray:
+        """``[C T_1 ... T_P]^T`` (``(P + P r) x nk``, complex): ``E = F0 + x @ rows`` for ``x = [c, z]``."""
+        P, nk, r = self.T.shape
+        return np.ascontiguousarray(np.concatenate([self.C, self.T.transpose(1, 0, 2).reshape(nk, P * r)], axis=1).T)
+
 
 def equation_system(regressors: np.ndarray, y0: np.ndarray, mask: np.ndarray, Phi: np.ndarray,
                     gains: np.ndarray, band: np.ndarray) -> System:
@@ -290,7 +297,8 @@ def ridge_solve_qr(Ac: np.ndarray, Az: np.ndarray, b: np.ndarray) -> tuple[np.nd
 def solve_weighted(system: System, weights: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
     """Minimise ``sum_k w_k |E(k)|^2 + sum_p ||z_p||^2``: one step of the convex relaxation (App. B).
 
-    Real and imaginary parts of the complex equations are stacked and solved by :func:`ridge_solve`.
+    The real and imaginary parts of each weighted equation are two real equations (interleaved rows of
+    the float view of the complex rows), solved by :func:`ridge_solve_stacked`.
 
     Returns
     -------
@@ -306,13 +314,15 @@ def solve_weighted(system: System, weights: np.ndarray) -> tuple[np.ndarray, np.
     van de Ruit et al. (2018), eq. B.1 with ``sigma_E^2`` fixed (the convex relaxation of App. B).
     """
     P, nk, r = system.T.shape
+    nu = P + P * r
     sw = np.sqrt(weights)
-    Ac = _stack(system.C * sw[:, None])
-    Az = _stack(system.T.transpose(1, 0, 2).reshape(nk, P * r) * sw[:, None])
-    b = _stack(-system.F0 * sw)
-    c, z = ridge_solve(Ac, Az, b)
-    res = Ac @ c + Az @ z - b
-    return c, z.reshape(P, r), float(res @ res + z @ z)
+    Wt = np.empty((nu + 1, nk), complex)
+    np.multiply(system.rows, sw, out=Wt[:nu])
+    np.multiply(system.F0, -sw, out=Wt[nu])
+    W = Wt.view(float).T
+    x = ridge_solve_stacked(W, P)
+    res = W[:, :nu] @ x - W[:, nu]
+    return x[:P], x[P:].reshape(P, r), float(res @ res + x[P:] @ x[P:])
 
 
 def error(system: System, c: np.ndarray, z: np.ndarray) -> np.ndarray:
@@ -356,8 +366,7 @@ def refine(system: System, Db: np.ndarray, mask: np.ndarray, sv2: np.ndarray, c:
     nt = Pk.shape[0]
     g = system.gains
     m = Pk.mean(axis=0)
-    CT = np.concatenate([system.C, system.T.transpose(1, 0, 2).reshape(nk, P * r)], axis=1)
-    CTt = np.ascontiguousarray(CT.T)
+    CTt = system.rows
     Dn = Db[1:]                                   # (na, nk): D_1 ... D_Na
     # A depends on the c_n and z_n of the a_n (n < na), the first na and the na r columns from P;
     # dAbar/d(c, z) there, the same at every step: D_n and g_n D_n mean_t Phi_j
@@ -368,12 +377,12 @@ def refine(system: System, Db: np.ndarray, mask: np.ndarray, sv2: np.ndarray, c:
         basis = np.vstack([np.ones(nt), a])
         M = basis @ basis.T / nt
         q = np.einsum("ik,ij,jk->k", Db.conj(), M, Db).real
-        E = system.F0 + CT @ x
+        E = system.F0 + x @ CTt
         return a, q, E, float(np.sum((E.real ** 2 + E.imag ** 2) / (sv2 * q)) + x[P:] @ x[P:])
 
     def along(a, q, E, x, dx):
         """The cost at ``x + s dx`` as a function of ``s``: ``E`` is affine in ``s``, ``q`` quadratic."""
-        dE = CT @ dx
+        dE = dx @ CTt
         da = dx[:na, None] + g[:na, None] * (dx[P:P + na * r].reshape(na, r) @ Pk.T)
         basis, dbasis = np.vstack([np.ones(nt), a]), np.vstack([np.zeros(nt), da])
         M1 = basis @ dbasis.T / nt
