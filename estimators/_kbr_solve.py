@@ -490,14 +490,17 @@ DENSE_LIMIT = 4096
 
 
 def gmres(operator, b: np.ndarray, restart: int, restarts: int, rtol: float,
-          x0: np.ndarray | None = None) -> tuple[np.ndarray, bool]:
+          x0: np.ndarray | None = None, stall: float = 0.5) -> tuple[np.ndarray, bool]:
     """Restarted GMRES for a real ``n``-vector: ``x`` with ``||b - operator(x)|| <= rtol ||b||``.
 
     Arnoldi with classical Gram-Schmidt applied twice (each pass one product with the basis), the
     least-squares problem of the Hessenberg matrix by Givens rotations; at most ``restarts`` cycles of
-    ``restart`` steps, each starting from the true residual. A preconditioner is folded into
-    ``operator`` by the caller (right preconditioning: the residual is that of the original system).
-    Returns ``x`` and whether it converged.
+    ``restart`` steps, each starting from the true residual; it gives up early when a cycle leaves more
+    than ``stall`` of the residual it started from (a stagnating restarted GMRES; on the periodic
+    solutions of :func:`periodic_response` the converging cycles leave at most 1.3e-3, the
+    stagnating ones 0.8 ... 1). A preconditioner is folded into ``operator`` by the caller (right
+    preconditioning: the residual is that of the original system). Returns ``x`` and whether it
+    converged.
 
     References
     ----------
@@ -511,11 +514,15 @@ def gmres(operator, b: np.ndarray, restart: int, restarts: int, rtol: float,
     target = rtol * np.linalg.norm(b)
     V = np.empty((restart + 1, n))
     H = np.zeros((restart + 1, restart))
+    previous = math.inf
     for _ in range(restarts):
         res = b - operator(x) if x.any() else b.copy()
-        beta = np.linalg.norm(res)
+        beta = float(np.linalg.norm(res))
         if beta <= target:
             return x, True
+        if beta > stall * previous:
+            return x, False
+        previous = beta
         V[0] = res / beta
         g = [0.0] * (restart + 1)
         g[0] = beta
