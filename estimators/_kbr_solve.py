@@ -368,15 +368,16 @@ def refine(system: System, Db: np.ndarray, mask: np.ndarray, sv2: np.ndarray, c:
     m = Pk.mean(axis=0)
     CTt = system.rows
     Dn = Db[1:]                                   # (na, nk): D_1 ... D_Na
-    # A depends on the c_n and z_n of the a_n (n < na), the first na and the na r columns from P;
-    # dAbar/d(c, z) there, the same at every step: D_n and g_n D_n mean_t Phi_j
-    dA = np.concatenate([Dn, (g[:na, None, None] * m[None, :, None] * Dn[:, None, :]).reshape(na * r, nk)])
+    # A depends on the c_n and z_n of the a_n (n < na): the first na unknowns and the na r from P
+    DnR, DnI = np.ascontiguousarray(Dn.real), np.ascontiguousarray(Dn.imag)
+    gm = g[:na, None] * m[None, :]
+    # q_k = sum_ij M_ij Re(conj(D_i(k)) D_j(k)) for the second moments M of (1, a_1(t), ..., a_Na(t))
+    DD = (Db.conj()[:, None, :] * Db[None, :, :]).real.reshape((na + 1) ** 2, nk)
 
     def parts(x):
         a = x[:na, None] + g[:na, None] * (x[P:P + na * r].reshape(na, r) @ Pk.T)   # a_n(t) on kept samples
         basis = np.vstack([np.ones(nt), a])
-        M = basis @ basis.T / nt
-        q = np.einsum("ik,ij,jk->k", Db.conj(), M, Db).real
+        q = (basis @ basis.T / nt).ravel() @ DD
         E = system.F0 + x @ CTt
         return a, q, E, float(np.sum((E.real ** 2 + E.imag ** 2) / (sv2 * q)) + x[P:] @ x[P:])
 
@@ -386,8 +387,8 @@ def refine(system: System, Db: np.ndarray, mask: np.ndarray, sv2: np.ndarray, c:
         da = dx[:na, None] + g[:na, None] * (dx[P:P + na * r].reshape(na, r) @ Pk.T)
         basis, dbasis = np.vstack([np.ones(nt), a]), np.vstack([np.zeros(nt), da])
         M1 = basis @ dbasis.T / nt
-        q1 = np.einsum("ik,ij,jk->k", Db.conj(), M1 + M1.T, Db).real
-        q2 = np.einsum("ik,ij,jk->k", Db.conj(), dbasis @ dbasis.T / nt, Db).real
+        q1 = (M1 + M1.T).ravel() @ DD
+        q2 = (dbasis @ dbasis.T / nt).ravel() @ DD
         z, dz = x[P:], dx[P:]
 
         def cost(s):
@@ -401,6 +402,7 @@ def refine(system: System, Db: np.ndarray, mask: np.ndarray, sv2: np.ndarray, c:
     # the Jacobian and right-hand side of the stacked real equations as complex rows (nu + 1, nk): the
     # real and imaginary parts of each bin are two equations, interleaved in the float view
     Jt = np.empty((nu + 1, nk), complex)
+    Jv = Jt.view(float).reshape(nu + 1, nk, 2)    # (real, imaginary) of each entry
     done = 0
     for done in range(1, iterations + 1):
         # residuals rotated by the unit phase phi = conj(Abar)/|Abar| (the cost is unchanged): for a
@@ -411,17 +413,24 @@ def refine(system: System, Db: np.ndarray, mask: np.ndarray, sv2: np.ndarray, c:
         phi = Abar.conj() / absA
         sd = np.sqrt(sv2 * q)
         w = E * phi / sd                          # the rotated, whitened residuals
-        # J = (phi CT + E dphi - E phi dq / (2 q)) / sd; the last two terms only in the columns of the a_n,
-        # E dphi = -1j w sd Im(phi dAbar) / |Abar|, dq/dc_n = 2 Re(conj(Abar) D_n),
-        # dq/dz_nj = 2 g_n Re(D_n conj(mean_t A Phi_j))
+        # J = (phi CT + E dphi - E phi dq / (2 q)) / sd. The last two terms only touch the columns of the
+        # a_n, where with w = E phi / sd they are -w (dq / (2 q) + 1j Im(phi dAbar) / |Abar|):
+        # dq/dc_n = 2 Re(conj(Abar) D_n) = 2 |Abar| Re(phi D_n), dq/dz_nj = 2 g_n Re(D_n conj(mean_t A Phi_j)),
+        # Im(phi dAbar/dz_nj) = g_n mean_t Phi_j Im(phi D_n)
         np.multiply(CTt, phi / sd, out=Jt[:nu])
         if na:
             APhi = np.outer(m, Db[0]) + (a @ Pk / nt).T @ Dn
-            dq = np.concatenate([(Abar.conj() * Dn).real,
-                                 (g[:na, None, None] * (Dn[:, None, :] * APhi.conj()[None]).real).reshape(na * r, nk)])
-            extra = w * (dq / q + 1j * (phi * dA).imag / absA)
-            Jt[:na] -= extra[:na]
-            Jt[P:P + na * r] -= extra[na:]
+            v = phi * Dn
+            Xc = v.imag / absA
+            Rc = v.real * (absA / q)
+            Rz = (g[:na, None, None] / q) * (DnR[:, None, :] * APhi.real + DnI[:, None, :] * APhi.imag)
+            Xz = gm[:, :, None] * Xc[:, None, :]
+            wr, wi = w.real, w.imag
+            Jc, Jz = Jv[:na], Jv[P:P + na * r].reshape(na, r, nk, 2)
+            Jc[..., 0] -= wr * Rc - wi * Xc
+            Jc[..., 1] -= wr * Xc + wi * Rc
+            Jz[..., 0] -= wr * Rz - wi * Xz
+            Jz[..., 1] -= wr * Xz + wi * Rz
         Jt[nu] = x @ Jt[:nu] - w
         dx = ridge_solve_stacked(Jt.view(float).T, P) - x
         cost_at = along(a, q, E, x, dx)
