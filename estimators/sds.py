@@ -113,8 +113,13 @@ class SDS(EnsembleEstimator):
         hw, order = np.empty((len(starts), L)), np.empty(len(starts), int)
         for c0 in range(0, len(starts), _CHUNK):                     # bounded memory: a chunk of windows
             w = starts[c0:c0 + _CHUNK]
-            first = w[:, None, None] + B[None]
-            S_xx = P[D[None], first + rows] - P[D[None], first]
+            # S_xx[:, j, l] = P[D_jl, w + B_jl + rows] - P[D_jl, w + B_jl]: w steps by `step`, so for each
+            # column pair (the pairs l >= j, mirrored) both terms are strided slices
+            S_xx = np.empty((len(w), L, L))
+            for jj, ll in zip(*np.triu_indices(L)):
+                d, b0 = D[jj, ll], w[0] + B[jj, ll]
+                S_xx[:, jj, ll] = S_xx[:, ll, jj] = (P[d, b0 + rows:b0 + rows + step * len(w):step]
+                                                     - P[d, b0:b0 + step * len(w):step])
             S_xy = Q[w + rows] - Q[w]                                 # rows i = s ... s + rows - 1
             S_yy = Qyy[w + rows] - Qyy[w]
             if s.remove_mean == "segment":

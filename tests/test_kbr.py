@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from jointbench import estimators
-from jointbench.estimators import _kbr_solve as ks
+from jointbench.estimators import _kbr_predict as kpred, _kbr_solve as ks
 from jointbench.estimators.kbr import KBR, KBREstimate
 from jointbench.errors import ConfigError, InputError
 from jointbench.types import Trial
@@ -344,3 +344,68 @@ def test_deterministic(noisy):
     assert a.to_frame().equals(b.to_frame())
     assert np.array_equal(a.predict(noisy.angle), b.predict(noisy.angle))
     assert dataclasses.asdict(KBR.Settings()) == dataclasses.asdict(estimators.make("kbr").settings)
+
+
+# ----------------------------------------------------------------------------- numerical pieces
+def ridge_reference(Ac, Az, b):
+    """The ridge problem as one least-squares problem ``[[Ac, Az], [0, I]] x ~ [b, 0]`` (lstsq, SVD)."""
+    p, q = Ac.shape[1], Az.shape[1]
+    A = np.vstack([np.column_stack([Ac, Az]), np.column_stack([np.zeros((q, p)), np.eye(q)])])
+    return np.linalg.lstsq(A, np.concatenate([b, np.zeros(q)]), rcond=None)[0]
+
+
+@pytest.mark.parametrize("spread", [1.0, 1e3, 1e9])
+def test_ridge_solve_normal_equations_and_qr_agree(spread):
+    """Uneven column scales and two constants' columns that coincide to ``1 / spread``: the scaled normal
+    matrix has a condition number of about 7, 4e6 (the plain Cholesky solve is then 8e-9 off, the refined
+    one 2e-12) and 1e16 (the QR path takes over)."""
+    rng = np.random.default_rng(5)
+    Ac = rng.standard_normal((300, 4)) * np.array([1e-3, 1.0, 1e2, 1e4])
+    Ac[:, 3] = Ac[:, 2] * 1e2 + Ac[:, 3] / spread
+    Az = rng.standard_normal((300, 20)) * 30.0
+    b = rng.standard_normal(300)
+    c_qr, z_qr = ks.ridge_solve_qr(Ac, Az, b)
+    c, z = ks.ridge_solve(Ac, Az, b)
+    x, x_qr = np.concatenate([c, z]), np.concatenate([c_qr, z_qr])
+    assert np.abs(x - x_qr).max() < 1e-11 * np.abs(x_qr).max()
+    if spread == 1.0:
+        assert np.abs(x - ridge_reference(Ac, Az, b)).max() < 1e-11 * np.abs(x).max()
+
+
+def test_ridge_solve_takes_the_qr_when_ill_conditioned(monkeypatch):
+    calls = []
+    monkeypatch.setattr(ks, "ridge_solve_qr", lambda *a: calls.append(1) or (np.zeros(a[0].shape[1]),
+                                                                             np.zeros(a[1].shape[1])))
+    rng = np.random.default_rng(2)
+    Ac = rng.standard_normal((50, 2))
+    ks.ridge_solve(Ac, rng.standard_normal((50, 3)), rng.standard_normal(50))
+    assert not calls
+    ks.ridge_solve(np.column_stack([Ac[:, 0], Ac[:, 0] * (1 + 1e-12)]), rng.standard_normal((50, 3)),
+                   rng.standard_normal(50))
+    assert calls == [1]
+
+
+def test_gmres_solves_a_nonsymmetric_system():
+    rng = np.random.default_rng(4)
+    A = np.eye(120) * 3 + rng.standard_normal((120, 120)) / 11
+    b = rng.standard_normal(120)
+    x, ok = kpred.gmres(lambda v: A @ v, b, restart=15, restarts=40, rtol=1e-12)
+    assert ok and np.linalg.norm(A @ x - b) <= 1e-12 * np.linalg.norm(b)
+    x, ok = kpred.gmres(lambda v: A @ v, b, restart=3, restarts=2, rtol=1e-12)
+    assert not ok
+
+
+def test_periodic_response_matches_the_dense_solve(monkeypatch):
+    """The periodic solution by GMRES and by the dense fallback (forced) against the explicit operator."""
+    n, fs = 440, 44.0
+    t = np.arange(n) / fs
+    a = np.vstack([0.01 + 0.008 * np.sin(2 * np.pi * t / 10), 3e-6 * (1 + 0.5 * np.cos(2 * np.pi * t / 7))])
+    r = np.random.default_rng(8).standard_normal(n)
+    Dp = ks.periodic_derivative_response(n, fs, 2)
+    L = np.column_stack([e + np.sum(a * ks.derivatives(e, Dp[1:3]), axis=0) for e in np.eye(n)])   # column j: e_j
+    want = np.linalg.solve(L, r)
+    got = ks.periodic_response(a, r, Dp)
+    assert np.abs(got - want).max() < 1e-10 * np.abs(want).max()
+    monkeypatch.setattr(kpred, "gmres", lambda *args, **kw: (np.zeros(n), False))
+    dense = ks.periodic_response(a, r, Dp)
+    assert np.abs(dense - want).max() < 1e-10 * np.abs(want).max()

@@ -164,8 +164,8 @@ class _Case:
         self.truth = [true_stiffness(t, self.line_hz) for t in raw]
         self.time = self.trials[0].time
         self.scored = (self.time >= p.score[0] - 1e-9) & (self.time <= p.score[1] + 1e-9)
-        self.measured = {}     # (rate, trial) -> band-limited measured torque
-        self.predictions = {}  # (estimate, input) -> its prediction
+        self.measured = {}     # (rate, trial, upper band edge) -> band-limited measured torque
+        self.predictions = {}  # (estimate, input) -> its prediction and its band-limited versions
 
     def data(self, name: str, idx: list[int]):
         """The trials ``idx`` at the estimator's rate: one trial, or an ensemble of several."""
@@ -175,24 +175,30 @@ class _Case:
         return Ensemble(tuple(src[i] for i in idx), name=f"{self.subject.label} trials "
                                                          f"{','.join(str(i + 1) for i in idx)}")
 
-    def prediction(self, est, u: np.ndarray) -> np.ndarray:
+    def prediction(self, est, u: np.ndarray, fs: float | None = None, high: float | None = None) -> np.ndarray:
         """``est.predict(u)``, computed once per estimate and input (the trials of a subject share the
-        multisine: same_input)."""
+        multisine: same_input); with ``fs``, its :func:`band` from ``highpass`` to ``high``, also once."""
         key = (id(est), np.asarray(u, float).tobytes())
         if key not in self.predictions or self.predictions[key][0] is not est:
-            self.predictions[key] = (est, np.asarray(est.predict(u), float))
-        return self.predictions[key][1]
+            self.predictions[key] = (est, np.asarray(est.predict(u), float), {})
+        _, yhat, banded = self.predictions[key]
+        if fs is None:
+            return yhat
+        if high not in banded:
+            banded[high] = band(yhat, fs, self.p.highpass, high)
+        return banded[high]
 
     def vafs(self, name: str, est, j: int) -> dict[str, float]:
         """VAF (%) of the prediction of trial ``j`` (high-passed, scored interval), and in the common band."""
         low = name in self.p.low_rate_estimators
         tr = (self.low if low else self.trials)[j]
-        yhat = self.prediction(est, tr.input)
         m = (tr.time >= self.p.score[0] - 1e-9) & (tr.time <= self.p.score[1] + 1e-9)
         out = {}
         for tag, high in (("", None), ("_common", self.p.common_band)):
-            y = band(tr.output, tr.fs, self.p.highpass, high)
-            out[tag] = vaf(y[m], band(yhat, tr.fs, self.p.highpass, high)[m])
+            if (low, j, high) not in self.measured:
+                self.measured[(low, j, high)] = band(tr.output, tr.fs, self.p.highpass, high)
+            y = self.measured[(low, j, high)]
+            out[tag] = vaf(y[m], self.prediction(est, tr.input, tr.fs, high)[m])
         return out
 
     def stiffness_errors(self, est, idx: list[int]) -> tuple[dict[str, float], np.ndarray, np.ndarray]:
