@@ -85,6 +85,7 @@ class ResponseMemo:
     def __init__(self, max_bytes: float = 2e9, enabled: bool = True):
         self.max_bytes, self.enabled = max_bytes, enabled
         self.trials: ResponseMemo | None = None      # whole trials (see reuse_responses)
+        self.sensed: ResponseMemo | None = None      # filtered and acquired noise-free channels (lookup_sensed)
         self.entries: collections.OrderedDict[bytes, tuple[Any, int]] = collections.OrderedDict()
         self.size = 0
         self.computed = 0
@@ -123,6 +124,7 @@ class reuse_responses:
     def __init__(self, max_bytes: float = 2e9, enabled: bool = True):
         self.memo = ResponseMemo(max_bytes / 2, enabled)
         self.memo.trials = ResponseMemo(max_bytes / 2, enabled)
+        self.memo.sensed = ResponseMemo(max_bytes / 4, enabled)
 
     def __enter__(self) -> ResponseMemo:
         _MEMOS.append(self.memo)
@@ -161,3 +163,23 @@ def lookup_trial(key: bytes | None, compute: Callable[[], Any]) -> tuple[Any, bo
     if not _MEMOS or _MEMOS[-1].trials is None:
         return compute(), False
     return _MEMOS[-1].trials.get(key, compute)
+
+
+def sensed_key(response: bytes | None, experiment: Any) -> bytes | None:
+    """Key of a response's noise-free sensed channels: its response's key with the two sensors' analog
+    filters and the acquisition (the noise, its filter and the quantization do not enter)."""
+    if response is None:
+        return None
+    try:
+        return response + pickle.dumps(("sensed", experiment.sensors.angle.filter, experiment.sensors.torque.filter,
+                                        experiment.acquisition), protocol=4)
+    except (pickle.PicklingError, TypeError, AttributeError):
+        return None
+
+
+def lookup_sensed(key: bytes | None, compute: Callable[[], Any]) -> tuple[Any, bool]:
+    """Like :func:`lookup`, for the noise-free sensed channels of a response (the third memo of the innermost
+    open block): trials that differ only in their noise or quantization filter and acquire them once."""
+    if not _MEMOS or _MEMOS[-1].sensed is None:
+        return compute(), False
+    return _MEMOS[-1].sensed.get(key, compute)
