@@ -327,27 +327,35 @@ def _detrend_linear(x: np.ndarray) -> np.ndarray:
     return x - x.mean(axis=0) - np.multiply.outer(t, slope)
 
 
-def _measure(sensor: Sensor, filtered: np.ndarray, clean: np.ndarray, rng: np.random.Generator,
-             acquire: Callable[[np.ndarray], np.ndarray], fs_sim: float) -> tuple[np.ndarray, np.ndarray]:
+def _measure(sensor: Sensor, filtered: np.ndarray, clean: np.ndarray,
+             unit_noise: Callable[[], tuple[np.ndarray, np.ndarray]],
+             acquire: Callable[[np.ndarray], np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
     """One channel after its analog filter: (measured, noise-free measured), both acquired.
 
     ``clean`` is ``acquire(filtered)`` (computed once per response, filter and acquisition: see
-    :func:`sims.reuse.lookup_sensed`). Noise is white at the simulation rate (coloured by the sensor's
-    ``noise_filter`` if any), drawn from the channel's own stream and scaled so that its rms (or the SNR) is
+    :func:`sims.reuse.lookup_sensed`); ``unit_noise()`` gives the channel's unit-variance noise at the
+    simulation rate and acquired (:func:`_unit_noise`). The noise is scaled so that its rms (or the SNR) is
     exact in the acquired record; quantization acts before acquisition.
     """
     if not sensor.noisy:
         if sensor.quantization:
             return acquire(sensor.quantize(filtered)), clean
         return clean.copy(), clean
-    w = rng.standard_normal(len(filtered))
-    if sensor.noise_filter is not None:
-        w = sensor.noise_filter.apply(w, fs_sim)
-    w_acq = acquire(w)
+    w, w_acq = unit_noise()
     gain = sensor.noise_gain(clean, w_acq)
     if sensor.quantization:
         return acquire(sensor.quantize(filtered + gain * w)), clean
     return clean + gain * w_acq, clean  # acquisition is linear: the same as acquiring filtered + gain * w
+
+
+def _unit_noise(sensor: Sensor, n: int, rng: np.random.Generator, acquire: Callable[[np.ndarray], np.ndarray],
+                fs_sim: float) -> tuple[np.ndarray, np.ndarray]:
+    """A channel's unit noise: white at the simulation rate, drawn from the channel's own stream (coloured
+    by the sensor's ``noise_filter`` if any), and the same after acquisition."""
+    w = rng.standard_normal(n)
+    if sensor.noise_filter is not None:
+        w = sensor.noise_filter.apply(w, fs_sim)
+    return w, acquire(w)
 
 
 def _streams(seed: int | np.random.SeedSequence, replicate: int,
@@ -482,11 +490,17 @@ def simulate(experiment: Experiment, seed: int | np.random.SeedSequence, backend
                 out["extra"] = exp.acquire(np.column_stack([resp.extra[k] for k in resp.extra]))
             return out
 
+        def unit_noise(sensor: Sensor, stream: str) -> Callable[[], tuple[np.ndarray, np.ndarray]]:
+            def draw():   # the same draw for every noise level of this seed, replicate and realization
+                return _unit_noise(sensor, n, rng[stream], exp.acquire, fs)
+            return lambda: _reuse.lookup_noise(_reuse.noise_key(key, exp, stream, sensor.noise_filter, replicate),
+                                               draw)[0]
+
         sensed, _ = _reuse.lookup_sensed(_reuse.sensed_key(key, exp), sense)
         angle, angle_clean = _measure(exp.sensors.angle, sensed["angle_filtered"], sensed["angle"],
-                                      rng["angle_noise"], exp.acquire, fs)
-        torque, _ = _measure(exp.sensors.torque, sensed["torque_filtered"], sensed["torque"], rng["torque_noise"],
-                             exp.acquire, fs)
+                                      unit_noise(exp.sensors.angle, "angle_noise"), exp.acquire)
+        torque, _ = _measure(exp.sensors.torque, sensed["torque_filtered"], sensed["torque"],
+                             unit_noise(exp.sensors.torque, "torque_noise"), exp.acquire)
         truth_torques = sensed["truth_torques"]
         signals = {
             "angle": angle_clean,

@@ -86,6 +86,7 @@ class ResponseMemo:
         self.max_bytes, self.enabled = max_bytes, enabled
         self.trials: ResponseMemo | None = None      # whole trials (see reuse_responses)
         self.sensed: ResponseMemo | None = None      # filtered and acquired noise-free channels (lookup_sensed)
+        self.noise: ResponseMemo | None = None       # unit sensor noise, raw and acquired (lookup_noise)
         self.entries: collections.OrderedDict[bytes, tuple[Any, int]] = collections.OrderedDict()
         self.size = 0
         self.computed = 0
@@ -125,6 +126,7 @@ class reuse_responses:
         self.memo = ResponseMemo(max_bytes / 2, enabled)
         self.memo.trials = ResponseMemo(max_bytes / 2, enabled)
         self.memo.sensed = ResponseMemo(max_bytes / 4, enabled)
+        self.memo.noise = ResponseMemo(max_bytes / 4, enabled)
 
     def __enter__(self) -> ResponseMemo:
         _MEMOS.append(self.memo)
@@ -183,3 +185,23 @@ def lookup_sensed(key: bytes | None, compute: Callable[[], Any]) -> tuple[Any, b
     if not _MEMOS or _MEMOS[-1].sensed is None:
         return compute(), False
     return _MEMOS[-1].sensed.get(key, compute)
+
+
+def noise_key(response: bytes | None, experiment: Any, stream: str, noise_filter: Any, replicate: int) -> bytes | None:
+    """Key of a channel's unit noise (before its gain): the response's key (which holds the seed and the
+    realization) with the noise stream, the replicate, the noise filter and the acquisition."""
+    if response is None:
+        return None
+    try:
+        return response + pickle.dumps(("noise", str(stream), int(replicate), noise_filter, experiment.acquisition),
+                                       protocol=4)
+    except (pickle.PicklingError, TypeError, AttributeError):
+        return None
+
+
+def lookup_noise(key: bytes | None, compute: Callable[[], Any]) -> tuple[Any, bool]:
+    """Like :func:`lookup`, for a channel's unit noise (the fourth memo of the innermost open block): trials
+    that differ only in the noise level draw, filter and acquire it once."""
+    if not _MEMOS or _MEMOS[-1].noise is None:
+        return compute(), False
+    return _MEMOS[-1].noise.get(key, compute)

@@ -133,7 +133,8 @@ def test_a_trial_asked_for_again_is_the_same_trial(wrist):
 
 def test_sensed_channels_are_filtered_once_per_response_filter_and_acquisition(wrist):
     """Trials that differ only in noise or quantization share the filtered, acquired noise-free channels
-    (delay-corrected sensor filters, noise on both channels); another filter or rate filters anew."""
+    (delay-corrected sensor filters, noise on both channels); another filter or rate filters anew. A channel's
+    unit noise is drawn once per seed, replicate, noise filter and acquisition, whatever its level."""
     flt = {"kind": "bessel", "order": 8, "cutoff": 150.0, "delay_correction": True}
     sensors = sims.Experiment.from_mapping({**load_study("vanderuit2018_table1").parts["table1"].experiment,
                                             "sensors": {"angle": {"filter": flt}, "torque": {"filter": flt}}},
@@ -156,6 +157,7 @@ def test_sensed_channels_are_filtered_once_per_response_filter_and_acquisition(w
         shared = [sims.simulate(e, 4, **kw) for e, kw in calls]
     assert (memo.computed, memo.reused) == (1, 5)
     assert (memo.sensed.computed, memo.sensed.reused) == (3, 3)      # base; other torque filter; other rate
+    assert (memo.noise.computed, memo.noise.reused) == (2, 1)        # torque (replicate 0) drawn once for two levels
     for a, b in zip(alone, shared):
         _same_trial(a, b)
     assert not np.array_equal(shared[0].torque, shared[1].torque)    # the noise is drawn anew
