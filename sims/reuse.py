@@ -116,6 +116,10 @@ class reuse_responses:
     """Context manager: inside it, :func:`sims.simulate` computes each distinct response once
     (``enabled=False``: every one anew, even inside an outer block; for tests and measurements).
 
+    ``max_bytes`` bounds the responses and the whole trials (half each); the noise-free sensed channels
+    (:func:`lookup_sensed`) and the unit sensor noise (:func:`lookup_noise`) get a quarter each on top, so a
+    block keeps at most 1.5 ``max_bytes``.
+
     >>> with reuse_responses() as memo:      # doctest: +SKIP
     ...     a = simulate(exp_noise_1, 0); b = simulate(exp_noise_2, 0)
     >>> memo.computed, memo.reused
