@@ -40,6 +40,10 @@ def decimate(x: np.ndarray, q: int, cutoff: float = 0.8) -> np.ndarray:
     x = np.asarray(x, float)
     if q == 1:
         return x.copy()
+    if x.ndim == 2:   # signals as rows of a contiguous copy: the same numbers (and layout), faster than axis 0
+        y = sps.resample_poly(np.ascontiguousarray(x.T), 1, q, window=_taps(int(q), float(cutoff)), padtype="line",
+                              axis=-1)
+        return np.ascontiguousarray(y.T)
     return sps.resample_poly(x, 1, q, window=_taps(int(q), float(cutoff)), padtype="line")
 
 

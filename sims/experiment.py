@@ -327,27 +327,35 @@ def _detrend_linear(x: np.ndarray) -> np.ndarray:
     return x - x.mean(axis=0) - np.multiply.outer(t, slope)
 
 
-def _measure(sensor: Sensor, filtered: np.ndarray, rng: np.random.Generator,
-             acquire: Callable[[np.ndarray], np.ndarray], fs_sim: float) -> tuple[np.ndarray, np.ndarray]:
+def _measure(sensor: Sensor, filtered: np.ndarray, clean: np.ndarray,
+             unit_noise: Callable[[], tuple[np.ndarray, np.ndarray]],
+             acquire: Callable[[np.ndarray], np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
     """One channel after its analog filter: (measured, noise-free measured), both acquired.
 
-    Noise is white at the simulation rate (coloured by the sensor's ``noise_filter`` if any), drawn from
-    the channel's own stream and scaled so that its rms (or the SNR) is exact in the acquired record;
-    quantization acts before acquisition.
+    ``clean`` is ``acquire(filtered)`` (computed once per response, filter and acquisition: see
+    :func:`sims.reuse.lookup_sensed`); ``unit_noise()`` gives the channel's unit-variance noise at the
+    simulation rate and acquired (:func:`_unit_noise`). The noise is scaled so that its rms (or the SNR) is
+    exact in the acquired record; quantization acts before acquisition.
     """
-    clean = acquire(filtered)
     if not sensor.noisy:
         if sensor.quantization:
             return acquire(sensor.quantize(filtered)), clean
         return clean.copy(), clean
-    w = rng.standard_normal(len(filtered))
-    if sensor.noise_filter is not None:
-        w = sensor.noise_filter.apply(w, fs_sim)
-    w_acq = acquire(w)
+    w, w_acq = unit_noise()
     gain = sensor.noise_gain(clean, w_acq)
     if sensor.quantization:
         return acquire(sensor.quantize(filtered + gain * w)), clean
     return clean + gain * w_acq, clean  # acquisition is linear: the same as acquiring filtered + gain * w
+
+
+def _unit_noise(sensor: Sensor, n: int, rng: np.random.Generator, acquire: Callable[[np.ndarray], np.ndarray],
+                fs_sim: float) -> tuple[np.ndarray, np.ndarray]:
+    """A channel's unit noise: white at the simulation rate, drawn from the channel's own stream (coloured
+    by the sensor's ``noise_filter`` if any), and the same after acquisition."""
+    w = rng.standard_normal(n)
+    if sensor.noise_filter is not None:
+        w = sensor.noise_filter.apply(w, fs_sim)
+    return w, acquire(w)
 
 
 def _streams(seed: int | np.random.SeedSequence, replicate: int,
@@ -451,7 +459,7 @@ def simulate(experiment: Experiment, seed: int | np.random.SeedSequence, backend
             tv = tv + I * acc + (B + c.b_a) * vel + (K + c.k_a) * pos
             x0 = (float(pos[0]), float(vel[0]))
         if exp.gravity is not None:   # the subject holds the intended trajectory against gravity
-            tv = tv - exp.gravity.torque(exp.voluntary.movement(np.arange(n) / fs)[0])
+            tv = tv - exp.gravity.torque(exp.voluntary.position(np.arange(n) / fs))
         return drive, tv, runner.respond(exp, drive, tv, x0)
 
     by_name = backend is None or isinstance(backend, str)    # a backend object has no name to key on
@@ -459,33 +467,53 @@ def simulate(experiment: Experiment, seed: int | np.random.SeedSequence, backend
 
     def acquire() -> Trial:   # sensors, noise, acquisition and the truth, on the (maybe reused) response
         (drive, tv, resp), reused = _reuse.lookup(key, respond)
-
-        if resp.angle_measured is not None:
-            angle_true = resp.angle_measured
-        else:
-            angle_true = drive if exp.apparatus.angle_is_drive else resp.angle
-        angle, angle_clean = _measure(exp.sensors.angle, exp.sensors.angle.filtered(angle_true, fs),
-                                      rng["angle_noise"], exp.acquire, fs)
-        # one pass of the torque sensor's filter over the measured, impedance and voluntary torques
         parts = dict(resp.torque_parts)       # e.g. intrinsic and reflex torque: through the same filter
-        torques = exp.sensors.torque.filtered(np.column_stack([resp.torque_measured, resp.torque_impedance, tv,
-                                                               *parts.values()]), fs)
-        torque, _ = _measure(exp.sensors.torque, torques[:, 0], rng["torque_noise"], exp.acquire, fs)
         active = exp.voluntary.active or exp.gravity is not None
-        truth_torques = exp.acquire(torques[:, 1:3] if active else torques[:, 1])
+
+        def sense() -> dict[str, np.ndarray]:   # the noise-free channels: sensor filters, then acquisition
+            if resp.angle_measured is not None:
+                angle_true = resp.angle_measured
+            else:
+                angle_true = drive if exp.apparatus.angle_is_drive else resp.angle
+            angle_filtered = exp.sensors.angle.filtered(angle_true, fs)
+            # one pass of the torque sensor's filter over the measured, impedance and voluntary torques
+            torques = exp.sensors.torque.filtered(np.column_stack([resp.torque_measured, resp.torque_impedance,
+                                                                   tv, *parts.values()]), fs)
+            out = {"angle_filtered": angle_filtered, "torque_filtered": torques[:, 0],
+                   "parts_filtered": torques[:, 3:],
+                   "angle": exp.acquire(angle_filtered), "torque": exp.acquire(torques[:, 0]),
+                   "truth_torques": exp.acquire(torques[:, 1:3] if active else torques[:, 1]),
+                   "command": exp.acquire(drive)}
+            if exp.voluntary.moving:
+                out["movement"] = exp.acquire(exp.voluntary.position(np.arange(n) / fs))
+            if resp.extra:
+                out["extra"] = exp.acquire(np.column_stack([resp.extra[k] for k in resp.extra]))
+            return out
+
+        def unit_noise(sensor: Sensor, stream: str) -> Callable[[], tuple[np.ndarray, np.ndarray]]:
+            def draw():   # the same draw for every noise level of this seed, replicate and realization
+                return _unit_noise(sensor, n, rng[stream], exp.acquire, fs)
+            return lambda: _reuse.lookup_noise(_reuse.noise_key(key, exp, stream, sensor.noise_filter, replicate),
+                                               draw)[0]
+
+        sensed, _ = _reuse.lookup_sensed(_reuse.sensed_key(key, exp), sense)
+        angle, angle_clean = _measure(exp.sensors.angle, sensed["angle_filtered"], sensed["angle"],
+                                      unit_noise(exp.sensors.angle, "angle_noise"), exp.acquire)
+        torque, _ = _measure(exp.sensors.torque, sensed["torque_filtered"], sensed["torque"],
+                             unit_noise(exp.sensors.torque, "torque_noise"), exp.acquire)
+        truth_torques = sensed["truth_torques"]
         signals = {
             "angle": angle_clean,
             "torque": np.ascontiguousarray(truth_torques[:, 0]) if active else truth_torques,
-            "command": exp.acquire(drive),
+            "command": sensed["command"],
             "voluntary": np.ascontiguousarray(truth_torques[:, 1]) if active else np.zeros(len(angle)),
         }
         if exp.voluntary.moving:
-            signals["movement"] = exp.acquire(exp.voluntary.movement(np.arange(n) / fs)[0])
+            signals["movement"] = sensed["movement"]
         if resp.extra:
-            names = list(resp.extra)
-            acquired = exp.acquire(np.column_stack([resp.extra[k] for k in names]))
-            signals.update({k: np.ascontiguousarray(acquired[:, i]) for i, k in enumerate(names)})
-        signals.update(_truth.part_signals(exp, list(parts), torques[:, 3:]))   # reflex, scheduling variable
+            acquired = sensed["extra"]
+            signals.update({k: np.ascontiguousarray(acquired[:, i]) for i, k in enumerate(resp.extra)})
+        signals.update(_truth.part_signals(exp, list(parts), sensed["parts_filtered"]))   # reflex, scheduling variable
         return Trial.from_arrays(angle, torque, exp.fs, imposed=exp.apparatus.imposed,
                                  truth=_truth.truth(exp, signals, resp.angle), name=name), reused
 

@@ -85,6 +85,8 @@ class ResponseMemo:
     def __init__(self, max_bytes: float = 2e9, enabled: bool = True):
         self.max_bytes, self.enabled = max_bytes, enabled
         self.trials: ResponseMemo | None = None      # whole trials (see reuse_responses)
+        self.sensed: ResponseMemo | None = None      # filtered and acquired noise-free channels (lookup_sensed)
+        self.noise: ResponseMemo | None = None       # unit sensor noise, raw and acquired (lookup_noise)
         self.entries: collections.OrderedDict[bytes, tuple[Any, int]] = collections.OrderedDict()
         self.size = 0
         self.computed = 0
@@ -114,6 +116,10 @@ class reuse_responses:
     """Context manager: inside it, :func:`sims.simulate` computes each distinct response once
     (``enabled=False``: every one anew, even inside an outer block; for tests and measurements).
 
+    ``max_bytes`` bounds the responses and the whole trials (half each); the noise-free sensed channels
+    (:func:`lookup_sensed`) and the unit sensor noise (:func:`lookup_noise`) get a quarter each on top, so a
+    block keeps at most 1.5 ``max_bytes``.
+
     >>> with reuse_responses() as memo:      # doctest: +SKIP
     ...     a = simulate(exp_noise_1, 0); b = simulate(exp_noise_2, 0)
     >>> memo.computed, memo.reused
@@ -123,6 +129,8 @@ class reuse_responses:
     def __init__(self, max_bytes: float = 2e9, enabled: bool = True):
         self.memo = ResponseMemo(max_bytes / 2, enabled)
         self.memo.trials = ResponseMemo(max_bytes / 2, enabled)
+        self.memo.sensed = ResponseMemo(max_bytes / 4, enabled)
+        self.memo.noise = ResponseMemo(max_bytes / 4, enabled)
 
     def __enter__(self) -> ResponseMemo:
         _MEMOS.append(self.memo)
@@ -161,3 +169,43 @@ def lookup_trial(key: bytes | None, compute: Callable[[], Any]) -> tuple[Any, bo
     if not _MEMOS or _MEMOS[-1].trials is None:
         return compute(), False
     return _MEMOS[-1].trials.get(key, compute)
+
+
+def sensed_key(response: bytes | None, experiment: Any) -> bytes | None:
+    """Key of a response's noise-free sensed channels: its response's key with the two sensors' analog
+    filters and the acquisition (the noise, its filter and the quantization do not enter)."""
+    if response is None:
+        return None
+    try:
+        return response + pickle.dumps(("sensed", experiment.sensors.angle.filter, experiment.sensors.torque.filter,
+                                        experiment.acquisition), protocol=4)
+    except (pickle.PicklingError, TypeError, AttributeError):
+        return None
+
+
+def lookup_sensed(key: bytes | None, compute: Callable[[], Any]) -> tuple[Any, bool]:
+    """Like :func:`lookup`, for the noise-free sensed channels of a response (the third memo of the innermost
+    open block): trials that differ only in their noise or quantization filter and acquire them once."""
+    if not _MEMOS or _MEMOS[-1].sensed is None:
+        return compute(), False
+    return _MEMOS[-1].sensed.get(key, compute)
+
+
+def noise_key(response: bytes | None, experiment: Any, stream: str, noise_filter: Any, replicate: int) -> bytes | None:
+    """Key of a channel's unit noise (before its gain): the response's key (which holds the seed and the
+    realization) with the noise stream, the replicate, the noise filter and the acquisition."""
+    if response is None:
+        return None
+    try:
+        return response + pickle.dumps(("noise", str(stream), int(replicate), noise_filter, experiment.acquisition),
+                                       protocol=4)
+    except (pickle.PicklingError, TypeError, AttributeError):
+        return None
+
+
+def lookup_noise(key: bytes | None, compute: Callable[[], Any]) -> tuple[Any, bool]:
+    """Like :func:`lookup`, for a channel's unit noise (the fourth memo of the innermost open block): trials
+    that differ only in the noise level draw, filter and acquire it once."""
+    if not _MEMOS or _MEMOS[-1].noise is None:
+        return compute(), False
+    return _MEMOS[-1].noise.get(key, compute)

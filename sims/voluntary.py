@@ -73,7 +73,21 @@ class Voluntary:
             return z, z, z
         w = 2 * np.pi * float(self.movement_frequency)
         a = float(self.movement_amplitude)
-        return a * np.sin(w * t), a * w * np.cos(w * t), -a * w * w * np.sin(w * t)
+        s = np.sin(w * t)
+        return a * s, a * w * np.cos(w * t), -a * w * w * s
+
+    def position(self, t: np.ndarray) -> np.ndarray:
+        """The intended trajectory ``theta_n`` alone (rad): the first output of :meth:`movement`, without
+        computing the derivatives (bit-identical to it).
+
+        References
+        ----------
+        Xu & Hollerbach 1998, Sec. IV-A (voluntary movement theta_n = 0.5 sin 2π f_v t).
+        """
+        t = np.asarray(t, float)
+        if not self.moving:
+            return np.zeros_like(t)
+        return float(self.movement_amplitude) * np.sin(2 * np.pi * float(self.movement_frequency) * t)
 
     def check(self, fs: float, where: str) -> None:
         """Raise :class:`ConfigError` if the settings cannot be realised at ``fs``."""

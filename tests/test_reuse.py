@@ -129,3 +129,35 @@ def test_a_trial_asked_for_again_is_the_same_trial(wrist):
     _same_trial(b, alone)
     assert a.name == b.name == "validation" and c.name == "estimation"
     assert a.angle is not b.angle                   # fresh copies
+
+
+def test_sensed_channels_are_filtered_once_per_response_filter_and_acquisition(wrist):
+    """Trials that differ only in noise or quantization share the filtered, acquired noise-free channels
+    (delay-corrected sensor filters, noise on both channels); another filter or rate filters anew. A channel's
+    unit noise is drawn once per seed, replicate, noise filter and acquisition, whatever its level."""
+    flt = {"kind": "bessel", "order": 8, "cutoff": 150.0, "delay_correction": True}
+    sensors = sims.Experiment.from_mapping({**load_study("vanderuit2018_table1").parts["table1"].experiment,
+                                            "sensors": {"angle": {"filter": flt}, "torque": {"filter": flt}}},
+                                           "test").sensors
+    base = dataclasses.replace(wrist, sensors=sensors)
+
+    def with_sensors(angle=None, torque=None):
+        return dataclasses.replace(base, sensors=dataclasses.replace(
+            base.sensors, angle=dataclasses.replace(base.sensors.angle, **(angle or {})),
+            torque=dataclasses.replace(base.sensors.torque, **(torque or {}))))
+
+    other_filter = dataclasses.replace(sensors.torque.filter, cutoff=100.0)
+    calls = [(base, {}), (with_sensors(torque={"noise_variance_ratio": 0.2}), {}),
+             (with_sensors(angle={"noise_rms": 1e-4, "quantization": 1e-4}), {"replicate": 1}),
+             (with_sensors(angle={"quantization": 1e-4}), {}),
+             (with_sensors(torque={"filter": other_filter, "noise_rms": 0.01}), {}),
+             (dataclasses.replace(base, acquisition=dataclasses.replace(base.acquisition, fs=100.0)), {})]
+    alone = [sims.simulate(e, 4, **kw) for e, kw in calls]
+    with reuse_responses() as memo:
+        shared = [sims.simulate(e, 4, **kw) for e, kw in calls]
+    assert (memo.computed, memo.reused) == (1, 5)
+    assert (memo.sensed.computed, memo.sensed.reused) == (3, 3)      # base; other torque filter; other rate
+    assert (memo.noise.computed, memo.noise.reused) == (2, 1)        # torque (replicate 0) drawn once for two levels
+    for a, b in zip(alone, shared):
+        _same_trial(a, b)
+    assert not np.array_equal(shared[0].torque, shared[1].torque)    # the noise is drawn anew

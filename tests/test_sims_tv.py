@@ -421,3 +421,24 @@ def test_every_registered_simulator_is_deterministic(joint, perturbation):
     assert np.array_equal(a.angle, b.angle) and np.array_equal(a.torque, b.torque)
     assert np.all(np.isfinite(a.angle)) and np.all(np.isfinite(a.torque))
     assert not np.array_equal(a.torque, c.torque)
+
+
+def test_voluntary_position_is_the_movement_without_derivatives():
+    from jointbench.sims.voluntary import Voluntary
+    t = np.arange(12345) / 2000.0
+    v = Voluntary(movement_amplitude=0.5, movement_frequency=0.25)
+    pos, vel, acc = v.movement(t)
+    assert np.array_equal(v.position(t), pos)
+    w = 2 * np.pi * 0.25
+    assert np.array_equal(acc, -0.5 * w * w * np.sin(w * t)) and np.array_equal(vel, 0.5 * w * np.cos(w * t))
+    assert np.array_equal(Voluntary().position(t), np.zeros_like(t))
+
+
+def test_decimate_of_columns_is_decimate_of_each_column():
+    from jointbench.signal import decimate
+    x = np.random.default_rng(2).standard_normal((5001, 3))
+    for q in (2, 5):
+        y = decimate(x, q)
+        assert y.flags.c_contiguous
+        for i in range(3):
+            assert np.array_equal(y[:, i], decimate(np.ascontiguousarray(x[:, i]), q))
