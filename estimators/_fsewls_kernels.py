@@ -37,7 +37,8 @@ def highpass(x: np.ndarray, fs: float, cutoff: float, order: int, ripple: float)
     ----------
     Xu & Hollerbach (1998), eq. 3 and Sec. III-B ("fourth-order Chebyshev filter ... 1 Hz").
     """
-    sos = _highpass_sos(order, ripple, cutoff, fs).copy()
+    sos, zi = _highpass_sos(order, ripple, cutoff, fs), _highpass_zi(order, ripple, cutoff, fs)
+    sos = sos.copy()                                   # sosfilt wants a writable array
     n = x.shape[-1]
     w = max(2, min(n // 4, int(round(fs / cutoff))))
     pad = int(np.ceil(10.0 * highpass_time_constant(cutoff, order, ripple) * fs))
@@ -49,7 +50,11 @@ def highpass(x: np.ndarray, fs: float, cutoff: float, order: int, ripple: float)
 
     ext = np.concatenate([line(x[..., :w], u[0] - np.arange(pad, 0, -1)), x,
                           line(x[..., -w:], u[-1] + np.arange(1, pad + 1))], axis=-1)
-    return sps.sosfiltfilt(sos, ext, axis=-1, padtype=None)[..., pad:pad + n]
+    # scipy.signal.sosfiltfilt(sos, ext, axis=-1, padtype=None) step by step, its initial states designed once
+    zi = zi.reshape((len(sos),) + (1,) * (ext.ndim - 1) + (2,))
+    fwd, _ = sps.sosfilt(sos, ext, axis=-1, zi=zi * ext[..., :1])
+    bwd, _ = sps.sosfilt(sos, fwd[..., ::-1], axis=-1, zi=zi * fwd[..., -1:])
+    return bwd[..., ::-1][..., pad:pad + n]
 
 
 @functools.lru_cache(maxsize=32)
@@ -58,6 +63,15 @@ def _highpass_sos(order: int, ripple: float, cutoff: float, fs: float) -> np.nda
     sos = sps.cheby1(order, ripple, cutoff, btype="highpass", fs=fs, output="sos")
     sos.flags.writeable = False
     return sos
+
+
+@functools.lru_cache(maxsize=32)
+def _highpass_zi(order: int, ripple: float, cutoff: float, fs: float) -> np.ndarray:
+    """Step-response initial states of :func:`_highpass_sos` (:func:`scipy.signal.sosfilt_zi`), shape
+    (n_sections, 2), once per setting (read-only)."""
+    zi = sps.sosfilt_zi(_highpass_sos(order, ripple, cutoff, fs).copy())
+    zi.flags.writeable = False
+    return zi
 
 
 @functools.lru_cache(maxsize=32)
@@ -115,18 +129,33 @@ def svf(theta: np.ndarray, tau: np.ndarray, fs: float, a: float, order: int,
     n = theta.shape[-1]
     pad = int(np.ceil(40.0 / a * fs))
     nfft = _odd_fast_len(n + 2 * pad)
+    mult = _svf_multipliers(nfft, fs, a, order, causal, form)
+    buf = np.zeros((2,) + theta.shape[:-1] + (nfft,))                # both records, zero-padded
+    buf[0, ..., pad:pad + n] = theta
+    buf[1, ..., pad:pad + n] = tau
+    spec = scipy.fft.rfft(buf, axis=-1)
+    # the products as first written, ``spec * (base * jw * jw)``, ``spec * (base * jw)``, ``spec * base``: on a
+    # large temporary numpy multiplies in place into it, a loop whose rounding can differ (complex, 1-D), so
+    # the first two act on fresh copies of their multipliers and the last two on the shared one
+    ops = np.stack([spec[0] * mult[0].copy(), spec[0] * mult[1].copy(), spec[0] * mult[2], spec[1] * mult[2]])
+    out = scipy.fft.irfft(ops, nfft, axis=-1)[..., pad:pad + n]
+    return np.moveaxis(out[:3], 0, -1), out[3]
+
+
+@functools.lru_cache(maxsize=8)
+def _svf_multipliers(nfft: int, fs: float, a: float, order: int, causal: bool, form: str) -> np.ndarray:
+    """``[s^2 L, s L, L]`` of :func:`svf` at ``s = j w`` on the ``rfft`` bins of ``nfft`` samples, shape
+    (3, nfft // 2 + 1), computed once per setting and record length (read-only)."""
     f = scipy.fft.rfftfreq(nfft, 1.0 / fs)
     jw = 2j * np.pi * f
     if causal:
         low = (a / (jw + a)) ** order
     else:
         low = (a * a / (a * a + (2 * np.pi * f) ** 2)) ** (order / 2.0)
-    widths = [(0, 0)] * (theta.ndim - 1) + [(pad, nfft - n - pad)]
-    spec = scipy.fft.rfft(np.stack([np.pad(theta, widths), np.pad(tau, widths)]), axis=-1)
     base = low * jw ** (order - 2) if form == "printed" else low
-    ops = np.stack([spec[0] * (base * jw * jw), spec[0] * (base * jw), spec[0] * base, spec[1] * base])
-    out = scipy.fft.irfft(ops, nfft, axis=-1)[..., pad:pad + n]
-    return np.moveaxis(out[:3], 0, -1), out[3]
+    mult = np.stack([base * jw * jw, base * jw, base])
+    mult.flags.writeable = False
+    return mult
 
 
 # ---------------------------------------------------------------------------------------- EWLS (eq. 6)
@@ -147,13 +176,14 @@ def rk4_coefficients(lam: float, h: float) -> tuple[float, float, float, float]:
     return c, h / 6 * (1.0 - z + z * z / 2.0 - z ** 3 / 4.0), h / 6 * (4.0 - 2.0 * z + z * z / 2.0), h / 6
 
 
-def _products(Phi: np.ndarray, y: np.ndarray) -> np.ndarray:
+def _products(Phi: np.ndarray, y: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
     """``[unique entries of Phi Phi^T, Phi y]`` per sample, summed over records, shape (9, n).
 
     ``Phi`` has shape (3, n_records, n) (regressor first: each product is one contiguous pass), ``y``
-    (n_records, n).
+    (n_records, n); ``out``, if given, a (9, n) array written in place.
     """
-    out = np.empty((9, y.shape[-1]))
+    if out is None:
+        out = np.empty((9, y.shape[-1]))
     for m, (i, j) in enumerate(zip(*_IU)):
         np.einsum("rn,rn->n", Phi[i], Phi[j], out=out[m])
     for i in range(3):
@@ -175,29 +205,42 @@ def _unpack(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return R, x[..., 6:]
 
 
-def _solve_spd3(x: np.ndarray) -> np.ndarray:
+def _solve_spd3(x: np.ndarray, overwrite_x: bool = False) -> np.ndarray:
     """``R^-1 r`` per sample from ``x`` = [unique entries of R, r], shape (9, n); ``R`` symmetric positive
     definite. Returns shape (n, 3).
 
     Columns scaled so that the mean diagonal of ``R`` is 1, then ``R = L D L^T`` written out for 3 x 3
     (no pivoting is needed for a positive definite matrix) and two triangular solves, every step one
-    vectorised operation over the samples.
+    vectorised operation over the samples. The steps write into four work rows and into the rows of the
+    scaled ``x`` they no longer need (``overwrite_x=True``: ``x`` itself is scaled, and destroyed).
     """
     s = 1.0 / np.sqrt(x[[0, 3, 5]].mean(axis=1))
-    a00, a01, a02, a11, a12, a22 = (x[k] * (s[i] * s[j]) for k, (i, j) in enumerate(zip(*_IU)))
-    b0, b1, b2 = x[6] * s[0], x[7] * s[1], x[8] * s[2]
-    l10, l20 = a01 / a00, a02 / a00
-    d1 = a11 - l10 * a01
-    e12 = a12 - l20 * a01
-    l21 = e12 / d1
-    d2 = a22 - l20 * a02 - l21 * e12
+    a = x if overwrite_x else np.empty_like(x)
+    for k, (i, j) in enumerate(zip(*_IU)):
+        np.multiply(x[k], s[i] * s[j], out=a[k])
+    for i in range(3):
+        np.multiply(x[6 + i], s[i], out=a[6 + i])
+    a00, a01, a02, a11, a12, a22, b0, b1, b2 = a
+    mul, sub, div = np.multiply, np.subtract, np.divide
+    l10, l20, l21, t = np.empty((4, x.shape[-1]))
+    div(a01, a00, out=l10)
+    div(a02, a00, out=l20)
+    d1 = sub(a11, mul(l10, a01, out=t), out=a11)                          # a11 - l10 a01
+    e12 = sub(a12, mul(l20, a01, out=t), out=a12)                         # a12 - l20 a01
+    div(e12, d1, out=l21)
+    d2 = sub(sub(a22, mul(l20, a02, out=t), out=a22), mul(l21, e12, out=t), out=a22)  # a22 - l20 a02 - l21 e12
     if not (np.all(d1 > 0) and np.all(d2 > 0) and np.all(a00 > 0)):
         raise np.linalg.LinAlgError("EWLS information matrix is not positive definite")
-    z1 = b1 - l10 * b0
-    x2 = (b2 - l20 * b0 - l21 * z1) / d2
-    x1 = (z1 - e12 * x2) / d1
-    x0 = (b0 - a01 * x1 - a02 * x2) / a00
-    return np.stack([x0 * s[0], x1 * s[1], x2 * s[2]], axis=1)
+    z1 = sub(b1, mul(l10, b0, out=t), out=b1)                             # b1 - l10 b0
+    x2 = sub(sub(b2, mul(l20, b0, out=t), out=b2), mul(l21, z1, out=t), out=b2)
+    div(x2, d2, out=x2)                                                   # (b2 - l20 b0 - l21 z1) / d2
+    x1 = div(sub(z1, mul(e12, x2, out=t), out=z1), d1, out=z1)            # (z1 - e12 x2) / d1
+    x0 = sub(sub(b0, mul(a01, x1, out=t), out=b0), mul(a02, x2, out=t), out=b0)
+    div(x0, a00, out=x0)                                                  # (b0 - a01 x1 - a02 x2) / a00
+    out = np.empty((x.shape[-1], 3))
+    for i, xi in enumerate((x0, x1, x2)):
+        mul(xi, s[i], out=out[:, i])
+    return out
 
 
 def ewls(Phi: np.ndarray, y: np.ndarray, dt: float, lam: float, R0: np.ndarray,
@@ -226,14 +269,18 @@ def ewls(Phi: np.ndarray, y: np.ndarray, dt: float, lam: float, R0: np.ndarray,
     P = np.ascontiguousarray(np.moveaxis(Phi, -1, 0))           # (3, n_records, n)
     y = np.ascontiguousarray(y)
     f = _products(P, y)
-    fm = _products(0.5 * (P[..., 1:] + P[..., :-1]), 0.5 * (y[:, 1:] + y[:, :-1]))
+    Pm = np.add(P[..., 1:], P[..., :-1])                          # mid-points, 0.5 (a + b), in place
+    Pm *= 0.5
+    ym = np.add(y[:, 1:], y[:, :-1])
+    ym *= 0.5
+    fm = _products(Pm, ym)
     drive = np.empty_like(f)
     drive[:, 0] = np.concatenate([R0[_IU], r0])
     d = drive[:, 1:]
-    np.multiply(f[:, :-1], w0, out=d)
-    d += wm * fm
-    d += w1 * f[:, 1:]
-    return _solve_spd3(sps.lfilter([1.0], [1.0, -c], drive, axis=-1))
+    np.multiply(f[:, :-1], w0, out=d)                           # w0 f0 + wm fm + w1 f1, left to right
+    d += np.multiply(fm, wm, out=fm)
+    d += np.multiply(f[:, 1:], w1, out=fm)
+    return _solve_spd3(sps.lfilter([1.0], [1.0, -c], drive, axis=-1), overwrite_x=True)
 
 
 def ewls_start(Phi: np.ndarray, y: np.ndarray, fs: float, init_window: float) -> tuple[np.ndarray, np.ndarray]:

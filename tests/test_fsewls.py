@@ -230,6 +230,8 @@ def test_spd_solve_equals_lapack_and_refuses_indefinite():
     x = np.concatenate([R[:, _IU[0], _IU[1]], r], axis=1).T
     want = np.linalg.solve(R, r[..., None])[..., 0]
     assert np.abs(_solve_spd3(x) - want).max() <= 1e-11 * np.abs(want).max()
+    y = x.copy()                                          # in place (as ewls calls it): the same bits
+    assert np.array_equal(_solve_spd3(y, overwrite_x=True), _solve_spd3(x)) and not np.array_equal(x, y)
     R[7] = np.diag([1.0, -1.0, 1.0])                       # indefinite at one sample
     x = np.concatenate([R[:, _IU[0], _IU[1]], r], axis=1).T
     with pytest.raises(np.linalg.LinAlgError, match="not positive definite"):
@@ -331,3 +333,36 @@ def test_svf_lowpass_form_drops_the_differentiator():
     Phi_low, _ = svf(theta, theta, fs, a=39.4, order=3, causal=False, form="lowpass")
     Phi_pr, _ = svf(theta, theta, fs, a=39.4, order=3, causal=False, form="printed")
     assert np.allclose(Phi_low[mid, 2], 0.3, atol=1e-6) and np.allclose(Phi_pr[mid, 2], 0.0, atol=1e-6)
+
+
+def _svf_as_first_written(theta, tau, fs, a, order, causal, form):
+    """svf as it was before issue 22 (filters designed per call, np.pad, np.stack of the products)."""
+    import scipy.fft
+    from jointbench.estimators.fsewls import _odd_fast_len
+    n = theta.shape[-1]
+    pad = int(np.ceil(40.0 / a * fs))
+    nfft = _odd_fast_len(n + 2 * pad)
+    f = scipy.fft.rfftfreq(nfft, 1.0 / fs)
+    jw = 2j * np.pi * f
+    low = (a / (jw + a)) ** order if causal else (a * a / (a * a + (2 * np.pi * f) ** 2)) ** (order / 2.0)
+    widths = [(0, 0)] * (theta.ndim - 1) + [(pad, nfft - n - pad)]
+    spec = scipy.fft.rfft(np.stack([np.pad(theta, widths), np.pad(tau, widths)]), axis=-1)
+    base = low * jw ** (order - 2) if form == "printed" else low
+    ops = np.stack([spec[0] * (base * jw * jw), spec[0] * (base * jw), spec[0] * base, spec[1] * base])
+    out = scipy.fft.irfft(ops, nfft, axis=-1)[..., pad:pad + n]
+    return np.moveaxis(out[:3], 0, -1), out[3]
+
+
+@pytest.mark.parametrize("causal", [False, True])
+@pytest.mark.parametrize("shape", [(30000,), (2, 30000), (5000,)])
+def test_svf_with_cached_multipliers_is_bit_identical(shape, causal):
+    """The multipliers designed once per record length (issue 22) give the bits of the former svf, on 1-D and
+    pooled records, twice in a row (the second call from the cache), in both forms."""
+    rng = np.random.default_rng(22)
+    theta, tau = rng.standard_normal(shape), rng.standard_normal(shape)
+    for form in ("printed", "lowpass"):
+        want = _svf_as_first_written(theta, tau, FS, 39.4, 3, causal, form)
+        for _ in range(2):
+            got = svf(theta, tau, FS, 39.4, 3, causal, form)
+            assert all(g.shape == w.shape and np.array_equal(g.view(np.int64), w.view(np.int64))
+                       for g, w in zip(got, want))
