@@ -122,6 +122,17 @@ def _cpu_seconds() -> float:
     return me.ru_utime + me.ru_stime + kids.ru_utime + kids.ru_stime
 
 
+def _append(log: Path, fields: list[str], rows: list[dict]) -> None:
+    """Append ``rows`` to the CSV ``log`` (in :data:`STORAGE`), with its header when the file is new."""
+    STORAGE.mkdir(exist_ok=True)
+    new_file = not log.is_file()
+    with open(log, "a", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=fields)
+        if new_file:
+            w.writeheader()
+        w.writerows(rows)
+
+
 def studies() -> tuple[int, list[dict]]:
     """Run every study of ``make reproduce`` without cache into a temporary folder; record the wall times."""
     from jointbench.benchmarks.study import run_study
@@ -153,13 +164,7 @@ def studies() -> tuple[int, list[dict]]:
                          "study": study, "cases": len(run.results), "wall_s": f"{wall:.1f}", "cpu_s": f"{cpu:.1f}",
                          "cpus": os.cpu_count(), "load_before": f"{load0:.2f}",
                          "load_after": f"{os.getloadavg()[0]:.2f}"})
-    STORAGE.mkdir(exist_ok=True)
-    new_file = not log.is_file()
-    with open(log, "a", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=fields)
-        if new_file:
-            w.writeheader()
-        w.writerows(rows)
+    _append(log, fields, rows)
     print(f"\nstudy wall times (no cache; appended to {log.relative_to(REPO)}):")
     print(f"{'study':24s} {'cases':>6s} {'wall s':>8s} {'CPU s':>8s} {'previous':>9s} {'ratio':>6s}  "
           f"load 1 min (before/after)")
@@ -198,14 +203,8 @@ def fresh_clone() -> tuple[int, dict]:
     row = {"date": datetime.datetime.now().isoformat(timespec="seconds"), "commit": _commit(),
            "wall_s": f"{wall:.1f}", "cpu_s": f"{cpu:.1f}", "cpus": os.cpu_count(), "load_before": f"{load0:.2f}",
            "load_after": f"{os.getloadavg()[0]:.2f}", "exit": done.returncode}
-    STORAGE.mkdir(exist_ok=True)
     log = STORAGE / "reproduce_times.csv"
-    new_file = not log.is_file()
-    with open(log, "a", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=fields)
-        if new_file:
-            w.writeheader()
-        w.writerow(row)
+    _append(log, fields, [row])
     print(f"fresh clone: make reproduce {row['wall_s']} s wall, {row['cpu_s']} CPU-s, exit {done.returncode} "
           f"(load {row['load_before']}/{row['load_after']}; appended to {log.relative_to(REPO)})")
     return (0 if done.returncode == 0 else 1), row
