@@ -135,7 +135,9 @@ def chance(excited: int, powered: int, level: float = 0.95) -> float:
     p = 1.0 - level
     if excited <= 0:
         return 1.0
+    if excited > powered:
+        return 0.0
     logs = [math.lgamma(powered + 1) - math.lgamma(j + 1) - math.lgamma(powered - j + 1)
             + j * math.log(p) + (powered - j) * math.log1p(-p) for j in range(excited, powered + 1)]
-    top = max(logs) if logs else -math.inf
-    return float(min(1.0, math.exp(top) * sum(math.exp(v - top) for v in logs))) if logs else 0.0
+    top = max(logs)                 # the terms summed relative to the largest (no underflow)
+    return float(min(1.0, math.exp(top) * sum(math.exp(v - top) for v in logs)))

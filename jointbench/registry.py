@@ -177,7 +177,7 @@ def _decorated_nodes(text: str, decorator: str, where: str) -> list:
         k = j
         while k < len(lines) and not re.search(r":\s*(#.*)?$", lines[k]):
             k += 1
-        body = [ln for ln in lines[k + 1:k + 2]]
+        body: list[str] = []                         # the docstring's lines, if any
         m = k + 1
         while m < len(lines) and not lines[m].strip():
             m += 1

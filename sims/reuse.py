@@ -152,60 +152,57 @@ def lookup(key: bytes | None, compute: Callable[[], Any]) -> tuple[Any, bool]:
     return _MEMOS[-1].get(key, compute)
 
 
-def trial_key(response: bytes | None, experiment: Any, replicate: int, name: str) -> bytes | None:
-    """Key of a whole trial: its response's key with the sensors, the acquisition, the replicate and the
-    name (a trial asked for twice, by two cases that fit it with different estimators, is the same)."""
+def _derived_key(response: bytes | None, parts: tuple) -> bytes | None:
+    """A key derived from a response's: the response key followed by the pickled ``parts`` (None when the
+    response has no key or a part cannot be pickled: then nothing is kept)."""
     if response is None:
         return None
     try:
-        return response + pickle.dumps((experiment.sensors, experiment.acquisition, int(replicate), str(name)),
-                                       protocol=4)
+        return response + pickle.dumps(parts, protocol=4)
     except (pickle.PicklingError, TypeError, AttributeError):
         return None
 
 
+def _lookup_in(memo: str, key: bytes | None, compute: Callable[[], Any]) -> tuple[Any, bool]:
+    """``get`` of the named secondary memo (``trials``, ``sensed``, ``noise``) of the innermost open block, or
+    ``compute()`` when no block is open."""
+    inner = getattr(_MEMOS[-1], memo) if _MEMOS else None
+    if inner is None:
+        return compute(), False
+    return inner.get(key, compute)
+
+
+def trial_key(response: bytes | None, experiment: Any, replicate: int, name: str) -> bytes | None:
+    """Key of a whole trial: its response's key with the sensors, the acquisition, the replicate and the
+    name (a trial asked for twice, by two cases that fit it with different estimators, is the same)."""
+    return _derived_key(response, (experiment.sensors, experiment.acquisition, int(replicate), str(name)))
+
+
 def lookup_trial(key: bytes | None, compute: Callable[[], Any]) -> tuple[Any, bool]:
     """Like :func:`lookup`, for whole trials (the second memo of the innermost open block)."""
-    if not _MEMOS or _MEMOS[-1].trials is None:
-        return compute(), False
-    return _MEMOS[-1].trials.get(key, compute)
+    return _lookup_in("trials", key, compute)
 
 
 def sensed_key(response: bytes | None, experiment: Any) -> bytes | None:
     """Key of a response's noise-free sensed channels: its response's key with the two sensors' analog
     filters and the acquisition (the noise, its filter and the quantization do not enter)."""
-    if response is None:
-        return None
-    try:
-        return response + pickle.dumps(("sensed", experiment.sensors.angle.filter, experiment.sensors.torque.filter,
-                                        experiment.acquisition), protocol=4)
-    except (pickle.PicklingError, TypeError, AttributeError):
-        return None
+    return _derived_key(response, ("sensed", experiment.sensors.angle.filter, experiment.sensors.torque.filter,
+                                   experiment.acquisition))
 
 
 def lookup_sensed(key: bytes | None, compute: Callable[[], Any]) -> tuple[Any, bool]:
     """Like :func:`lookup`, for the noise-free sensed channels of a response (the third memo of the innermost
     open block): trials that differ only in their noise or quantization filter and acquire them once."""
-    if not _MEMOS or _MEMOS[-1].sensed is None:
-        return compute(), False
-    return _MEMOS[-1].sensed.get(key, compute)
+    return _lookup_in("sensed", key, compute)
 
 
 def noise_key(response: bytes | None, experiment: Any, stream: str, noise_filter: Any, replicate: int) -> bytes | None:
     """Key of a channel's unit noise (before its gain): the response's key (which holds the seed and the
     realization) with the noise stream, the replicate, the noise filter and the acquisition."""
-    if response is None:
-        return None
-    try:
-        return response + pickle.dumps(("noise", str(stream), int(replicate), noise_filter, experiment.acquisition),
-                                       protocol=4)
-    except (pickle.PicklingError, TypeError, AttributeError):
-        return None
+    return _derived_key(response, ("noise", str(stream), int(replicate), noise_filter, experiment.acquisition))
 
 
 def lookup_noise(key: bytes | None, compute: Callable[[], Any]) -> tuple[Any, bool]:
     """Like :func:`lookup`, for a channel's unit noise (the fourth memo of the innermost open block): trials
     that differ only in the noise level draw, filter and acquire it once."""
-    if not _MEMOS or _MEMOS[-1].noise is None:
-        return compute(), False
-    return _MEMOS[-1].noise.get(key, compute)
+    return _lookup_in("noise", key, compute)

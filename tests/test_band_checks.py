@@ -271,3 +271,14 @@ def test_csv_states_the_band_of_irf2_and_fsewls(tmp_path, name):
     else:
         assert (lo, hi) == (0.0, 12.5)
         assert "the input's band 0 ... 12.5 Hz" in text
+
+
+def test_chance_is_the_binomial_tail_of_the_coherence_test():
+    """Hand-checkable: with 5 frequencies each passing by chance at 5 %, 3 or more pass with probability
+    C(5,3) .05^3 .95^2 + C(5,4) .05^4 .95 + .05^5 = 0.00115813 (the refusal's 3-of-5 figure)."""
+    from jointbench.estimators._band import chance
+
+    assert chance(3, 5) == pytest.approx(0.00115813, rel=1e-5)
+    assert chance(0, 7) == 1.0 and chance(8, 7) == 0.0
+    assert chance(1, 1) == pytest.approx(0.05)
+    assert chance(63, 63) == pytest.approx(0.05 ** 63, rel=1e-9)      # no underflow of the log-space sum
