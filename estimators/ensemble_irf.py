@@ -8,7 +8,8 @@ import numpy as np
 
 from jointbench.estimators import register
 from jointbench.estimators._resample import JackknifeSettings, realization_jackknife
-from jointbench.estimators._tvirf import EnsembleEstimator, TVLagSettings, centred, gram_stack, lagged, mdl_solve
+from jointbench.estimators._tvirf import (EnsembleEstimator, TVLagSettings, centred, fill_invalid, gram_stack, lagged,
+                                          mdl_solve)
 from jointbench.ensemble import Ensemble
 from jointbench.errors import InputError
 from jointbench.estimate_tv import TVIRFEstimate
@@ -103,16 +104,13 @@ class EnsembleIRF(EnsembleEstimator):
         for a in (Phi, phi, yy):                    # per observation (new arrays: in place)
             a /= n_obs
         hv, order = mdl_solve(Phi, phi, yy, n_obs, s.solver, s.rcond)
-        lo, hi = m2 + P, n - m1 - P                 # the valid span; held outside it
         valid = np.zeros(n, bool)
-        valid[lo:hi] = True
-        h = np.empty((L, n))
-        h[:, lo:hi] = hv.T
-        h[:, :lo] = hv[:1].T
-        h[:, hi:] = hv[-1:].T
+        valid[m2 + P:n - m1 - P] = True
+        h = np.zeros((L, n))
+        h[:, valid] = hv.T
         info = {"realizations": R, "pool_samples": P, "equations_per_time": n_obs,
                 "order": f"{int(order.min())} ... {int(order.max())} of {L} (median {int(np.median(order))})",
                 "remove_mean": s.remove_mean}
-        est = TVIRFEstimate(lags=np.arange(-m1, m2 + 1), h=h, fs=fs, time=ens.time,
+        est = TVIRFEstimate(lags=np.arange(-m1, m2 + 1), h=fill_invalid(h, valid), fs=fs, time=ens.time,
                              valid=valid, estimator=self.name, info=info)
         return est.with_intervals(lambda: realization_jackknife(self.name, ens, self._fit_ensemble, est, s))
