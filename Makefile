@@ -85,11 +85,19 @@ bench-studies: $(STAMP)
 
 # The studies, side by side (each one's last cases, figures and report overlap the others' computing, so
 # both cores stay busy; quiet: four progress bars would garble each other), then the README's status
-# tables from their comparison.csv files (never typed by hand).
+# tables from their comparison.csv files (never typed by hand). The four studies are the parallelism: with
+# fewer than 8 cores each runs its cases in its own process (--serial: four processes on 2 cores, where
+# four pools of workers on top of them made 12 processes and cost 15 % more CPU on the same numbers,
+# issue 22); with 8 or more cores each study gets a pool of cores/4 workers. A RUN_ARGS that says where
+# cases run (--serial, --workers, --executor) is used as given.
 REPRODUCE_STUDIES := westwick2012 xu1998 vanderuit2018-table1 vanderuit2018-table2
+REPRODUCE_CORES   := $(shell nproc 2>/dev/null || echo 2)
+REPRODUCE_WHERE   := $(if $(findstring --serial,$(RUN_ARGS))$(findstring --workers,$(RUN_ARGS))$(findstring \
+                       --executor,$(RUN_ARGS)),,$(shell n=$(REPRODUCE_CORES); \
+                       if [ "$$n" -ge 8 ] 2>/dev/null; then echo "--workers $$((n / 4))"; else echo --serial; fi))
 reproduce: $(STAMP)
-	@echo "running $(REPRODUCE_STUDIES) side by side; each prints its summary when it is done"
-	@$(MAKE) --no-print-directory -j4 $(REPRODUCE_STUDIES) RUN_ARGS="--quiet $(RUN_ARGS)"
+	@echo "running $(REPRODUCE_STUDIES) side by side ($(or $(REPRODUCE_WHERE),$(RUN_ARGS))); each prints its summary when it is done"
+	@$(MAKE) --no-print-directory -j4 $(REPRODUCE_STUDIES) RUN_ARGS="--quiet $(REPRODUCE_WHERE) $(RUN_ARGS)"
 	$(BIN)/jointbench status --write-readme
 
 westwick2012: $(STAMP)

@@ -133,6 +133,13 @@ def _append(log: Path, fields: list[str], rows: list[dict]) -> None:
         w.writerows(rows)
 
 
+def reproduce_executor() -> tuple[bool, int | None]:
+    """``(serial, workers)`` of each study in ``make reproduce`` on this machine (the Makefile's
+    ``REPRODUCE_WHERE``): in its own process below 8 cores, else a pool of cores/4 workers."""
+    cores = os.cpu_count() or 2
+    return (True, None) if cores < 8 else (False, cores // 4)
+
+
 def studies() -> tuple[int, list[dict]]:
     """Run every study of ``make reproduce`` without cache into a temporary folder; record the wall times."""
     from jointbench.benchmarks.study import run_study
@@ -143,7 +150,9 @@ def studies() -> tuple[int, list[dict]]:
         with open(log, newline="") as fh:
             for row in csv.DictReader(fh):
                 previous[row["study"]] = row
-    fields = ["date", "commit", "study", "cases", "wall_s", "cpu_s", "cpus", "load_before", "load_after"]
+    fields = ["date", "commit", "study", "cases", "wall_s", "cpu_s", "cpus", "where", "load_before", "load_after"]
+    serial, workers = reproduce_executor()
+    where = "in its own process (--serial)" if serial else f"on {workers} workers"
     if log.is_file() and open(log).readline().strip().split(",") != fields:
         log.rename(log.with_suffix(".old.csv"))     # an older layout: kept beside, a new file begins
         previous = {}
@@ -153,8 +162,8 @@ def studies() -> tuple[int, list[dict]]:
             load0 = os.getloadavg()[0]
             cpu0 = _cpu_seconds()
             t0 = time.perf_counter()
-            run = run_study(study, out_root=Path(tmp), use_cache=False, progress=False,
-                            command=f"make bench ({study})")
+            run = run_study(study, out_root=Path(tmp), use_cache=False, progress=False, serial=serial,
+                            workers=workers, command=f"make bench ({study})")
             wall = time.perf_counter() - t0
             cpu = _cpu_seconds() - cpu0
             if run.failed:
@@ -162,7 +171,7 @@ def studies() -> tuple[int, list[dict]]:
                 rc = 1
             rows.append({"date": datetime.datetime.now().isoformat(timespec="seconds"), "commit": _commit(),
                          "study": study, "cases": len(run.results), "wall_s": f"{wall:.1f}", "cpu_s": f"{cpu:.1f}",
-                         "cpus": os.cpu_count(), "load_before": f"{load0:.2f}",
+                         "cpus": os.cpu_count(), "where": where, "load_before": f"{load0:.2f}",
                          "load_after": f"{os.getloadavg()[0]:.2f}"})
     _append(log, fields, rows)
     print(f"\nstudy wall times (no cache; appended to {log.relative_to(REPO)}):")

@@ -181,7 +181,8 @@ def render(report: dict, studies: list[dict] | None = None, load: tuple[str, str
         lines += gate(report, reference, factor)[0]
     if studies:
         lines += ["", "Whole studies of `make reproduce`, run one after the other from scratch (no cache) in "
-                  "the same `make bench` (2 workers each):", "",
+                  "the same `make bench`, each as `make reproduce` runs it (" +
+                  ", ".join(sorted({r.get("where") or "on a pool of workers" for r in studies})) + "):", "",
                   "| study | cases | wall s | CPU s | load before / after |", "|---|---|---|---|---|"]
         for r in studies:
             lines.append(f"| {r['study']} | {r['cases']} | {r['wall_s']} | {r['cpu_s']} | "
