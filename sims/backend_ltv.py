@@ -20,13 +20,16 @@ Python loop over samples.
 """
 from __future__ import annotations
 
+import collections
 import math
+import pickle
 
 import numpy as np
 
 from jointbench.sims import BACKENDS
 from jointbench.sims.apparatus import derivative  # noqa: F401 - re-exported: the drive's derivative, shared with lti
 from jointbench.sims.backend import Backend, Response
+from jointbench.sims.reuse import nbytes
 
 _TAYLOR_TERMS = 12  # at |A tau| <= 0.25 the next term is below 1e-16
 BLOCK = 32          # steps per block of affine_recursion (16 ... 64 were about equally fast at 1e5 steps)
@@ -202,11 +205,52 @@ def affine_recursion(E, v0: np.ndarray, v1: np.ndarray, x0: tuple[float, float])
     return out_x, out_y
 
 
+#: the step weights of the last joints simulated in this process, by pickled (joint, coupling, n, h): trials of
+#: one joint time course with other perturbations (another seed) share them; arrays read-only, so a hit is
+#: the same numbers and no caller can change them
+_WEIGHTS: collections.OrderedDict = collections.OrderedDict()
+WEIGHTS_MAX_BYTES = 256e6
+_WEIGHTS_STATS = {"computed": 0, "reused": 0}
+
+
+def _weights_key(joint, coupling, n: int, h: float) -> bytes | None:
+    """The memo key of :func:`step_weights`, or None for a joint that holds arrays (an estimated model's
+    time course, one of a kind: pickling it would cost more than it saves)."""
+    try:
+        if nbytes(vars(joint)) or nbytes(vars(coupling)):
+            return None
+        return pickle.dumps((joint, coupling, int(n), float(h)), protocol=4)
+    except (TypeError, AttributeError, pickle.PicklingError):
+        return None
+
+
 def step_weights(joint, coupling, n: int, h: float):
     """The per-step pieces of the exponential midpoint rule for ``n`` samples at step ``h`` (shared with the
     time-stepping path, :mod:`sims.backend_stepping`): the sample times ``t``, the inertia at the steps'
     midpoints ``Im``, ``p``, ``q`` of ``A = [[0, 1], [p, q]]``, the transition ``E`` (4 components) and
-    column 1 of J1 and J2 ``(J1_01, J1_11, J2_01, J2_11)`` (``(c0 I + c1 A)[:, 1] = (c1, c0 + q c1)``)."""
+    column 1 of J1 and J2 ``(J1_01, J1_11, J2_01, J2_11)`` (``(c0 I + c1 A)[:, 1] = (c1, c0 + q c1)``).
+
+    They depend on the joint's time course and the coupling only, not on the input: kept for the last
+    joints of this process (:data:`WEIGHTS_MAX_BYTES`), as read-only arrays."""
+    key = _weights_key(joint, coupling, n, h)
+    if key is not None and key in _WEIGHTS:
+        _WEIGHTS.move_to_end(key)
+        _WEIGHTS_STATS["reused"] += 1
+        return _WEIGHTS[key][0]
+    out = _step_weights(joint, coupling, n, h)
+    _WEIGHTS_STATS["computed"] += 1
+    if key is not None:
+        arrays = [out[0], out[1], out[2], out[3], *out[4], *out[5]]
+        for a in arrays:
+            a.setflags(write=False)
+        _WEIGHTS[key] = (out, sum(a.nbytes for a in arrays))
+        while sum(m for _, m in _WEIGHTS.values()) > WEIGHTS_MAX_BYTES and len(_WEIGHTS) > 1:
+            _WEIGHTS.popitem(last=False)
+    return out
+
+
+def _step_weights(joint, coupling, n: int, h: float):
+    """:func:`step_weights` computed."""
     t = np.arange(n) * h
     Im, Bm, Km = joint.coefficients_at(t[:-1] + h / 2)
     p = -(Km + coupling.k_a) / Im

@@ -50,15 +50,16 @@ def response_key(experiment: Any, seed: Any, realization: int, backend: str) -> 
         return None
 
 
-def _nbytes(value: Any) -> int:
+def nbytes(value: Any) -> int:
+    """Bytes of the arrays in ``value`` (arrays, dataclasses, dicts, tuples and lists of them, nested)."""
     if isinstance(value, np.ndarray):
         return value.nbytes
     if dataclasses.is_dataclass(value):
-        return sum(_nbytes(getattr(value, f.name)) for f in dataclasses.fields(value))
+        return sum(nbytes(getattr(value, f.name)) for f in dataclasses.fields(value))
     if isinstance(value, dict):
-        return sum(_nbytes(v) for v in value.values())
+        return sum(nbytes(v) for v in value.values())
     if isinstance(value, (tuple, list)):
-        return sum(_nbytes(v) for v in value)
+        return sum(nbytes(v) for v in value)
     return 0
 
 
@@ -103,7 +104,7 @@ class ResponseMemo:
         value = compute()
         self.computed += 1
         if key is not None:
-            n = _nbytes(value)
+            n = nbytes(value)
             self.entries[key] = (_copy(value), n)
             self.size += n
             while self.size > self.max_bytes and len(self.entries) > 1:

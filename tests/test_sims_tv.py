@@ -442,3 +442,34 @@ def test_decimate_of_columns_is_decimate_of_each_column():
         assert y.flags.c_contiguous
         for i in range(3):
             assert np.array_equal(y[:, i], decimate(np.ascontiguousarray(x[:, i]), q))
+
+
+def test_step_weights_of_a_joint_are_kept_bit_identical_read_only_and_not_for_array_joints():
+    """Trials of one joint time course with other seeds share the step weights (sims/backend_ltv.py): the
+    same numbers as computed anew, read-only, and never kept for a joint that holds arrays."""
+    from jointbench.sims import backend_ltv as bl
+
+    exp = Experiment.from_mapping(XU, "test")
+    bl._WEIGHTS.clear()
+    a = simulate(exp, 1)
+    before = dict(bl._WEIGHTS_STATS)
+    b = simulate(exp, 2)                               # another perturbation, the same joint
+    assert bl._WEIGHTS_STATS["reused"] > before["reused"] and bl._WEIGHTS_STATS["computed"] == before["computed"]
+    bl._WEIGHTS.clear()
+    b_alone = simulate(exp, 2)
+    for x, y in ((b.angle, b_alone.angle), (b.torque, b_alone.torque)):
+        assert np.array_equal(x, y)
+    assert not np.array_equal(a.angle, b.angle)
+    kept = next(iter(bl._WEIGHTS.values()))[0]
+    assert not kept[2].flags.writeable and not kept[4][0].flags.writeable
+
+    class ArrayJoint:                                  # an estimated model's time course: not kept
+        def __init__(self, n):
+            self.I, self.B, self.K = np.full(n, 0.06), np.full(n, 1.0), np.linspace(30, 50, n)
+
+        def coefficients_at(self, t):
+            return tuple(np.interp(t, np.arange(len(self.K)) * 1e-3, v) for v in (self.I, self.B, self.K))
+
+    n0 = len(bl._WEIGHTS)
+    LTVBackend().run(ArrayJoint(2000), TorqueDrive(), np.ones(2000), np.zeros(2000), 1000.0)
+    assert len(bl._WEIGHTS) == n0
