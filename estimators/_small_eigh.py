@@ -5,7 +5,9 @@ Private module (the leading underscore keeps it out of the estimator registry) o
 few tenths of a second, so ``import jointbench.estimators`` does not. numpy's ``linalg.eigh`` calls
 LAPACK once per matrix, and for the thousands of 9 x 9 information matrices of an ensemble fit its cost
 per call (about 5 us) was most of the fit (issue 22); here one compiled loop over the stack does the
-eigendecomposition, the MDL order and the solution of every matrix.
+eigendecomposition, the MDL order and the solution of every matrix. :func:`lagged_gram` forms the
+matrices themselves for ``ensemble_irf`` from the products of samples up to ``L - 1`` apart (numpy's
+batched product of the lagged input with itself was the next largest part of the fit).
 
 The eigensolver is the textbook one (Golub & Van Loan, Matrix Computations, 4th ed., Sec. 8.3):
 Householder reduction to tridiagonal form ``A = Q T Q^T`` with ``Q`` accumulated, then implicit
@@ -340,6 +342,50 @@ def _mdl_stack(Phi, phi, yvar, n_obs, full, rcond, h, order):
                 for l in range(n):
                     h[t, l] += c * W[idx[i], l, q]
     return -1
+
+
+@jit
+def _lagged_gram(U, L, Phi, C):
+    """``Phi[i] = X[i]^T X[i]`` for the lagged input ``X[i, r, j] = U[i + L - 1 - j, r]``:
+    ``Phi[i, j, l] = C[|j - l|, i + L - 1 - min(j, l)]`` with ``C[k, s] = sum_r U[s, r] U[s - k, r]``, the
+    products of samples k apart, each formed once (the Gram matrices of neighbouring times share all but
+    their first row and column)."""
+    n, R = U.shape
+    for s in range(n):
+        for k in range(min(L, s + 1)):            # L sums side by side, each over r in order
+            acc = 0.0
+            for r in range(R):
+                acc += U[s, r] * U[s - k, r]
+            C[k, s] = acc
+    for i in range(Phi.shape[0]):
+        for j in range(L):
+            for l in range(j, L):
+                Phi[i, j, l] = Phi[i, l, j] = C[l - j, i + L - 1 - j]
+
+
+def lagged_gram(U: np.ndarray, L: int) -> np.ndarray:
+    """The Gram matrices of the lagged input of every realization, as ``gram_stack(lagged(U, M1, M2))`` of
+    :mod:`jointbench.estimators._tvirf` (``L = M1 + M2 + 1``), from the products of the samples ``0 ... L - 1``
+    apart (``n L R`` products instead of ``(n - L + 1) L^2 R``).
+
+    Parameters
+    ----------
+    U : ndarray (n, R)
+        Input of each realization.
+    L : int
+        Lags.
+
+    Returns
+    -------
+    ndarray (n - L + 1, L, L)
+        ``Phi[i, j, l] = sum_r U[i + L - 1 - j, r] U[i + L - 1 - l, r]``: row ``i`` belongs to sample
+        ``i + M2``, column ``j`` to lag ``j - M1``.
+    """
+    U = _stack(U)
+    n = U.shape[0]
+    Phi = np.empty((n - L + 1, L, L))
+    _lagged_gram(U, L, Phi, np.empty((L, n)))
+    return Phi
 
 
 def _stack(a: np.ndarray) -> np.ndarray:
