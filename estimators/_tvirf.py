@@ -164,24 +164,16 @@ def mdl_solve(Phi: np.ndarray, phi: np.ndarray, yvar: np.ndarray, n_obs: float, 
     h : ndarray (T, L)
     order : ndarray of int (T,)
         Singular vectors kept.
+
+    Notes
+    -----
+    The eigendecompositions, orders and solutions are computed in one compiled loop over the stack
+    (:mod:`jointbench.estimators._small_eigh`; numpy's ``linalg.eigh``, one LAPACK call per matrix, cost
+    three quarters of an ensemble fit, issue 22).
     """
-    with one_blas_thread():             # thousands of tiny LAPACK calls
-        s, V = np.linalg.eigh(Phi)
-    s, V = s[:, ::-1], V[:, :, ::-1]
-    keep = s > rcond * s[:, :1]
-    proj = np.einsum("tli,tl->ti", V, phi)
-    inv = np.where(keep, 1.0 / np.where(keep, s, 1.0), 0.0)
-    if solver == "full":
-        order = keep.sum(axis=1)
-        coef = proj * inv
-    else:
-        explained = np.cumsum(proj ** 2 * inv, axis=1)
-        d = np.arange(1, Phi.shape[1] + 1)
-        mdl = (1.0 + d * np.log(n_obs) / n_obs) * (yvar[:, None] - explained)
-        mdl = np.where(keep, mdl, np.inf)
-        order = np.argmin(mdl, axis=1) + 1
-        coef = np.where(d[None, :] <= order[:, None], proj * inv, 0.0)
-    return np.einsum("tli,ti->tl", V, coef), order
+    from jointbench.estimators._small_eigh import mdl_pinv       # numba: imported on first use
+
+    return mdl_pinv(Phi, phi, yvar, n_obs, solver == "full", rcond)
 
 
 def fill_invalid(h: np.ndarray, valid: np.ndarray) -> np.ndarray:
