@@ -29,7 +29,6 @@ import numpy as np
 from jointbench.sims import BACKENDS
 from jointbench.sims.apparatus import derivative  # noqa: F401 - re-exported: the drive's derivative, shared with lti
 from jointbench.sims.backend import Backend, Response
-from jointbench.sims.reuse import nbytes
 
 _TAYLOR_TERMS = 12  # at |A tau| <= 0.25 the next term is below 1e-16
 BLOCK = 32          # steps per block of affine_recursion (16 ... 64 were about equally fast at 1e5 steps)
@@ -210,18 +209,20 @@ def affine_recursion(E, v0: np.ndarray, v1: np.ndarray, x0: tuple[float, float])
 #: the same numbers and no caller can change them
 _WEIGHTS: collections.OrderedDict = collections.OrderedDict()
 WEIGHTS_MAX_BYTES = 256e6
+WEIGHTS_MAX_KEY = 1 << 16
 _WEIGHTS_STATS = {"computed": 0, "reused": 0}
 
 
 def _weights_key(joint, coupling, n: int, h: float) -> bytes | None:
-    """The memo key of :func:`step_weights`, or None for a joint that holds arrays (an estimated model's
-    time course, one of a kind: pickling it would cost more than it saves)."""
+    """The memo key of :func:`step_weights`, or None for a joint given by arrays or by a description longer
+    than :data:`WEIGHTS_MAX_KEY` (an estimated model's or a recorded time course: one of a kind)."""
     try:
-        if nbytes(vars(joint)) or nbytes(vars(coupling)):
+        if any(isinstance(v, np.ndarray) for v in (*vars(joint).values(), *vars(coupling).values())):
             return None
-        return pickle.dumps((joint, coupling, int(n), float(h)), protocol=4)
+        key = pickle.dumps((joint, coupling, int(n), float(h)), protocol=4)
     except (TypeError, AttributeError, pickle.PicklingError):
         return None
+    return key if len(key) <= WEIGHTS_MAX_KEY else None
 
 
 def step_weights(joint, coupling, n: int, h: float):

@@ -50,16 +50,15 @@ def response_key(experiment: Any, seed: Any, realization: int, backend: str) -> 
         return None
 
 
-def nbytes(value: Any) -> int:
-    """Bytes of the arrays in ``value`` (arrays, dataclasses, dicts, tuples and lists of them, nested)."""
+def _nbytes(value: Any) -> int:
     if isinstance(value, np.ndarray):
         return value.nbytes
     if dataclasses.is_dataclass(value):
-        return sum(nbytes(getattr(value, f.name)) for f in dataclasses.fields(value))
+        return sum(_nbytes(getattr(value, f.name)) for f in dataclasses.fields(value))
     if isinstance(value, dict):
-        return sum(nbytes(v) for v in value.values())
+        return sum(_nbytes(v) for v in value.values())
     if isinstance(value, (tuple, list)):
-        return sum(nbytes(v) for v in value)
+        return sum(_nbytes(v) for v in value)
     return 0
 
 
@@ -104,7 +103,7 @@ class ResponseMemo:
         value = compute()
         self.computed += 1
         if key is not None:
-            n = nbytes(value)
+            n = _nbytes(value)
             self.entries[key] = (_copy(value), n)
             self.size += n
             while self.size > self.max_bytes and len(self.entries) > 1:
