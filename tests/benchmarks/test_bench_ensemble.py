@@ -8,13 +8,11 @@ same estimate the direct way: a loop over times with ``numpy.linalg.pinv`` (``tv
 approach), the dense regression matrix of the basis expansion with ``numpy.linalg.lstsq``, and a loop
 over SDS windows building each window's rows. Beside ensemble_irf, numpy's eigendecompositions of its
 per-time information matrices (``eigh``, ``eigvalsh``): what the fit cost when it called them (issue 22:
-eigh alone was 5.3 of its 7.4 ms, above the 4 ms target). The fit now does them, the MDL order and the
-solution in one compiled loop, and its Gram matrices from the products of samples 0 ... 8 apart
-(estimators/_small_eigh.py, numba): measured for issue 22 on this 2-core machine (three runs), fit
-median 2.72-2.73 ms beside eigh 5.33-5.35 ms and eigvalsh 2.94 ms in the same runs, so the target is
-reached there, and the whole fit takes less than numpy's eigvalsh alone. The first fit of a process
-loads the compiled code (about 0.35 s from numba's disk cache, 4 s to compile it when the cache is
-cold); the timed tests fit once before timing.
+eigh alone took longer than the 4 ms target). The fit now does them, the MDL order and the solution in one
+compiled loop, and its Gram matrices from the products of samples 0 ... 8 apart (estimators/_small_eigh.py,
+numba); results/benchmarks.md shows its median beside the two floors of the same run. The first fit of a
+process loads the compiled code (a few tenths of a second from numba's disk cache, seconds to compile it
+when the cache is cold); the timed tests fit once before timing.
 
 Run with ``--benchmark-enable`` for timings (``make bench``); by default each runs once as a test.
 """
@@ -84,12 +82,10 @@ def test_bench_ensemble_irf(benchmark, ens50):
 @pytest.mark.benchmark(group="ensemble_irf-1000x50x9")
 def test_bench_ensemble_irf_eigh_floor(benchmark, ens50):
     """The eigendecompositions (numpy.linalg.eigh, LAPACK) of the 992 per-time information matrices alone,
-    which the fit called until issue 22: 5.3 ms of its 7.4 (one BLAS thread, medians on the shared 2-core
-    machine), the cost of LAPACK's tridiagonal QL with eigenvectors and of one call per matrix, not of
-    the data preparation (stacking, Gram products, cross-covariances: then about 1.4 ms). Not cheaper with
-    numpy: scipy's dsyev, dsyevd or dsyevr per matrix, float32 (0.85), vectorised Jacobi or QL sweeps, two
-    threads. The fit now uses the compiled solver of estimators/_small_eigh.py (all 992 decompositions,
-    the MDL and the solutions in about 1.8 ms); this is kept as the same-run measure of what it replaced."""
+    which the fit called until issue 22, where they were most of its time: the cost of LAPACK's tridiagonal
+    QL with eigenvectors and of one call per matrix. Not cheaper with numpy: scipy's dsyev, dsyevd or dsyevr
+    per matrix, float32, vectorised Jacobi or QL sweeps, two threads. The fit now uses the compiled solver
+    of estimators/_small_eigh.py; this is kept as the same-run measure of what it replaced."""
     ens, _ = ens50
     X = sliding_window_view(ens.inputs - ens.inputs.mean(axis=1, keepdims=True), len(LAGS), axis=0)[..., ::-1]
     Phi = np.matmul(X.transpose(0, 2, 1), X) / ens.size
@@ -100,8 +96,7 @@ def test_bench_ensemble_irf_eigh_floor(benchmark, ens50):
 @pytest.mark.benchmark(group="ensemble_irf-1000x50x9")
 def test_bench_ensemble_irf_eigvalsh_floor(benchmark, ens50):
     """The eigenvalues alone (numpy.linalg.eigvalsh) of the same matrices: numpy's floor if the MDL needed
-    no eigenvectors (it needs the projections of phi on them); about 2.9 ms, more than the whole fit
-    with the compiled solver (issue 22)."""
+    no eigenvectors (it needs the projections of phi on them)."""
     ens, _ = ens50
     X = sliding_window_view(ens.inputs - ens.inputs.mean(axis=1, keepdims=True), len(LAGS), axis=0)[..., ::-1]
     Phi = np.matmul(X.transpose(0, 2, 1), X) / ens.size
