@@ -23,10 +23,9 @@ class _DuplicateKey(yaml.YAMLError):
         super().__init__(f"line {line}: duplicate key {key!r} (first given on line {first})")
 
 
-class StrictLoader(yaml.SafeLoader):
-    """``yaml.SafeLoader`` that rejects a key given twice in one mapping (PyYAML keeps the last one
-    silently). Keys brought in by a merge (``<<: *anchor``) may be overridden: that is what merges
-    are for."""
+class _Strict:
+    """Rejects a key given twice in one mapping (PyYAML keeps the last one silently). Keys brought in by a
+    merge (``<<: *anchor``) may be overridden: that is what merges are for."""
 
     def construct_mapping(self, node, deep=False):
         if isinstance(node, yaml.MappingNode):
@@ -43,6 +42,18 @@ class StrictLoader(yaml.SafeLoader):
                 except TypeError:         # an unhashable key: PyYAML reports it itself
                     continue
         return super().construct_mapping(node, deep=deep)
+
+
+class StrictLoader(_Strict, yaml.SafeLoader):
+    """``yaml.SafeLoader`` (pure Python) that rejects a key given twice in one mapping: the reference reader,
+    whose verdict and messages a config gets."""
+
+
+#: the same on libyaml's C parser when PyYAML has it (its wheels do): parsing the shipped study configs with
+#: the pure-Python parser took most of a second per process. A document it refuses is read again by
+#: :class:`StrictLoader`, so a refusal (or an acceptance libyaml would not give) is the pure-Python one.
+FastStrictLoader = type("FastStrictLoader", (_Strict, yaml.CSafeLoader), {}) if getattr(yaml, "CSafeLoader", None) \
+    else StrictLoader
 
 
 #: limits of a config file, checked before it is parsed: its size (the largest shipped config is under
@@ -63,14 +74,14 @@ def _yaml_error(exc: yaml.YAMLError) -> str:
     return f"line {mark.line + 1}, column {mark.column + 1}: {what}"
 
 
-def _check_size(text: str, path: Path) -> None:
+def _check_size(text: str, path: Path, loader=StrictLoader) -> None:
     """Refuse, from PyYAML's events (no recursion, nothing built), a document nested deeper than
     :data:`MAX_YAML_DEPTH` or holding more than :data:`MAX_YAML_NODES` values with its aliases expanded
     (an 'alias bomb': a few lines of anchors of anchors that expand to billions of values)."""
     sizes: dict[str, int] = {}
     stack: list[list] = []              # [anchor, expanded size] of each open collection
     total = 0
-    for ev in yaml.parse(text, Loader=StrictLoader):
+    for ev in yaml.parse(text, Loader=loader):
         if isinstance(ev, (yaml.ScalarEvent, yaml.AliasEvent, yaml.CollectionStartEvent)):
             n = sizes.get(ev.anchor, 1) if isinstance(ev, yaml.AliasEvent) else 1
             total += n
@@ -109,7 +120,13 @@ def load_yaml(path: Path) -> Any:
     except OSError as exc:
         raise ConfigError(f"{path}: cannot read ({exc.strerror or exc})") from None
     try:
-        _check_size(text, path)
+        try:
+            _check_size(text, path, FastStrictLoader)
+            return yaml.load(text, Loader=FastStrictLoader)  # noqa: S506 - a SafeLoader subclass
+        except (yaml.YAMLError, RecursionError) as exc:
+            if isinstance(exc, _DuplicateKey) or FastStrictLoader is StrictLoader:
+                raise
+        _check_size(text, path)                              # the pure-Python reader's verdict and message
         return yaml.load(text, Loader=StrictLoader)  # noqa: S506 - a SafeLoader subclass
     except _DuplicateKey as exc:
         raise ConfigError(f"{path}: {exc}") from None

@@ -5,6 +5,7 @@ from __future__ import annotations
 import os
 import re
 import time
+from pathlib import Path
 
 import pytest
 import yaml
@@ -123,3 +124,23 @@ def test_a_results_folder_that_is_a_symlink_loop_is_one_line(tmp_path):
 def test_status_of_a_missing_results_folder_is_an_error(tmp_path):
     r = cli("status", "--results", tmp_path / "nope")
     assert r.returncode == 2 and "no such folder" in r.stderr
+
+
+def test_the_fast_reader_gives_the_reference_reader_s_documents():
+    """Configs are read with libyaml's C parser when PyYAML has it (benchmarks/config_yaml.py); every
+    shipped config must give the document of the pure-Python reference reader, and a refusal is the
+    reference reader's (its message, as the tests above check)."""
+    import yaml
+
+    from jointbench.benchmarks import config_yaml as cy
+
+    if cy.FastStrictLoader is cy.StrictLoader:
+        pytest.skip("PyYAML without libyaml: only the reference reader")
+    root = Path(__file__).resolve().parents[1] / "configs"
+    paths = sorted(root.rglob("*.yaml"))
+    assert len(paths) > 10
+    for p in paths:
+        text = p.read_text(encoding="utf-8-sig")
+        assert yaml.load(text, Loader=cy.FastStrictLoader) == yaml.load(text, Loader=cy.StrictLoader), p
+    with pytest.raises(cy._DuplicateKey, match="line 3: duplicate key 'a' .first given on line 1"):
+        yaml.load("a: 1\nb: 2\na: 3\n", Loader=cy.FastStrictLoader)
