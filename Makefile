@@ -13,7 +13,7 @@ RUN     := $(BIN)/jointbench run $(if $(BACKEND),--backend $(BACKEND)) $(RUN_ARG
 SHARED  ?= ../shared
 PAPER_STUDIES := westwick2012 xu1998 vanderuit2018_table1
 
-.PHONY: help venv test lint test-slow bench bench-save bench-studies reproduce westwick2012 westwick2012-fig2 westwick2012-fig3 \
+.PHONY: help venv test lint reproduce-where test-slow bench bench-save bench-studies reproduce westwick2012 westwick2012-fig2 westwick2012-fig3 \
         westwick2012-fig4 westwick2012-fig5 westwick2012-fig6 westwick2012-table1 westwick2012-fig7 \
         westwick2012-fig8 xu1998 xu1998-fig2 xu1998-fig3 xu1998-calibration vanderuit2018-table1 \
         vanderuit2018-table2 apparatus matrix reproduce-mujoco example-ankle clean-results nightly chromium \
@@ -99,6 +99,10 @@ reproduce: $(STAMP)
 	@echo "running $(REPRODUCE_STUDIES) side by side ($(or $(REPRODUCE_WHERE),$(RUN_ARGS))); each prints its summary when it is done"
 	@$(MAKE) --no-print-directory -j4 $(REPRODUCE_STUDIES) RUN_ARGS="--quiet $(REPRODUCE_WHERE) $(RUN_ARGS)"
 	$(BIN)/jointbench status --write-readme
+
+# Where make reproduce runs each study's cases on this machine (make bench times the studies the same way).
+reproduce-where:
+	@echo $(REPRODUCE_WHERE)
 
 westwick2012: $(STAMP)
 	$(RUN) westwick2012

@@ -134,10 +134,13 @@ def _append(log: Path, fields: list[str], rows: list[dict]) -> None:
 
 
 def reproduce_executor() -> tuple[bool, int | None]:
-    """``(serial, workers)`` of each study in ``make reproduce`` on this machine (the Makefile's
-    ``REPRODUCE_WHERE``): in its own process below 8 cores, else a pool of cores/4 workers."""
-    cores = os.cpu_count() or 2
-    return (True, None) if cores < 8 else (False, cores // 4)
+    """``(serial, workers)`` of each study in ``make reproduce`` on this machine, as the Makefile decides it
+    (``make reproduce-where``: ``--serial`` below 8 cores, else ``--workers N``)."""
+    where = subprocess.run(["make", "-s", "--no-print-directory", "reproduce-where"], cwd=REPO, check=True,
+                           capture_output=True, text=True).stdout.split()
+    if where[:1] == ["--workers"]:
+        return False, int(where[1])
+    return True, None
 
 
 def studies() -> tuple[int, list[dict]]:
