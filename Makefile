@@ -85,19 +85,21 @@ bench-studies: $(STAMP)
 
 # The studies, side by side (each one's last cases, figures and report overlap the others' computing, so
 # both cores stay busy; quiet: four progress bars would garble each other), then the README's status
-# tables from their comparison.csv files (never typed by hand). The four studies are the parallelism: with
-# fewer than 8 cores each runs its cases in its own process (--serial: four processes on 2 cores, where
-# four pools of workers on top of them made 12 processes and cost 15 % more CPU on the same numbers,
-# issue 22); with 8 or more cores each study gets a pool of cores/4 workers. A RUN_ARGS that says where
-# cases run (--serial, --workers, --executor) is used as given.
-REPRODUCE_STUDIES := westwick2012 xu1998 vanderuit2018-table1 vanderuit2018-table2
+# tables from their comparison.csv files (never typed by hand). The four studies are the parallelism: one
+# command runs them (--jobs 4), each in a process forked after the imports they all share (about 2 CPU-s
+# each, paid once instead of four times; each prints its summary whole when it is done). With fewer than
+# 8 cores each study runs its cases in its own process (--serial: four processes on 2 cores, where four
+# pools of workers on top of them made 12 processes and cost 15 % more CPU on the same numbers, issue 22);
+# with 8 or more cores each study gets a pool of cores/4 workers. A RUN_ARGS that says where cases run
+# (--serial, --workers, --executor) is used as given.
+REPRODUCE_STUDIES := westwick2012 xu1998 vanderuit2018_table1 vanderuit2018_table2
 REPRODUCE_CORES   := $(shell nproc 2>/dev/null || echo 2)
 REPRODUCE_WHERE   := $(if $(findstring --serial,$(RUN_ARGS))$(findstring --workers,$(RUN_ARGS))$(findstring \
                        --executor,$(RUN_ARGS)),,$(shell n=$(REPRODUCE_CORES); \
                        if [ "$$n" -ge 8 ] 2>/dev/null; then echo "--workers $$((n / 4))"; else echo --serial; fi))
 reproduce: $(STAMP)
 	@echo "running $(REPRODUCE_STUDIES) side by side ($(or $(REPRODUCE_WHERE),$(RUN_ARGS))); each prints its summary when it is done"
-	@$(MAKE) --no-print-directory -j4 $(REPRODUCE_STUDIES) RUN_ARGS="--quiet $(REPRODUCE_WHERE) $(RUN_ARGS)"
+	@$(RUN) --quiet --jobs 4 $(REPRODUCE_WHERE) $(REPRODUCE_STUDIES)
 	$(BIN)/jointbench status --write-readme
 
 # Where make reproduce runs each study's cases on this machine (make bench times the studies the same way).

@@ -1,4 +1,4 @@
-"""Command line: ``jointbench run STUDY``, ``status``, ``history``, ``diff``, ``nightly``, ``cache``,
+"""Command line: ``jointbench run STUDY [STUDY ...]``, ``status``, ``history``, ``diff``, ``nightly``, ``cache``,
 ``estimate``, ``list``.
 
 Errors caused by the user (config, data, options, an unwritable results folder) print one line and exit
@@ -80,17 +80,43 @@ def _plugins(args) -> None:
 
 
 def _run(args) -> int:
+    """``jointbench run STUDY [STUDY ...]``: one study, or several one after another (``--jobs 1``, the
+    default) or side by side in forked processes (:mod:`jointbench.benchmarks.harness.side_by_side`)."""
     _plugins(args)
+    from jointbench.benchmarks.config import check_backend
+
+    if args.backend:
+        check_backend(args.backend, "option --backend")
+    if args.serial and args.executor not in (None, "serial"):
+        raise JointBenchError(f"--serial and --executor {args.executor} contradict each other")
+    studies = list(dict.fromkeys(args.study))
+    if len(studies) == 1:
+        return _run_one(args, studies[0])
+    for option, given in (("--parts", args.parts), ("--set", args.set)):
+        if given:
+            raise JointBenchError(f"{option} names parts of one study: give one study, not {len(studies)}")
+    if args.jobs == 1 or len(studies) == 1:
+        return max(_run_one(args, study) for study in studies)
+    if args.executor == "dask":
+        raise JointBenchError("--executor dask with --jobs > 1: one cluster serves the studies one after "
+                              "another (--jobs 1)")
+    from jointbench.benchmarks.harness import side_by_side
+
+    side_by_side.preload()
+    return max(side_by_side.run_forked(studies, args.jobs, lambda study: _guarded(lambda: _run_one(args, study))))
+
+
+def _run_one(args, study: str) -> int:
+    """One study of ``jointbench run``; its summary printed in one piece (studies side by side print
+    theirs whole)."""
     from jointbench.benchmarks.config import check_backend
     from jointbench.benchmarks.harness.pool import make_executor
     from jointbench.benchmarks.study import run_study
 
     backend = check_backend(args.backend, "option --backend") if args.backend else None
-    if args.serial and args.executor not in (None, "serial"):
-        raise JointBenchError(f"--serial and --executor {args.executor} contradict each other")
     executor = make_executor(args.executor or "process", args.workers, args.scheduler)
     try:
-        run = run_study(args.study, parts=args.parts or None, out_root=_root(args), serial=args.serial,
+        run = run_study(study, parts=args.parts or None, out_root=_root(args), serial=args.serial,
                         workers=args.workers, use_cache=not args.no_cache, progress=not args.quiet,
                         command=_command(), backend=backend, executor=executor, overrides=args.set or (),
                         budget_minutes=args.budget, confirm=args.yes)
@@ -102,13 +128,12 @@ def _run(args) -> int:
     comp = run.comparison
     n_pass = int((comp["status"] == "pass").sum()) if len(comp) else 0
     n_cached = sum(r.cached for r in run.results)
-    print(f"{run.study.id}: {len(run.results)} cases ({n_cached} from cache, {len(run.results) - n_cached} computed), "
-          f"{len(run.failed)} failed; "
-          f"{headline(comp)}")
-    for r in comp.itertuples():
-        print(f"  {r.status:4s}  {r.evidence:12s}  {r.check:18s} reproduced {r.reproduced:.5g}  "
-              f"[{r.low:.5g}, {r.high:.5g}]")
-    print(f"wrote {run.folder}/report.md, comparison.csv, cases.csv, cases.parquet; history run {run.run_id}")
+    lines = [f"{run.study.id}: {len(run.results)} cases ({n_cached} from cache, {len(run.results) - n_cached} "
+             f"computed), {len(run.failed)} failed; {headline(comp)}"]
+    lines += [f"  {r.status:4s}  {r.evidence:12s}  {r.check:18s} reproduced {r.reproduced:.5g}  "
+              f"[{r.low:.5g}, {r.high:.5g}]" for r in comp.itertuples()]
+    lines.append(f"wrote {run.folder}/report.md, comparison.csv, cases.csv, cases.parquet; history run {run.run_id}")
+    print("\n".join(lines), flush=True)
     if run.failed and not run.study.expected_failures:
         print(f"jointbench: {len(run.failed)} of {len(run.results)} cases failed (tracebacks in "
               f"{run.folder / 'failures.log'}); exit 1 (a study whose failures are expected says "
@@ -172,7 +197,12 @@ def build_parser() -> argparse.ArgumentParser:
     parser = OneLineParser(prog="jointbench", description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="command", required=True, parser_class=OneLineParser)
     p = sub.add_parser("run", help="run a study: results/<study>/{comparison.csv,cases.csv,report.md}")
-    p.add_argument("study", help="a shipped study's id (jointbench list) or the path of a study file")
+    p.add_argument("study", nargs="+", help="a shipped study's id (jointbench list) or the path of a study file; "
+                                            "several: one after another, or side by side with --jobs")
+    p.add_argument("--jobs", type=positive_int, default=1, metavar="N",
+                   help="with several studies: run N at once, each in a process forked after the imports "
+                        "they share (default 1: one after another); each study's cases still run where "
+                        "--serial or --workers says")
     p.add_argument("--parts", nargs="+", metavar="PART", help="only these parts (e.g. fig4 table1)")
     p.add_argument("--serial", action="store_true", help="run cases one after another in this process")
     p.add_argument("--workers", type=positive_int, default=None, help="processes (default: all cores)")
@@ -232,7 +262,18 @@ def main(argv: list[str] | None = None) -> int:
     if argv is None:                       # the real command line (not a call from a test)
         previous = signal.signal(signal.SIGTERM, _on_sigterm)
     try:
-        return int(args.func(args) or 0)
+        return _guarded(lambda: args.func(args), real=argv is None)
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
+
+
+def _guarded(call, real: bool = False) -> int:
+    """``call()``'s exit status, with the command's errors and interruptions turned into one line on stderr
+    and their statuses (module docstring). ``real``: this process is the command line's own, which then
+    leaves at once after an interruption (no interpreter teardown)."""
+    try:
+        return int(call() or 0)
     except JointBenchError as exc:
         print(f"jointbench: error: {exc}", file=sys.stderr)
         return 2
@@ -243,7 +284,7 @@ def main(argv: list[str] | None = None) -> int:
         if getattr(exc, "exit_code", None):        # lost infrastructure (a Dask scheduler): not Ctrl-C
             run = f" (history run {exc.run_id})" if getattr(exc, "run_id", None) else ""
             print(f"jointbench: error: {exc.reason}{run}", file=sys.stderr)
-            if argv is None:
+            if real:
                 sys.stdout.flush()
                 sys.stderr.flush()
                 os._exit(exc.exit_code)
@@ -256,14 +297,11 @@ def main(argv: list[str] | None = None) -> int:
         run = f" (history run {exc.run_id})" if getattr(exc, "run_id", None) else ""
         print(f"jointbench: {what}{kept}{run}; run again to resume", file=sys.stderr)
         code = 143 if sigterm else 130
-        if argv is None:        # the real command line: everything is stored and the workers are gone;
+        if real:                # the real command line: everything is stored and the workers are gone;
             sys.stdout.flush()  # skip the interpreter's teardown of numpy, scipy, pandas, matplotlib
             sys.stderr.flush()  # (0.5-1 s on a busy machine) so that Ctrl-C returns at once
             os._exit(code)
         return code
-    finally:
-        if previous is not None:
-            signal.signal(signal.SIGTERM, previous)
 
 
 if __name__ == "__main__":

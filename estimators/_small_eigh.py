@@ -236,23 +236,16 @@ def _qr(d, e, W, iw, fw):
                     W[k + 1, i, q] = cs[q] * wk1 - sn[q] * wk
 
 
-@jit
 def _workspace(n):
-    """The arrays :func:`_decompose` works in, for matrices of size n."""
+    """The arrays the kernels work in for matrices of size n, allocated by the caller (a compiled
+    allocation was one more function to compile): ``A, d, e, W, v, beta, p, fw, iw, unscale``. For the
+    matrices ``t0 ... t0 + B - 1`` of ``Phi``, :func:`_load`, :func:`_tridiagonalize` and :func:`_qr` leave
+    ``Phi[t0 + q] = unscale[q] W^T diag(d) W`` in lane ``q`` (eigenvalues unsorted, eigenvectors in the
+    rows of ``W[:, :, q]``); the kernels call the three themselves, not through a shared compiled helper,
+    whose code numba would optimise and generate once more for each caller (a fifth of the compile time,
+    which a fresh clone's Table II pays: issue 22)."""
     return (np.empty((n, n, B)), np.empty((n, B)), np.empty((n, B)), np.empty((n, n, B)), np.empty((n, n, B)),
             np.empty((n, B)), np.empty((n, B)), np.empty((8, B)), np.empty((3, B), np.int64), np.empty(B))
-
-
-@jit
-def _decompose(Phi, t0, ws):
-    """Matrices ``t0 ... t0 + B - 1`` of ``Phi`` as ``Phi[t0 + q] = unscale[q] W^T diag(d) W`` (lane ``q``,
-    eigenvalues unsorted, eigenvectors in the rows of ``W[:, :, q]``); returns ``d``, ``W``, ``unscale`` and
-    the index of a matrix that did not converge, or -1."""
-    A, d, e, W, v, beta, p, fw, iw, unscale = ws
-    _load(Phi, t0, A, unscale)
-    _tridiagonalize(A, d, e, W, v, beta, p, fw)
-    bad = _qr(d, e, W, iw, fw)
-    return d, W, unscale, (t0 + bad if bad >= 0 else -1)
 
 
 @jit
@@ -270,16 +263,18 @@ def _descending(d, q, idx):
 
 
 @jit
-def _eigh_stack(Phi, s, V):
+def _eigh_stack(Phi, s, V, ws):
     """Eigenvalues (descending) and eigenvectors (columns) of every matrix of ``Phi`` (T, n, n) into ``s``
-    and ``V``; the index of the first matrix that did not converge, or -1."""
+    and ``V`` (``ws``: :func:`_workspace`); the index of the first matrix that did not converge, or -1."""
     T, n = Phi.shape[0], Phi.shape[1]
-    ws = _workspace(n)
+    A, d, e, W, v, beta, p, fw, iw, unscale = ws
     idx = np.empty(n, np.int64)
     for t0 in range(0, T, B):
-        d, W, unscale, bad = _decompose(Phi, t0, ws)
+        _load(Phi, t0, A, unscale)
+        _tridiagonalize(A, d, e, W, v, beta, p, fw)
+        bad = _qr(d, e, W, iw, fw)
         if bad >= 0:
-            return bad
+            return t0 + bad
         for q in range(min(B, T - t0)):
             _descending(d, q, idx)
             for i in range(n):
@@ -290,20 +285,22 @@ def _eigh_stack(Phi, s, V):
 
 
 @jit
-def _mdl_stack(Phi, phi, yvar, n_obs, full, rcond, h, order):
+def _mdl_stack(Phi, phi, yvar, n_obs, full, rcond, h, order, ws):
     """For every ``t``: the eigendecomposition of ``Phi[t]``, the order (MDL, or every eigenvalue above
-    ``rcond`` times the largest when ``full``) and the solution ``h[t]``; the index of the first matrix
-    whose eigenvalues did not converge, or -1."""
+    ``rcond`` times the largest when ``full``) and the solution ``h[t]`` (``ws``: :func:`_workspace`); the
+    index of the first matrix whose eigenvalues did not converge, or -1."""
     T, n = Phi.shape[0], Phi.shape[1]
-    ws = _workspace(n)
+    A, d, e, W, v, beta, p, fw, iw, unscale = ws
     idx = np.empty(n, np.int64)
     proj = np.empty(n)
     inv = np.empty(n)
     log_n = np.log(n_obs)
     for t0 in range(0, T, B):
-        d, W, unscale, bad = _decompose(Phi, t0, ws)
+        _load(Phi, t0, A, unscale)
+        _tridiagonalize(A, d, e, W, v, beta, p, fw)
+        bad = _qr(d, e, W, iw, fw)
         if bad >= 0:
-            return bad
+            return t0 + bad
         for q in range(min(B, T - t0)):
             t = t0 + q
             _descending(d, q, idx)
@@ -421,7 +418,7 @@ def eigh_descending(Phi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     Phi = _stack(Phi)
     T, n = Phi.shape[0], Phi.shape[-1]
     s, V = np.empty((T, n)), np.empty((T, n, n))
-    _failed(_eigh_stack(Phi, s, V))
+    _failed(_eigh_stack(Phi, s, V, _workspace(n)))
     return s, V
 
 
@@ -443,5 +440,5 @@ def mdl_pinv(Phi: np.ndarray, phi: np.ndarray, yvar: np.ndarray, n_obs: float, f
     Phi, phi, yvar = _stack(Phi), _stack(phi), _stack(yvar)
     T, n = Phi.shape[0], Phi.shape[-1]
     h, order = np.empty((T, n)), np.empty(T, np.int64)
-    _failed(_mdl_stack(Phi, phi, yvar, float(n_obs), bool(full), float(rcond), h, order))
+    _failed(_mdl_stack(Phi, phi, yvar, float(n_obs), bool(full), float(rcond), h, order, _workspace(n)))
     return h, order

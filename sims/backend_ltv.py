@@ -150,10 +150,14 @@ def step_matrices(p: np.ndarray, q: np.ndarray, h: float):
 
 def _blocks(c: np.ndarray, nb: int, fill: float) -> np.ndarray:
     """``c`` padded with ``fill`` to ``nb * BLOCK`` and laid out (BLOCK, nb): row j = step j of every block."""
-    pad = nb * BLOCK - len(c)
-    if pad:
-        c = np.concatenate([c, np.full(pad, fill)])
-    return c.reshape(nb, BLOCK).T.copy()
+    out = np.empty((BLOCK, nb))
+    full = len(c) // BLOCK
+    out[:, :full] = c[:full * BLOCK].reshape(full, BLOCK).T     # one copy (padding first was a second)
+    if full < nb:
+        tail = c[full * BLOCK:]
+        out[:len(tail), full] = tail
+        out[len(tail):, full] = fill
+    return out
 
 
 def affine_recursion(E, v0: np.ndarray, v1: np.ndarray, x0: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:

@@ -11,9 +11,10 @@ another estimator) can reuse the first.
 Inside ``with reuse_responses():`` every :func:`sims.simulate` call looks its first half up by
 :func:`response_key` and computes it only when it is new; outside such a block nothing is kept. A whole trial asked for
 again (the same experiment, seed, replicate and realization: one trial fitted by several estimators) is
-kept too. A reused response or trial is handed out as fresh copies of the same arrays, so the trial is bit-identical
-to one computed alone (tests/test_reuse.py). The block is what a harness opens around a group of cases scheduled
-together.
+kept too. What a block keeps is handed out as the same arrays, read-only (``writeable`` off, in fresh containers:
+copying them was a tenth of xu1998's simulation, issue 22), so a reused trial is bit-identical to one computed
+alone and no caller can change what the memo keeps (an in-place change raises ``ValueError: assignment destination
+is read-only``; tests/test_reuse.py). The block is what a harness opens around a group of cases scheduled together.
 """
 from __future__ import annotations
 
@@ -62,19 +63,21 @@ def _nbytes(value: Any) -> int:
     return 0
 
 
-def _copy(value: Any) -> Any:
-    """Fresh copies of every array (so that no caller can change what the memo keeps)."""
+def _share(value: Any) -> Any:
+    """``value`` in fresh containers (dataclasses, dicts, tuples, lists rebuilt) holding the same arrays, made
+    read-only: what the memo keeps can be handed out any number of times and no caller can change it."""
     if isinstance(value, np.ndarray):
-        return value.copy()
+        value.flags.writeable = False
+        return value
     if dataclasses.is_dataclass(value):
-        return dataclasses.replace(value, **{f.name: _copy(getattr(value, f.name)) for f in dataclasses.fields(value)
+        return dataclasses.replace(value, **{f.name: _share(getattr(value, f.name)) for f in dataclasses.fields(value)
                                              if f.init})
     if isinstance(value, dict):
-        return {k: _copy(v) for k, v in value.items()}
+        return {k: _share(v) for k, v in value.items()}
     if isinstance(value, tuple):
-        return tuple(_copy(v) for v in value)
+        return tuple(_share(v) for v in value)
     if isinstance(value, list):
-        return [_copy(v) for v in value]
+        return [_share(v) for v in value]
     return value
 
 
@@ -93,22 +96,25 @@ class ResponseMemo:
         self.reused = 0
 
     def get(self, key: bytes | None, compute: Callable[[], Any]) -> tuple[Any, bool]:
-        """``(value, reused)``: the stored value for ``key`` (copied), else ``compute()`` (kept)."""
+        """``(value, reused)``: the stored value for ``key``, else ``compute()`` (kept when ``key`` is not
+        None); a kept value is handed out in fresh containers with read-only arrays (:func:`_share`)."""
         if not self.enabled:
             key = None
         if key is not None and key in self.entries:
             self.entries.move_to_end(key)
             self.reused += 1
-            return _copy(self.entries[key][0]), True
+            return _share(self.entries[key][0]), True
         value = compute()
         self.computed += 1
         if key is not None:
             n = _nbytes(value)
-            self.entries[key] = (_copy(value), n)
+            value = _share(value)             # kept: read-only from now on, for this caller too
+            self.entries[key] = (value, n)
             self.size += n
             while self.size > self.max_bytes and len(self.entries) > 1:
                 _, (_, m) = self.entries.popitem(last=False)
                 self.size -= m
+            return _share(value), False
         return value, False
 
 

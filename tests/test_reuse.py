@@ -42,11 +42,14 @@ def test_trials_with_other_noise_replicates_and_rates_reuse_one_response(wrist):
     assert (memo.computed, memo.reused) == (2, 4)          # realization 0 and realization 1
     for a, b in zip(alone, shared):
         _same_trial(a, b)
-    # the reused arrays are fresh copies: changing a trial's signal changes nothing the memo keeps
+    # what a block keeps is handed out read-only in fresh containers: no caller can change what it keeps
     with reuse_responses() as memo:
         first = sims.simulate(wrist, 7)
-        first.truth.signals["command"][:] = 0.0
+        with pytest.raises(ValueError, match="read-only"):
+            first.truth.signals["command"][:] = 0.0
+        first.truth.signals["command"] = np.zeros(3)       # the caller's own dict, not the memo's
         _same_trial(sims.simulate(wrist, 7), alone[0])
+    assert sims.simulate(wrist, 7).torque.flags.writeable   # outside a block: the caller's own arrays
 
 
 def test_what_changes_the_response_is_never_reused(wrist):
@@ -128,7 +131,7 @@ def test_a_trial_asked_for_again_is_the_same_trial(wrist):
     _same_trial(a, alone)
     _same_trial(b, alone)
     assert a.name == b.name == "validation" and c.name == "estimation"
-    assert a.angle is not b.angle                   # fresh copies
+    assert a is not b and a.angle is b.angle and not a.angle.flags.writeable   # the same arrays, read-only
 
 
 def test_sensed_channels_are_filtered_once_per_response_filter_and_acquisition(wrist):

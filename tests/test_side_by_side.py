@@ -1,0 +1,100 @@
+"""Several studies in one command (``jointbench run A B --jobs N``, make reproduce): forked children after
+the shared imports, at most N at once, each study's numbers those of a run of its own, the exit status the
+worst child's, signals passed on once (issue 22)."""
+from __future__ import annotations
+
+import os
+import re
+import signal
+import sys
+import time
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from jointbench.benchmarks.harness.side_by_side import exit_code, run_forked
+from tests.harness_studies import alive, cache_entries, children, cli, cli_here, start, tiny_study, wait_for
+
+pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="uses fork, /proc and POSIX signals")
+
+
+def test_run_forked_keeps_to_jobs_at_once_and_returns_each_childs_status(tmp_path):
+    """Six children, two at once: no more than two ever overlap (their own start and end stamps), and the
+    statuses come back in the order of the items: a returned status, SystemExit's, 1 for an escaped
+    exception, 128 + 9 for a child killed by SIGKILL."""
+    def one(i):
+        (tmp_path / f"{i}.start").write_text(repr(time.monotonic()))
+        time.sleep(0.3)
+        (tmp_path / f"{i}.end").write_text(repr(time.monotonic()))
+        if i == 3:
+            raise SystemExit(3)
+        if i == 4:
+            raise RuntimeError("escaped")
+        if i == 5:
+            os.kill(os.getpid(), signal.SIGKILL)
+        return 7 if i == 1 else 0
+
+    codes = run_forked(list(range(6)), 2, one)
+    assert codes == [0, 7, 0, 3, 1, 137]
+    spans = [(float((tmp_path / f"{i}.start").read_text()), float((tmp_path / f"{i}.end").read_text()))
+             for i in range(6)]
+    for t, _ in spans:                                      # children running at each start
+        assert sum(a <= t < b for a, b in spans) <= 2, spans
+    assert sum(a <= spans[1][0] < b for a, b in spans) == 2  # and two did run side by side
+    with pytest.raises(ValueError, match="jobs must be >= 1"):
+        run_forked([1], 0, one)
+
+
+def test_exit_code_is_the_shells():
+    assert exit_code(0) == 0 and exit_code(2 << 8) == 2 and exit_code(signal.SIGTERM) == 128 + signal.SIGTERM
+
+
+def _values(folder: Path) -> pd.DataFrame:
+    rows = pd.read_parquet(folder / "cases.parquet")
+    keep = [c for c in rows.columns if c not in ("wall_time_s", "git_commit", "sim_time_s")]
+    return rows[keep].sort_values(["case_id", "metric", "estimator"]).reset_index(drop=True)
+
+
+def test_studies_side_by_side_give_the_numbers_of_runs_of_their_own(tmp_path):
+    """Two studies with --jobs 2: each summary printed whole, each study's rows those of a run of its own
+    (the children share the parent's imports, nothing else), exit 0; --parts with two studies is refused."""
+    a = tiny_study(tmp_path / "configs", study="tiny_a", seeds=3, duration="8 s")
+    b = tiny_study(tmp_path / "configs", study="tiny_b", seeds=2, duration="6 s")
+    r = cli("run", a, b, "--jobs", "2", "--serial", "--quiet", "--out", tmp_path / "both")
+    assert r.returncode == 0, r.stdout + r.stderr
+    for study, n in (("tiny_a", 3), ("tiny_b", 2)):
+        block = re.search(rf"^{study}: {n} cases \(0 from cache, {n} computed\).*?\n((?:  .*\n)+)"
+                          rf"wrote .*{study}/report.md", r.stdout, re.M)
+        assert block and len(block.group(1).splitlines()) == 2, r.stdout      # its two checks, not interleaved
+    alone = cli_here("run", a, "--serial", "--quiet", "--out", tmp_path / "alone")
+    assert alone.returncode == 0, alone.stderr
+    pd.testing.assert_frame_equal(_values(tmp_path / "both" / "tiny_a"), _values(tmp_path / "alone" / "tiny_a"))
+    refused = cli_here("run", a, b, "--parts", "fit", "--out", tmp_path / "x")
+    assert refused.returncode == 2 and "--parts names parts of one study" in refused.stderr
+    again = cli_here("run", a, b, "--serial", "--quiet", "--out", tmp_path / "both")   # --jobs 1: in turn
+    assert again.returncode == 0 and again.stdout.count("from cache, 0 computed") == 2, again.stdout
+
+
+@pytest.mark.parametrize("how", ["SIGINT to the process group (Ctrl-C)", "SIGTERM to the command"])
+def test_a_signal_to_the_command_stops_every_study_keeping_their_finished_cases(tmp_path, how):
+    """Ctrl-C (the command's process group) or SIGTERM (the command) while two studies run: the command
+    passes it on once, each child stops as a run of its own does (its finished cases kept, its line on
+    stderr), no child outlives the command, exit 130 or 143."""
+    studies = [tiny_study(tmp_path / "configs", study=f"slow_{k}", seeds=40, duration="120 s") for k in "ab"]
+    out = tmp_path / "out"
+    p = start("run", *studies, "--jobs", "2", "--serial", "--quiet", "--out", out, log=tmp_path / "run.log")
+    assert wait_for(lambda: len(children(p.pid)) == 2 or p.poll() is not None, 300), "no children"
+    kids = children(p.pid)
+    assert wait_for(lambda: len(cache_entries(out)) >= 2 or p.poll() is not None, 300) and p.poll() is None, \
+        (tmp_path / "run.log").read_text()
+    if how.startswith("SIGINT"):
+        os.killpg(p.pid, signal.SIGINT)
+    else:
+        os.kill(p.pid, signal.SIGTERM)
+    p.wait(60)
+    log = (tmp_path / "run.log").read_text()
+    word, code = ("interrupted", 130) if how.startswith("SIGINT") else ("terminated", 143)
+    assert p.returncode == code, log
+    assert len(re.findall(rf"{word}: \d+ of 40 cases finished and kept", log)) == 2, log
+    assert wait_for(lambda: not any(alive(k) for k in kids), 5)
