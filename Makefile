@@ -85,7 +85,8 @@ bench-studies: $(STAMP)
 
 # The studies, side by side (each one's last cases, figures and report overlap the others' computing, so
 # both cores stay busy; quiet: four progress bars would garble each other), then the README's status
-# tables from their comparison.csv files (never typed by hand). The four studies are the parallelism: one
+# tables from their comparison.csv files (never typed by hand; --write-readme: by the same command, which
+# has pandas loaded already). The four studies are the parallelism: one
 # command runs them (--jobs 4), each in a process forked after the imports they all share (about 2 CPU-s
 # each, paid once instead of four times; each prints its summary whole when it is done). With fewer than
 # 8 cores each study runs its cases in its own process (--serial: four processes on 2 cores, where four
@@ -99,8 +100,7 @@ REPRODUCE_WHERE   := $(if $(findstring --serial,$(RUN_ARGS))$(findstring --worke
                        if [ "$$n" -ge 8 ] 2>/dev/null; then echo "--workers $$((n / 4))"; else echo --serial; fi))
 reproduce: $(STAMP)
 	@echo "running $(REPRODUCE_STUDIES) side by side ($(or $(REPRODUCE_WHERE),$(RUN_ARGS))); each prints its summary when it is done"
-	@$(RUN) --quiet --jobs 4 $(REPRODUCE_WHERE) $(REPRODUCE_STUDIES)
-	$(BIN)/jointbench status --write-readme
+	@$(RUN) --quiet --jobs 4 $(REPRODUCE_WHERE) --write-readme $(REPRODUCE_STUDIES)
 
 # Where make reproduce runs each study's cases on this machine (make bench times the studies the same way).
 reproduce-where:

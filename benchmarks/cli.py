@@ -90,20 +90,29 @@ def _run(args) -> int:
     if args.serial and args.executor not in (None, "serial"):
         raise JointBenchError(f"--serial and --executor {args.executor} contradict each other")
     studies = list(dict.fromkeys(args.study))
-    if len(studies) == 1:
-        return _run_one(args, studies[0])
-    for option, given in (("--parts", args.parts), ("--set", args.set)):
-        if given:
-            raise JointBenchError(f"{option} names parts of one study: give one study, not {len(studies)}")
-    if args.jobs == 1 or len(studies) == 1:
-        return max(_run_one(args, study) for study in studies)
-    if args.executor == "dask":
+    if len(studies) > 1:
+        for option, given in (("--parts", args.parts), ("--set", args.set)):
+            if given:
+                raise JointBenchError(f"{option} names parts of one study: give one study, not {len(studies)}")
+    if len(studies) > 1 and args.jobs > 1 and args.executor == "dask":
         raise JointBenchError("--executor dask with --jobs > 1: one cluster serves the studies one after "
                               "another (--jobs 1)")
-    from jointbench.benchmarks.harness import side_by_side
+    if len(studies) == 1:
+        code = _run_one(args, studies[0])
+    elif args.jobs == 1:
+        code = max(_run_one(args, study) for study in studies)
+    else:
+        from jointbench.benchmarks.harness import side_by_side
 
-    side_by_side.preload()
-    return max(side_by_side.run_forked(studies, args.jobs, lambda study: _guarded(lambda: _run_one(args, study))))
+        side_by_side.preload()
+        code = max(side_by_side.run_forked(studies, args.jobs,
+                                           lambda study: _guarded(lambda: _run_one(args, study))))
+    if args.write_readme and code == 0:       # what `jointbench status --write-readme` does, without its start-up
+        from jointbench.benchmarks import status
+
+        path, changed = status.write_readme(_root(args))
+        print(f"{path}: status block {'rewritten' if changed else 'already up to date'}")
+    return code
 
 
 def _run_one(args, study: str) -> int:
@@ -203,6 +212,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="with several studies: run N at once, each in a process forked after the imports "
                         "they share (default 1: one after another); each study's cases still run where "
                         "--serial or --workers says")
+    p.add_argument("--write-readme", action="store_true",
+                   help="when every study ends well, rewrite README.md's status block from the results folder "
+                        "(as `jointbench status --write-readme`; make reproduce)")
     p.add_argument("--parts", nargs="+", metavar="PART", help="only these parts (e.g. fig4 table1)")
     p.add_argument("--serial", action="store_true", help="run cases one after another in this process")
     p.add_argument("--workers", type=positive_int, default=None, help="processes (default: all cores)")

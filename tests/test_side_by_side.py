@@ -6,6 +6,7 @@ from __future__ import annotations
 import os
 import re
 import signal
+import subprocess
 import sys
 import time
 from pathlib import Path
@@ -74,6 +75,22 @@ def test_studies_side_by_side_give_the_numbers_of_runs_of_their_own(tmp_path):
     assert refused.returncode == 2 and "--parts names parts of one study" in refused.stderr
     again = cli_here("run", a, b, "--serial", "--quiet", "--out", tmp_path / "both")   # --jobs 1: in turn
     assert again.returncode == 0 and again.stdout.count("from cache, 0 computed") == 2, again.stdout
+
+
+def test_write_readme_rewrites_the_status_block_after_the_studies(tmp_path):
+    """``--write-readme`` (make reproduce): once the studies end well the command rewrites the status block
+    of ./README.md from the results folder, as ``jointbench status --write-readme`` would."""
+    from jointbench.benchmarks import status
+
+    a = tiny_study(tmp_path / "configs", study="tiny_a", seeds=2, duration="6 s")
+    b = tiny_study(tmp_path / "configs", study="tiny_b", seeds=2, duration="6 s")
+    readme = tmp_path / "README.md"
+    readme.write_text(f"# x\n{status.BEGIN}\nstale\n{status.END}\ntail\n")
+    r = subprocess.run([sys.executable, "-m", "jointbench.benchmarks", "run", str(a), str(b), "--jobs", "2",
+                        "--serial", "--quiet", "--write-readme", "--out", str(tmp_path / "out")],
+                       cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0 and f"{readme}: status block rewritten" in r.stdout, r.stdout + r.stderr
+    assert status.readme_block(readme) == status.block(tmp_path / "out") and "tiny_b" in readme.read_text()
 
 
 @pytest.mark.parametrize("how", ["SIGINT to the process group (Ctrl-C)", "SIGTERM to the command"])
