@@ -63,8 +63,11 @@ CREATE TABLE IF NOT EXISTS checks (
 CREATE INDEX IF NOT EXISTS runs_study ON runs(study, id);
 """
 FINAL = ("ok", "interrupted", "error")
-#: seconds a writer waits for another process's write transaction (it says so at once)
+#: seconds a writer waits for another process's write transaction (it says so after QUIET_WAIT_S)
 LOCK_WAIT_S = 60
+#: seconds a writer waits without a word first: another run's write usually takes milliseconds (studies
+#: side by side start and end together: make reproduce printed the message three times on a fresh clone)
+QUIET_WAIT_S = 1.0
 #: run ids are SQLite integers
 MAX_RUN_ID = 2 ** 63 - 1
 
@@ -134,7 +137,7 @@ class History:
 
     ``create=False`` opens it to read (``jointbench history``, ``diff``): nothing is written, so a reader
     never waits behind another process's write. A writer that finds the history locked by another
-    process says so at once, then waits up to :data:`LOCK_WAIT_S` (:meth:`_tx`)."""
+    process waits a second quietly, then says so and waits up to :data:`LOCK_WAIT_S` (:meth:`_tx`)."""
 
     def __init__(self, path: Path, create: bool = True):
         from jointbench.files import file_problem
@@ -206,8 +209,10 @@ class History:
         self.close()
 
     def _begin(self) -> None:
-        """BEGIN IMMEDIATE; when another process holds the write lock, say so at once, then wait."""
-        self.db.execute("PRAGMA busy_timeout = 0")
+        """BEGIN IMMEDIATE; when another process holds the write lock, wait :data:`QUIET_WAIT_S` quietly,
+        then say so and wait up to :data:`LOCK_WAIT_S`."""
+        quiet = min(QUIET_WAIT_S, LOCK_WAIT_S)
+        self.db.execute(f"PRAGMA busy_timeout = {int(quiet * 1000)}")
         try:
             self.db.execute("BEGIN IMMEDIATE")
             return
@@ -215,7 +220,7 @@ class History:
             if "locked" not in str(exc) and "busy" not in str(exc):
                 raise
         finally:
-            self.db.execute(f"PRAGMA busy_timeout = {LOCK_WAIT_S * 1000}")
+            self.db.execute(f"PRAGMA busy_timeout = {int(LOCK_WAIT_S * 1000)}")
         print(f"jointbench: {self.path}: another process is writing the run history (a run or nightly "
               f"recording its results, or `jointbench cache prune`); waiting up to {LOCK_WAIT_S} s for it",
               file=sys.stderr, flush=True)
