@@ -48,6 +48,13 @@ FLOOR, TINY = 1e-150, 1e-290
 _UNCACHED: list[str] = []
 
 
+def jit_inline(fn):
+    """``fn`` compiled as :func:`jit` compiles, and inlined into each caller in numba's own representation
+    (``inline="always"``): no compiled function of its own, so its callees' code is not optimised and
+    generated once more for it (a fifth of the compile time when it was a compiled helper, issue 22)."""
+    return njit(cache=True, error_model="numpy", inline="always")(fn)
+
+
 def jit(fn):
     """``fn`` compiled in nopython mode with IEEE division (no zero check: the lane loops run as vector
     instructions), cached on disk; when numba finds no writable cache folder (neither beside this file
@@ -237,15 +244,21 @@ def _qr(d, e, W, iw, fw):
 
 
 def _workspace(n):
-    """The arrays the kernels work in for matrices of size n, allocated by the caller (a compiled
-    allocation was one more function to compile): ``A, d, e, W, v, beta, p, fw, iw, unscale``. For the
-    matrices ``t0 ... t0 + B - 1`` of ``Phi``, :func:`_load`, :func:`_tridiagonalize` and :func:`_qr` leave
-    ``Phi[t0 + q] = unscale[q] W^T diag(d) W`` in lane ``q`` (eigenvalues unsorted, eigenvectors in the
-    rows of ``W[:, :, q]``); the kernels call the three themselves, not through a shared compiled helper,
-    whose code numba would optimise and generate once more for each caller (a fifth of the compile time,
-    which a fresh clone's Table II pays: issue 22)."""
+    """The arrays :func:`_decompose` works in, for matrices of size n, allocated by the caller (a compiled
+    allocation was one more function to compile): ``A, d, e, W, v, beta, p, fw, iw, unscale``."""
     return (np.empty((n, n, B)), np.empty((n, B)), np.empty((n, B)), np.empty((n, n, B)), np.empty((n, n, B)),
             np.empty((n, B)), np.empty((n, B)), np.empty((8, B)), np.empty((3, B), np.int64), np.empty(B))
+
+
+@jit_inline
+def _decompose(Phi, t0, ws):
+    """Matrices ``t0 ... t0 + B - 1`` of ``Phi`` as ``Phi[t0 + q] = unscale[q] W^T diag(d) W`` in lane ``q``
+    of the work arrays ``ws`` (eigenvalues unsorted, eigenvectors in the rows of ``W[:, :, q]``); the lane
+    of a matrix that did not converge, or -1."""
+    A, d, e, W, v, beta, p, fw, iw, unscale = ws
+    _load(Phi, t0, A, unscale)
+    _tridiagonalize(A, d, e, W, v, beta, p, fw)
+    return _qr(d, e, W, iw, fw)
 
 
 @jit
@@ -267,12 +280,10 @@ def _eigh_stack(Phi, s, V, ws):
     """Eigenvalues (descending) and eigenvectors (columns) of every matrix of ``Phi`` (T, n, n) into ``s``
     and ``V`` (``ws``: :func:`_workspace`); the index of the first matrix that did not converge, or -1."""
     T, n = Phi.shape[0], Phi.shape[1]
-    A, d, e, W, v, beta, p, fw, iw, unscale = ws
+    d, W, unscale = ws[1], ws[3], ws[9]
     idx = np.empty(n, np.int64)
     for t0 in range(0, T, B):
-        _load(Phi, t0, A, unscale)
-        _tridiagonalize(A, d, e, W, v, beta, p, fw)
-        bad = _qr(d, e, W, iw, fw)
+        bad = _decompose(Phi, t0, ws)
         if bad >= 0:
             return t0 + bad
         for q in range(min(B, T - t0)):
@@ -290,15 +301,13 @@ def _mdl_stack(Phi, phi, yvar, n_obs, full, rcond, h, order, ws):
     ``rcond`` times the largest when ``full``) and the solution ``h[t]`` (``ws``: :func:`_workspace`); the
     index of the first matrix whose eigenvalues did not converge, or -1."""
     T, n = Phi.shape[0], Phi.shape[1]
-    A, d, e, W, v, beta, p, fw, iw, unscale = ws
+    d, W, unscale = ws[1], ws[3], ws[9]
     idx = np.empty(n, np.int64)
     proj = np.empty(n)
     inv = np.empty(n)
     log_n = np.log(n_obs)
     for t0 in range(0, T, B):
-        _load(Phi, t0, A, unscale)
-        _tridiagonalize(A, d, e, W, v, beta, p, fw)
-        bad = _qr(d, e, W, iw, fw)
+        bad = _decompose(Phi, t0, ws)
         if bad >= 0:
             return t0 + bad
         for q in range(min(B, T - t0)):
