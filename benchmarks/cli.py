@@ -91,9 +91,17 @@ def _run(args) -> int:
         raise JointBenchError(f"--serial and --executor {args.executor} contradict each other")
     studies = list(dict.fromkeys(args.study))
     if len(studies) > 1:
-        for option, given in (("--parts", args.parts), ("--set", args.set)):
+        from jointbench.benchmarks.overrides import parse_override
+
+        named = [o for o in args.set or () if parse_override(o).part != "*"]
+        for option, given in (("--parts", args.parts), ("--set", named)):
             if given:
-                raise JointBenchError(f"{option} names parts of one study: give one study, not {len(studies)}")
+                raise JointBenchError(f"{option} {' '.join(given)} names parts of one study: give one study, "
+                                      f"not {len(studies)} (a --set '*.KEY=VALUE' applies to every study)")
+    if args.write_readme:                     # before the studies, not after them
+        from jointbench.benchmarks import status
+
+        status.readme_text()
     if len(studies) > 1 and args.jobs > 1 and args.executor == "dask":
         raise JointBenchError("--executor dask with --jobs > 1: one cluster serves the studies one after "
                               "another (--jobs 1)")

@@ -103,12 +103,23 @@ def block(results: Path | None = None) -> str:
     return "\n".join(lines).rstrip() + "\n"
 
 
-def write_readme(results: Path | None = None, readme: Path | None = None) -> tuple[Path, bool]:
-    """Rewrite the status block of ``readme``; returns (path, whether the text changed)."""
+def readme_text(readme: Path | None = None) -> tuple[Path, str]:
+    """The README whose status block :func:`write_readme` rewrites (default ``./README.md``) and its text;
+    ConfigError (one line) when it is missing, unreadable or without exactly one pair of markers."""
     path = readme or Path.cwd() / "README.md"
-    text = path.read_text()
+    try:
+        text = path.read_text()
+    except OSError as exc:
+        raise ConfigError(f"{path}: {exc.strerror}: --write-readme rewrites the status block of a README.md "
+                          f"(run it in the checkout, or `jointbench status --write-readme --readme FILE`)") from None
     if text.count(BEGIN) != 1 or text.count(END) != 1 or text.index(BEGIN) > text.index(END):
         raise ConfigError(f"{path}: needs exactly one {BEGIN} followed by one {END} around the status block")
+    return path, text
+
+
+def write_readme(results: Path | None = None, readme: Path | None = None) -> tuple[Path, bool]:
+    """Rewrite the status block of ``readme``; returns (path, whether the text changed)."""
+    path, text = readme_text(readme)
     head, rest = text.split(BEGIN)
     _, tail = rest.split(END)
     new = f"{head}{BEGIN}\n{block(results)}{END}{tail}"

@@ -72,7 +72,11 @@ def test_studies_side_by_side_give_the_numbers_of_runs_of_their_own(tmp_path):
     assert alone.returncode == 0, alone.stderr
     pd.testing.assert_frame_equal(_values(tmp_path / "both" / "tiny_a"), _values(tmp_path / "alone" / "tiny_a"))
     refused = cli_here("run", a, b, "--parts", "fit", "--out", tmp_path / "x")
-    assert refused.returncode == 2 and "--parts names parts of one study" in refused.stderr
+    assert refused.returncode == 2 and "--parts fit names parts of one study" in refused.stderr
+    refused = cli_here("run", a, b, "--set", "fit.seeds=1", "--out", tmp_path / "x")
+    assert refused.returncode == 2 and "--set fit.seeds=1 names parts of one study" in refused.stderr
+    every = cli_here("run", a, b, "--set", "*.seeds=1", "--serial", "--quiet", "--out", tmp_path / "x")
+    assert every.returncode == 0 and every.stdout.count(": 1 cases (") == 2, every.stdout + every.stderr
     again = cli_here("run", a, b, "--serial", "--quiet", "--out", tmp_path / "both")   # --jobs 1: in turn
     assert again.returncode == 0 and again.stdout.count("from cache, 0 computed") == 2, again.stdout
 
@@ -91,6 +95,16 @@ def test_write_readme_rewrites_the_status_block_after_the_studies(tmp_path):
                        cwd=tmp_path, capture_output=True, text=True, timeout=300)
     assert r.returncode == 0 and f"{readme}: status block rewritten" in r.stdout, r.stdout + r.stderr
     assert status.readme_block(readme) == status.block(tmp_path / "out") and "tiny_b" in readme.read_text()
+    # where there is no README (an installed wheel's user): one line before any case runs, for run and status
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    for args in (["run", str(a), str(b), "--jobs", "2", "--write-readme", "--out", str(elsewhere / "out")],
+                 ["status", "--write-readme", "--results", str(tmp_path / "out")]):
+        r = subprocess.run([sys.executable, "-m", "jointbench.benchmarks", *args], cwd=elsewhere,
+                           capture_output=True, text=True, timeout=300)
+        assert r.returncode == 2 and r.stderr.count("\n") == 1, r.stderr
+        assert "README.md: No such file or directory: --write-readme rewrites" in r.stderr, r.stderr
+    assert not (elsewhere / "out").exists()
 
 
 @pytest.mark.parametrize("how", ["SIGINT to the process group (Ctrl-C)", "SIGTERM to the command"])

@@ -161,7 +161,7 @@ class History:
                 version = self._check_version(row)
                 self.reader = version != 1           # a version-1 history is upgraded once, even by a reader
             if not self.reader:
-                self.db.execute("PRAGMA journal_mode = WAL")
+                self._wal()
                 self.db.execute("PRAGMA synchronous = NORMAL")
                 self.db.execute("PRAGMA foreign_keys = ON")
                 with self._tx():
@@ -179,6 +179,22 @@ class History:
         except sqlite3.Error as exc:
             raise OutputError(f"{self.path}: cannot use the run history: {_why(exc, self.path)}") from None
         self._mark_crashed()
+
+    def _wal(self) -> None:
+        """``PRAGMA journal_mode = WAL``, retried while another process holds the file: SQLite answers a
+        change of journal mode with "database is locked" at once, without its busy wait, when a neighbour is
+        opening the same new history (studies side by side start together; one of them failed so)."""
+        import time
+
+        deadline = time.monotonic() + LOCK_WAIT_S
+        while True:
+            try:
+                self.db.execute("PRAGMA journal_mode = WAL")
+                return
+            except sqlite3.OperationalError as exc:
+                if ("locked" not in str(exc) and "busy" not in str(exc)) or time.monotonic() > deadline:
+                    raise
+                time.sleep(0.02)
 
     def _has_meta(self) -> bool:
         return self.db.execute("SELECT 1 FROM sqlite_master WHERE type = 'table' AND name = 'meta'").fetchone() \
