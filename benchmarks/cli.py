@@ -85,8 +85,7 @@ def _run(args) -> int:
     _plugins(args)
     from jointbench.benchmarks.config import check_backend
 
-    if args.backend:
-        check_backend(args.backend, "option --backend")
+    backend = check_backend(args.backend, "option --backend") if args.backend else None
     if args.serial and args.executor not in (None, "serial"):
         raise JointBenchError(f"--serial and --executor {args.executor} contradict each other")
     studies = list(dict.fromkeys(args.study))
@@ -106,15 +105,15 @@ def _run(args) -> int:
         raise JointBenchError("--executor dask with --jobs > 1: one cluster serves the studies one after "
                               "another (--jobs 1)")
     if len(studies) == 1:
-        code = _run_one(args, studies[0])
+        code = _run_one(args, studies[0], backend)
     elif args.jobs == 1:
-        code = max(_run_one(args, study) for study in studies)
+        code = max(_run_one(args, study, backend) for study in studies)
     else:
         from jointbench.benchmarks.harness import side_by_side
 
         side_by_side.preload()
         code = max(side_by_side.run_forked(studies, args.jobs,
-                                           lambda study: _guarded(lambda: _run_one(args, study))))
+                                           lambda study: _guarded(lambda: _run_one(args, study, backend))))
     if args.write_readme and code == 0:       # what `jointbench status --write-readme` does, without its start-up
         from jointbench.benchmarks import status
 
@@ -123,14 +122,12 @@ def _run(args) -> int:
     return code
 
 
-def _run_one(args, study: str) -> int:
-    """One study of ``jointbench run``; its summary printed in one piece (studies side by side print
-    theirs whole)."""
-    from jointbench.benchmarks.config import check_backend
+def _run_one(args, study: str, backend: str | None) -> int:
+    """One study of ``jointbench run`` (``backend``: the checked ``--backend``); its summary printed in one
+    piece (studies side by side print theirs whole)."""
     from jointbench.benchmarks.harness.pool import make_executor
     from jointbench.benchmarks.study import run_study
 
-    backend = check_backend(args.backend, "option --backend") if args.backend else None
     executor = make_executor(args.executor or "process", args.workers, args.scheduler)
     try:
         run = run_study(study, parts=args.parts or None, out_root=_root(args), serial=args.serial,

@@ -8,6 +8,7 @@ import re
 import signal
 import subprocess
 import sys
+import textwrap
 import time
 from pathlib import Path
 
@@ -129,3 +130,26 @@ def test_a_signal_to_the_command_stops_every_study_keeping_their_finished_cases(
     assert p.returncode == code, log
     assert len(re.findall(rf"{word}: \d+ of 40 cases finished and kept", log)) == 2, log
     assert wait_for(lambda: not any(alive(k) for k in kids), 5)
+
+
+def test_studies_never_started_after_an_interrupt_are_not_reported_as_success(tmp_path):
+    """Ctrl-C while the first of three items runs one at a time: the running child is stopped, the two never
+    started get 130 (128 + SIGINT), so the command cannot exit 0."""
+    script = tmp_path / "forked.py"
+    script.write_text(textwrap.dedent('''
+        import os, signal, sys, time
+        from jointbench.benchmarks.harness.side_by_side import run_forked
+
+        def one(i):
+            try:
+                os.kill(os.getppid(), signal.SIGINT)     # the command is interrupted while item 0 runs
+                time.sleep(30)
+                return 0
+            except KeyboardInterrupt:
+                return 130
+
+        print(run_forked([0, 1, 2], 1, one))
+    '''))
+    r = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=60,
+                       start_new_session=True, preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    assert r.returncode == 0 and r.stdout.strip() == "[130, 130, 130]", r.stdout + r.stderr

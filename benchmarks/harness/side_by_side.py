@@ -59,7 +59,8 @@ def run_forked(items: Sequence, jobs: int, run_one: Callable[[object], int]) -> 
     KeyboardInterrupt (Ctrl-C, or the SIGTERM handler of the command line) no further child is started,
     the signal is passed on to the running children (SIGTERM for a SIGTERM, else SIGINT; each child is in
     a process group of its own, so that is the only copy it gets) and they are waited for; their
-    statuses are returned as usual.
+    statuses are returned as usual, and an item never started gets the signal's status (128 + its
+    number): an interrupted command never reports success.
     """
     if jobs < 1:
         raise ValueError(f"jobs must be >= 1, got {jobs}")
@@ -105,4 +106,5 @@ def run_forked(items: Sequence, jobs: int, run_one: Callable[[object], int]) -> 
                     os.kill(pid, stopping)
                 except ProcessLookupError:
                     pass
-    return [c if c is not None else 0 for c in codes]
+    stopped = 128 + int(stopping) if stopping is not None else 1
+    return [c if c is not None else stopped for c in codes]   # never started: as the signal that stopped it
