@@ -21,17 +21,16 @@ differ from the exact ones: tests/test_small_eigh.py). Each matrix is first scal
 ``B`` at a time, each step on all of them at once (the innermost axis of the work arrays): the QR
 rotations of one matrix wait on each other, those of ``B`` matrices run side by side.
 
-The kernels are compiled by numba in nopython mode on first use and cached on disk (``cache=True``:
-beside this file in ``__pycache__``, or, when that folder is not writable as in some installed
-wheels, in numba's per-user cache folder; ``NUMBA_CACHE_DIR`` overrides both).
+The kernels are compiled by numba in nopython mode on first use and cached on disk
+(:mod:`jointbench.compiled`: how every compiled loop of the package is compiled and cached).
 """
 from __future__ import annotations
 
 import math
-import warnings
 
 import numpy as np
-from numba import njit
+
+from jointbench.compiled import jit, jit_inline
 
 #: QR steps allowed per eigenvalue before giving up (LAPACK's dsteqr allows 30 as well)
 MAX_STEPS = 30
@@ -44,30 +43,6 @@ EPS = np.finfo(np.float64).eps
 #: off-diagonal entries below this (of a matrix scaled to a largest entry in [0.5, 1)) are zero, and
 #: rotations of a pair below TINY are skipped: far below rounding, and their squares would underflow
 FLOOR, TINY = 1e-150, 1e-290
-
-_UNCACHED: list[str] = []
-
-
-def jit_inline(fn):
-    """``fn`` compiled as :func:`jit` compiles, and inlined into each caller in numba's own representation
-    (``inline="always"``): no compiled function of its own, so its callees' code is not optimised and
-    generated once more for it (a fifth of the compile time when it was a compiled helper, issue 22)."""
-    return njit(cache=True, error_model="numpy", inline="always")(fn)
-
-
-def jit(fn):
-    """``fn`` compiled in nopython mode with IEEE division (no zero check: the lane loops run as vector
-    instructions), cached on disk; when numba finds no writable cache folder (neither beside this file
-    nor the user's cache folder), compiled anew in each process instead, with one warning."""
-    try:
-        return njit(cache=True, error_model="numpy")(fn)
-    except RuntimeError as exc:                   # numba: "cannot cache function ...: no locator available"
-        if not _UNCACHED:
-            warnings.warn(f"jointbench: the compiled eigensolver is not cached ({exc}); each process compiles it "
-                          f"again (a few seconds): set NUMBA_CACHE_DIR to a writable folder", RuntimeWarning,
-                          stacklevel=2)
-        _UNCACHED.append(fn.__name__)
-        return njit(error_model="numpy")(fn)
 
 
 @jit

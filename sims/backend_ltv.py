@@ -11,12 +11,13 @@ backend ``lti``), and stable for stiff contacts (e.g. the wrist's 3 kHz pole at 
 The per-step matrices E = e^{A h}, J1 = ∫_0^h e^{A s} ds, J2 = ∫_0^h J1(s) ds are power series in A, and
 by Cayley–Hamilton (A² = q A + p I for A = [[0, 1], [p, q]]) each is ``c0 I + c1 A``: two coefficient
 arrays instead of four matrix entries, and a product of two such matrices costs five multiplications
-(:func:`step_coefficients`). They are computed for all steps at once (Taylor series at h / 2^m, then m
+(:func:`step_coefficients`). They are computed for all steps (Taylor series at h / 2^m, then m
 doublings: E(2h) = E², J1(2h) = J1 + E J1, J2(2h) = J2 + h J1 + E J2). The recursion
 ``x_k+1 = E_k x_k + v_k`` is solved blockwise (:func:`affine_recursion`): each block of 32 steps runs
-sequentially, vectorised over all blocks at once, from a zero state and from its true start state, and
-the block ends, themselves such a recursion 32 times shorter, are solved the same way; so there is no
-Python loop over samples.
+from a zero state and from its true start state, and the block ends, themselves such a recursion 32
+times shorter, are solved the same way. Both loops are compiled (:mod:`jointbench.sims._ltv_kernels`,
+numba; issue 22), with the operations of their numpy formulation in the same order, so the numbers are
+those of that formulation to the last bit (tests/test_sims_tv.py keeps it as the reference).
 """
 from __future__ import annotations
 
@@ -31,8 +32,10 @@ from jointbench.sims.apparatus import derivative  # noqa: F401 - re-exported: th
 from jointbench.sims.backend import Backend, Response
 
 _TAYLOR_TERMS = 12  # at |A tau| <= 0.25 the next term is below 1e-16
+#: 1 / (k + 2)! for k = 0 ... _TAYLOR_TERMS, the coefficients of the Taylor sum S_2
+_INV_FACT = np.array([1.0 / math.factorial(k + 2) for k in range(_TAYLOR_TERMS + 1)])
+_INV_FACT.flags.writeable = False
 BLOCK = 32          # steps per block of affine_recursion (16 ... 64 were about equally fast at 1e5 steps)
-CHUNK = 8192        # steps per chunk of step_coefficients (its temporaries then stay in cache)
 
 
 def step_coefficients(p: np.ndarray, q: np.ndarray, h: float):
@@ -44,8 +47,7 @@ def step_coefficients(p: np.ndarray, q: np.ndarray, h: float):
     are evaluated by Horner's rule (``X (a I + b A) = tau (p b I + (a + q b) A)``), then ``m`` doublings.
 
     Steps with the same ``(p, q)`` as the step before (a square wave or steps hold the coefficients for
-    many steps) share one computation when runs are long, and long stacks are computed in chunks of
-    :data:`CHUNK` steps with the same ``m`` (bit for bit the same numbers either way).
+    many steps) share one computation when runs are long (bit for bit the same numbers either way).
 
     Returns
     -------
@@ -64,83 +66,19 @@ def step_coefficients(p: np.ndarray, q: np.ndarray, h: float):
             return tuple(tuple(np.repeat(c, lengths) for c in M) for M in step_coefficients(p[starts], q[starts], h))
     norm = float(np.max(np.abs(p) + np.abs(q) + 1.0)) * h if p.size else 0.0
     m = max(0, int(np.ceil(np.log2(norm / 0.25)))) if norm > 0.25 else 0
-    if p.size <= CHUNK:
-        return _series(p, q, h, m)
-    out = [np.empty_like(p) for _ in range(6)]
-    for i in range(0, p.size, CHUNK):   # chunks whose temporaries stay in cache; elementwise, so the same numbers
-        part = _series(p[i:i + CHUNK], q[i:i + CHUNK], h, m)
-        for o, c in zip(out, (c for M in part for c in M)):
-            o[i:i + CHUNK] = c
-    return (out[0], out[1]), (out[2], out[3]), (out[4], out[5])
+    return _series(p, q, h, m)
 
 
 def _series(p: np.ndarray, q: np.ndarray, h: float, m: int):
-    """:func:`step_coefficients` for one chunk, with the number ``m`` of doublings given.
+    """:func:`step_coefficients` for a stack, with the number ``m`` of doublings given: the compiled loop
+    :func:`jointbench.sims._ltv_kernels.series` (the expressions of tests/test_sims_tv.py's
+    ``_series_plain``, bit for bit)."""
+    from jointbench.sims import _ltv_kernels
 
-    The arithmetic runs in preallocated buffers (``out=``, in-place operators); each block computes the
-    formula of its comment with the same operations in the same order (``x + y`` as ``y + x`` at most,
-    which IEEE addition does not tell apart), so the numbers are those of the plain expressions."""
-    tau = h / 2.0 ** m
-    tp, tq = p * tau, q * tau
-    w = np.empty_like(tp)                                   # scratch
-    # S_2 by Horner, then S_1 = I + X S_2 and E = S_0 = I + X S_1
-    a, b = np.full_like(tp, 1.0 / math.factorial(_TAYLOR_TERMS + 2)), np.zeros_like(tp)
-    b_new = np.empty_like(tp)
-    for k in range(_TAYLOR_TERMS - 1, -1, -1):
-        # a, b = tp b + 1 / (k + 2)!, tau a + tq b
-        np.multiply(a, tau, out=b_new)
-        b_new += np.multiply(tq, b, out=w)
-        np.multiply(tp, b, out=a)
-        a += 1.0 / math.factorial(k + 2)
-        b, b_new = b_new, b
-    # s1a, s1b = tp b + 1, tau a + tq b
-    s1a = tp * b
-    s1a += 1.0
-    s1b = np.multiply(a, tau, out=b_new)
-    s1b += np.multiply(tq, b, out=w)
-    # E = (tp s1b + 1, tau s1a + tq s1b)
-    ea = np.multiply(tp, s1b, out=tp)
-    ea += 1.0
-    eb = np.multiply(s1a, tau, out=w)
-    eb += np.multiply(tq, s1b, out=tq)
-    # J1 = (s1a tau, s1b tau), J2 = (a tau^2, b tau^2)
-    s1a *= tau
-    s1b *= tau
-    a *= tau * tau
-    b *= tau * tau
-    E, J1, J2 = (ea, eb), (s1a, s1b), (a, b)
-    for _ in range(m):
-        (ea, eb), (j1a, j1b), (j2a, j2b) = E, J1, J2
-        # E (x I + y A) = (ea x + pe y) I + (ea y + eb x + qe y) A
-        pe, qe = p * eb, q * eb
-        t = np.empty_like(ea)
-        # J2 = (j2a + tau j1a + ea j2a + pe j2b, j2b + tau j1b + ea j2b + eb j2a + qe j2b)
-        n2a = np.multiply(j1a, tau)
-        n2a += j2a
-        n2a += np.multiply(ea, j2a, out=t)
-        n2a += np.multiply(pe, j2b, out=t)
-        n2b = np.multiply(j1b, tau)
-        n2b += j2b
-        n2b += np.multiply(ea, j2b, out=t)
-        n2b += np.multiply(eb, j2a, out=t)
-        n2b += np.multiply(qe, j2b, out=t)
-        # J1 = (j1a + ea j1a + pe j1b, j1b + ea j1b + eb j1a + qe j1b), in J2's old buffers
-        n1a = np.multiply(ea, j1a, out=j2a)
-        n1a += j1a
-        n1a += np.multiply(pe, j1b, out=t)
-        n1b = np.multiply(ea, j1b, out=j2b)
-        n1b += j1b
-        n1b += np.multiply(eb, j1a, out=t)
-        n1b += np.multiply(qe, j1b, out=t)
-        # E = (ea ea + pe eb, 2 ea eb + qe eb), in J1's old buffers
-        nea = np.multiply(ea, ea, out=j1a)
-        nea += np.multiply(pe, eb, out=t)
-        neb = np.multiply(ea, 2.0, out=j1b)
-        neb *= eb
-        neb += np.multiply(qe, eb, out=qe)
-        E, J1, J2 = (nea, neb), (n1a, n1b), (n2a, n2b)
-        tau *= 2.0
-    return E, J1, J2
+    p, q = _same_type([np.ascontiguousarray(p, dtype=float), np.ascontiguousarray(q, dtype=float)])
+    out = np.empty((6, p.size))
+    _ltv_kernels.series(p, q, h / 2.0 ** m, m, _INV_FACT, out)
+    return (out[0], out[1]), (out[2], out[3]), (out[4], out[5])
 
 
 def step_matrices(p: np.ndarray, q: np.ndarray, h: float):
@@ -148,64 +86,55 @@ def step_matrices(p: np.ndarray, q: np.ndarray, h: float):
     return tuple((a, b, b * p, a + b * q) for a, b in step_coefficients(p, q, h))
 
 
-def _blocks(c: np.ndarray, nb: int, fill: float) -> np.ndarray:
-    """``c`` padded with ``fill`` to ``nb * BLOCK`` and laid out (BLOCK, nb): row j = step j of every block."""
-    out = np.empty((BLOCK, nb))
-    full = len(c) // BLOCK
-    out[:, :full] = c[:full * BLOCK].reshape(full, BLOCK).T     # one copy (padding first was a second)
-    if full < nb:
-        tail = c[full * BLOCK:]
-        out[:len(tail), full] = tail
-        out[len(tail):, full] = fill
-    return out
-
-
 def affine_recursion(E, v0: np.ndarray, v1: np.ndarray, x0: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
     """States of ``x_k+1 = E_k x_k + v_k`` (k = 0 ... n-2) from ``x_0``, blockwise.
 
     ``E`` holds 4 component arrays (00, 01, 10, 11) of length n-1, ``v0``, ``v1`` the two components of
-    v_k. The steps are cut into blocks of :data:`BLOCK`; every block is run step by step, all blocks at
-    once (one vectorised operation per step of a block), first from a zero state, which gives its end
-    state as an affine map of its start state; the start states then follow from the same recursion
-    over the block ends (recursively, until at most BLOCK steps remain, which a plain loop does); a
-    second pass runs every block from its true start state. Each state is thus computed by the plain
-    recursion from a nearby exact start: the rounding differs from a sequential loop by a few ulp.
+    v_k. The steps are cut into blocks of :data:`BLOCK`; every block is run step by step from a zero state,
+    which gives its end state as an affine map of its start state; the start states then follow from the
+    same recursion over the block ends (recursively, until at most BLOCK steps remain, which a plain
+    loop does); a second pass runs every block from its true start state. Each state is thus computed by
+    the plain recursion from a nearby exact start: the rounding differs from a sequential loop by a few
+    ulp. (The block structure made the recursion a few vectorised numpy passes per block step; compiled
+    now, :func:`jointbench.sims._ltv_kernels.affine`, it keeps the same operations, so the same numbers.)
     Returns the two state components, length n.
     """
-    n1 = len(v0)
-    if n1 <= BLOCK:
-        e00, e01, e10, e11 = (c.tolist() for c in E)
-        w0, w1 = v0.tolist(), v1.tolist()
-        x, y = float(x0[0]), float(x0[1])
-        xs, ys = [x], [y]
-        for k in range(n1):
-            x, y = e00[k] * x + e01[k] * y + w0[k], e10[k] * x + e11[k] * y + w1[k]
-            xs.append(x)
-            ys.append(y)
-        return np.array(xs), np.array(ys)
-    nb = -(-n1 // BLOCK)
-    e00, e01, e10, e11 = (_blocks(c, nb, fill) for c, fill in zip(E, (1.0, 0.0, 0.0, 1.0)))
-    w0, w1 = _blocks(v0, nb, 0.0), _blocks(v1, nb, 0.0)
-    # pass 1: each block from a zero state: x_end = P x_start + (x, y), P the product of its matrices
-    x, y = w0[0].copy(), w1[0].copy()
-    P00, P01, P10, P11 = e00[0].copy(), e01[0].copy(), e10[0].copy(), e11[0].copy()
-    for j in range(1, BLOCK):
-        a00, a01, a10, a11 = e00[j], e01[j], e10[j], e11[j]
-        x, y = a00 * x + a01 * y + w0[j], a10 * x + a11 * y + w1[j]
-        P00, P01, P10, P11 = (a00 * P00 + a01 * P10, a00 * P01 + a01 * P11,
-                              a10 * P00 + a11 * P10, a10 * P01 + a11 * P11)
-    # the block starts: the same recursion over the blocks
-    sx, sy = affine_recursion((P00, P01, P10, P11), x, y, x0)
-    # pass 2: every block from its true start state
-    X, Y = np.empty((BLOCK, nb)), np.empty((BLOCK, nb))
-    x, y = sx[:-1], sy[:-1]
-    for j in range(BLOCK):
-        x, y = e00[j] * x + e01[j] * y + w0[j], e10[j] * x + e11[j] * y + w1[j]
-        X[j], Y[j] = x, y
-    out_x, out_y = np.empty(n1 + 1), np.empty(n1 + 1)
-    out_x[0], out_y[0] = x0
-    out_x[1:], out_y[1:] = X.T.ravel()[:n1], Y.T.ravel()[:n1]
-    return out_x, out_y
+    from jointbench.sims import _ltv_kernels as kernels
+
+    level = _same_type([np.ascontiguousarray(c, dtype=float) for c in (*E, v0, v1)])
+    levels = [level]                          # the steps, then the blocks as steps, ... until one block is left
+    while len(levels[-1][4]) > BLOCK:
+        P = np.empty((6, -(-len(levels[-1][4]) // BLOCK)))
+        kernels.ends(*levels[-1], BLOCK, P)
+        levels.append(_same_type(list(P)))
+    sx, sy = np.array([float(x0[0])]), np.array([float(x0[1])])
+    for level in reversed(levels):            # the states of each level, from the starts of its blocks
+        ox, oy = np.empty(len(level[4]) + 1), np.empty(len(level[4]) + 1)
+        kernels.from_starts(*level, BLOCK, *_same_type([sx, sy]), ox, oy)
+        sx, sy = ox, oy
+    return sx, sy
+
+
+def _same_type(arrays: list[np.ndarray]) -> list[np.ndarray]:
+    """The arrays as read-only views: numba compiles one specialization per signature, and a read-only
+    array (the memo of :func:`step_weights`) is typed apart from a writable one."""
+    out = []
+    for a in arrays:
+        if a.flags.writeable:
+            a = a.view()
+            a.flags.writeable = False
+        out.append(a)
+    return out
+
+
+def warm() -> None:
+    """Compile the integrator's loops now (or load them from numba's disk cache: a few hundredths of a
+    second), with the argument types of every simulation: a process that forks workers or studies
+    afterwards (:func:`jointbench.benchmarks.harness.side_by_side.preload`) compiles them once for all."""
+    p, q = np.array([-1e3, -2e3]), np.array([-10.0, -20.0])
+    _series(p, q, 1e-3, 1)
+    E = tuple(np.full(BLOCK + 1, v) for v in (0.5, 0.0, 0.0, 0.5))
+    affine_recursion(E, np.ones(BLOCK + 1), np.ones(BLOCK + 1), (0.0, 0.0))
 
 
 #: the step weights of the last joints simulated in this process, by pickled (joint, coupling, n, h): trials of

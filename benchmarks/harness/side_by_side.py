@@ -24,10 +24,17 @@ from collections.abc import Callable, Sequence
 
 
 def preload() -> None:
-    """Import what every study run imports, so that children forked afterwards share it.
+    """Import what every study run imports, and compile the simulator's loops, so that children forked
+    afterwards share them.
+
+    The loops (numba, :func:`jointbench.sims.backend_ltv.warm`) are compiled meanwhile in a child of their
+    own (:func:`_compile_aside`), which leaves them in numba's disk cache: on a machine where they were
+    never compiled that takes seconds, on the second core while this process imports; this process then
+    loads them from the cache (compiling them itself when the child could not leave them there).
 
     Starts no thread (the BLAS thread count is fixed by the command line before numpy loads, Arrow's
     thread pool starts on first use), so forking afterwards is safe."""
+    compiling = _compile_aside()
     import matplotlib
 
     matplotlib.use("Agg")
@@ -43,6 +50,35 @@ def preload() -> None:
     for registry in (protocols.REGISTRY, estimators.REGISTRY):
         for name in registry.names():
             registry.get(name)
+    if compiling is not None:
+        os.waitpid(compiling, 0)
+    from jointbench.sims import backend_ltv
+
+    backend_ltv.warm()
+
+
+def _compile_aside() -> int | None:
+    """A forked child that compiles the simulator's loops into numba's disk cache and exits (its pid), or
+    None when no process can be forked. Its failure is not an error: the parent compiles them itself."""
+    try:
+        pid = os.fork()
+    except OSError:
+        return None
+    if pid == 0:                                  # the child: compile, leave the cache, exit silently
+        code = 1
+        try:
+            quiet = os.open(os.devnull, os.O_WRONLY)    # the parent prints any warning of its own load
+            os.dup2(quiet, 1)
+            os.dup2(quiet, 2)
+            from jointbench.sims import backend_ltv
+
+            backend_ltv.warm()
+            code = 0
+        except BaseException:                     # noqa: BLE001 - the parent compiles them then
+            pass
+        finally:
+            os._exit(code)
+    return pid
 
 
 def exit_code(status: int) -> int:
