@@ -426,3 +426,12 @@ def mdl_pinv(Phi: np.ndarray, phi: np.ndarray, yvar: np.ndarray, n_obs: float, f
     h, order = np.empty((T, n)), np.empty(T, np.int64)
     _failed(_mdl_stack(Phi, phi, yvar, float(n_obs), bool(full), float(rcond), h, order, _workspace(n)))
     return h, order
+
+
+def warm() -> None:
+    """Compile the solver's loops now (or load them from numba's disk cache), with the argument types of
+    the ensemble fits (:func:`mdl_pinv`, :func:`lagged_gram`): a command that runs several studies compiles
+    them aside, on the idle core while it imports (:func:`jointbench.benchmarks.harness.side_by_side.preload`)."""
+    U = np.arange(12.0).reshape(6, 2)
+    Phi = lagged_gram(U, 3)
+    mdl_pinv(Phi + np.eye(3), np.ones((len(Phi), 3)), np.ones(len(Phi)), 2.0, False, 1e-10)

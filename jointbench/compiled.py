@@ -37,6 +37,12 @@ def jit(fn):
         return njit(error_model="numpy")(fn)
 
 
+def uncached() -> tuple[str, ...]:
+    """The kernels compiled so far that numba could not cache (no writable cache folder): compiled anew in
+    each process."""
+    return tuple(_UNCACHED)
+
+
 def jit_inline(fn):
     """``fn`` compiled as :func:`jit` compiles, and inlined into each caller in numba's own representation
     (``inline="always"``): no compiled function of its own, so its callees' code is not optimised and

@@ -27,14 +27,15 @@ def preload() -> None:
     """Import what every study run imports, and compile the simulator's loops, so that children forked
     afterwards share them.
 
-    The loops (numba, :func:`jointbench.sims.backend_ltv.warm`) are compiled meanwhile in a child of their
-    own (:func:`_compile_aside`), which leaves them in numba's disk cache: on a machine where they were
-    never compiled that takes seconds, on the second core while this process imports; this process then
-    loads them from the cache (compiling them itself when the child could not leave them there).
+    The compiled loops (numba) cost seconds to compile on a machine where they never were, and loading
+    them from numba's disk cache after that. This process compiles the simulator's
+    (:func:`jointbench.sims.backend_ltv.warm`: every study simulates); meanwhile a child of its own
+    compiles the ensemble solver's into the disk cache (:func:`_compile_aside`), on the core this process
+    leaves idle while it imports, so a study that fits ensembles loads them from there.
 
     Starts no thread (the BLAS thread count is fixed by the command line before numpy loads, Arrow's
     thread pool starts on first use), so forking afterwards is safe."""
-    compiling = _compile_aside()
+    _compile_aside()
     import matplotlib
 
     matplotlib.use("Agg")
@@ -46,35 +47,39 @@ def preload() -> None:
 
     from jointbench import estimators
     from jointbench.benchmarks import protocols, report, study, tables  # noqa: F401
+    from jointbench.sims import backend_ltv
 
     for registry in (protocols.REGISTRY, estimators.REGISTRY):
         for name in registry.names():
             registry.get(name)
-    if compiling is not None:
-        os.waitpid(compiling, 0)
-    from jointbench.sims import backend_ltv
-
     backend_ltv.warm()
 
 
 def _compile_aside() -> int | None:
-    """A forked child that compiles the simulator's loops into numba's disk cache and exits (its pid), or
-    None when no process can be forked. Its failure is not an error: the parent compiles them itself."""
+    """A forked child that compiles the ensemble solver's loops (:func:`jointbench.estimators._small_eigh.warm`)
+    into numba's disk cache and exits, silently (its pid; None when no process can be forked). Nothing
+    waits for it: a fit that starts before it is done compiles the loops itself; when numba has no
+    writable cache folder it exits at once (its work could not be shared). :func:`run_forked` reaps it
+    with the studies (a pid that is not a study's)."""
+    sys.stdout.flush()
+    sys.stderr.flush()
     try:
         pid = os.fork()
     except OSError:
         return None
-    if pid == 0:                                  # the child: compile, leave the cache, exit silently
+    if pid == 0:                                  # the child: compile, leave the cache, exit
         code = 1
         try:
-            quiet = os.open(os.devnull, os.O_WRONLY)    # the parent prints any warning of its own load
+            quiet = os.open(os.devnull, os.O_WRONLY)    # warnings are the studies' to print
             os.dup2(quiet, 1)
             os.dup2(quiet, 2)
-            from jointbench.sims import backend_ltv
+            from jointbench import compiled
+            from jointbench.estimators import _small_eigh
 
-            backend_ltv.warm()
+            if not compiled.uncached():
+                _small_eigh.warm()
             code = 0
-        except BaseException:                     # noqa: BLE001 - the parent compiles them then
+        except BaseException:                     # noqa: BLE001 - a fit compiles them then
             pass
         finally:
             os._exit(code)
