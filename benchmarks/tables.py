@@ -37,11 +37,9 @@ def curves_frame(results) -> pd.DataFrame:
     for r in results:
         for c in r.curves:
             labels = {k: v for k, v in c.items() if k not in ("x", "y")}
-            f = pd.DataFrame({"x": c["x"], "y": c["y"]})
-            for k, v in {"part": r.case.part, "case_id": r.case.case_id, "seed": r.case.seed,
-                         **r.case.sweep, **labels}.items():
-                f[k] = v
-            frames.append(f)
+            # one constructor call, the labels broadcast as columns (as many assignments did, a column each)
+            frames.append(pd.DataFrame({"x": c["x"], "y": c["y"], "part": r.case.part, "case_id": r.case.case_id,
+                                        "seed": r.case.seed, **r.case.sweep, **labels}))
     if not frames:
         return pd.DataFrame(columns=["part", "case_id", "seed", "curve", "series", "x", "y"])
     return pd.concat(frames, ignore_index=True)

@@ -103,10 +103,13 @@ class Cache:
             return
         material = key_material(res.case)
         key = fingerprint.sha(material)
-        payload = _result_payload(res)
-        entry = {"format": FORMAT, "key": key, "material": material, "case_id": res.case.case_id,
-                 "study": res.case.study, "result": payload, "checksum": fingerprint.sha(payload)}
-        text = json.dumps(entry, allow_nan=True)
+        # the result (most of the entry: rows and curves) encoded once, for the checksum (canonical: its
+        # JSON read back, keys sorted) and for the file, whose text is json.dumps of the whole entry
+        result = json.dumps(_result_payload(res), allow_nan=True)
+        checksum = fingerprint.sha_text(fingerprint.canonical_json(json.loads(result)))
+        head = json.dumps({"format": FORMAT, "key": key, "material": material, "case_id": res.case.case_id,
+                           "study": res.case.study}, allow_nan=True)
+        text = f'{head[:-1]}, "result": {result}, "checksum": {json.dumps(checksum)}}}'
         atomic_write(self.path(key), lambda t: Path(t).write_text(text))
         self.written += 1
 

@@ -376,12 +376,21 @@ def canonical(obj) -> str:
     before the keys are sorted, so a mapping with number keys (``{5: .., 10: ..}``, sorted 5 < 10) and its
     stored copy (``{"5": .., "10": ..}``, sorted "10" < "5") give one text. Without it a cache entry's
     material never hashed to its key again and such cases were always recomputed."""
-    plain = json.loads(json.dumps(obj, default=str, allow_nan=True))
+    return canonical_json(json.loads(json.dumps(obj, default=str, allow_nan=True)))
+
+
+def canonical_json(plain) -> str:
+    """:func:`canonical` of an object already read from JSON (string keys, JSON values only)."""
     return json.dumps(plain, sort_keys=True, separators=(",", ":"), allow_nan=True)
 
 
 def sha(obj, n: int = 32) -> str:
-    return hashlib.sha256(canonical(obj).encode()).hexdigest()[:n]
+    return sha_text(canonical(obj), n)
+
+
+def sha_text(text: str, n: int = 32) -> str:
+    """The first ``n`` hex digits of the SHA-256 of ``text`` (:func:`sha` of what ``text`` is canonical of)."""
+    return hashlib.sha256(text.encode()).hexdigest()[:n]
 
 
 def _git(*args: str, cwd: Path | None = None) -> str | None:
