@@ -205,41 +205,27 @@ def _unpack(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return R, x[..., 6:]
 
 
-def _solve_spd3(x: np.ndarray, overwrite_x: bool = False) -> np.ndarray:
+def _solve_spd3(x: np.ndarray) -> np.ndarray:
     """``R^-1 r`` per sample from ``x`` = [unique entries of R, r], shape (9, n); ``R`` symmetric positive
     definite. Returns shape (n, 3).
 
     Columns scaled so that the mean diagonal of ``R`` is 1, then ``R = L D L^T`` written out for 3 x 3
-    (no pivoting is needed for a positive definite matrix) and two triangular solves, every step one
-    vectorised operation over the samples. The steps write into four work rows and into the rows of the
-    scaled ``x`` they no longer need (``overwrite_x=True``: ``x`` itself is scaled, and destroyed).
+    (no pivoting is needed for a positive definite matrix) and two triangular solves, per sample in one
+    compiled loop (:func:`jointbench.estimators._ewls_loops.solve3`; tests/test_fsewls.py keeps the numpy
+    formulation it replaced, the same numbers to the last bit).
+
+    Raises
+    ------
+    numpy.linalg.LinAlgError
+        ``R`` is not positive definite at some sample.
     """
+    from jointbench.estimators import _ewls_loops
+
+    x = np.ascontiguousarray(x, dtype=float)
     s = 1.0 / np.sqrt(x[[0, 3, 5]].mean(axis=1))
-    a = x if overwrite_x else np.empty_like(x)
-    for k, (i, j) in enumerate(zip(*_IU)):
-        np.multiply(x[k], s[i] * s[j], out=a[k])
-    for i in range(3):
-        np.multiply(x[6 + i], s[i], out=a[6 + i])
-    a00, a01, a02, a11, a12, a22, b0, b1, b2 = a
-    mul, sub, div = np.multiply, np.subtract, np.divide
-    l10, l20, l21, t = np.empty((4, x.shape[-1]))
-    div(a01, a00, out=l10)
-    div(a02, a00, out=l20)
-    d1 = sub(a11, mul(l10, a01, out=t), out=a11)                          # a11 - l10 a01
-    e12 = sub(a12, mul(l20, a01, out=t), out=a12)                         # a12 - l20 a01
-    div(e12, d1, out=l21)
-    d2 = sub(sub(a22, mul(l20, a02, out=t), out=a22), mul(l21, e12, out=t), out=a22)  # a22 - l20 a02 - l21 e12
-    if not (np.all(d1 > 0) and np.all(d2 > 0) and np.all(a00 > 0)):
-        raise np.linalg.LinAlgError("EWLS information matrix is not positive definite")
-    z1 = sub(b1, mul(l10, b0, out=t), out=b1)                             # b1 - l10 b0
-    x2 = sub(sub(b2, mul(l20, b0, out=t), out=b2), mul(l21, z1, out=t), out=b2)
-    div(x2, d2, out=x2)                                                   # (b2 - l20 b0 - l21 z1) / d2
-    x1 = div(sub(z1, mul(e12, x2, out=t), out=z1), d1, out=z1)            # (z1 - e12 x2) / d1
-    x0 = sub(sub(b0, mul(a01, x1, out=t), out=b0), mul(a02, x2, out=t), out=b0)
-    div(x0, a00, out=x0)                                                  # (b0 - a01 x1 - a02 x2) / a00
     out = np.empty((x.shape[-1], 3))
-    for i, xi in enumerate((x0, x1, x2)):
-        mul(xi, s[i], out=out[:, i])
+    if not _ewls_loops.solve3(x, s, out):
+        raise np.linalg.LinAlgError("EWLS information matrix is not positive definite")
     return out
 
 
@@ -250,12 +236,12 @@ def ewls(Phi: np.ndarray, y: np.ndarray, dt: float, lam: float, R0: np.ndarray,
     With ``R = P^-1`` and ``r = R Theta`` eq. 6 is linear: ``R' = -lam R + Phi Phi^T``,
     ``r' = -lam r + Phi y``, ``Theta = R^-1 r`` (records pool by summing ``Phi Phi^T`` and ``Phi y``).
     RK4 with ``Phi`` and ``y`` linearly interpolated at the mid-points is then exactly the recursion of
-    :func:`rk4_coefficients` on the products at the samples and at the mid-points, run by
-    :func:`scipy.signal.lfilter`, followed by a column-scaled 3 x 3 solve per sample (:func:`_solve_spd3`).
+    :func:`rk4_coefficients` on the products at the samples and at the mid-points (compiled:
+    :func:`jointbench.estimators._ewls_loops.recursion`, the numbers of ``scipy.signal.lfilter`` on the
+    drive), followed by a column-scaled 3 x 3 solve per sample (:func:`_solve_spd3`).
     RK4 is not invariant under the change of variables ``(P, Theta) -> (R, r)``: the result differs
     from RK4 on eq. 6 itself (:func:`_ewls_riccati_rk4`) by RK4's truncation error, ``O(dt^4)``; the tests
-    check they agree. The nine products are laid out one per row (9, n), so every step of the
-    arithmetic (about 200 flops per sample) is one contiguous vectorised pass.
+    check they agree. The nine products are laid out one per row (9, n), each one contiguous pass.
 
     ``Phi`` has shape (n_records, n, 3), ``y`` (n_records, n); ``dt`` is the step (s), ``lam`` the
     forgetting rate (1/s), ``R0 = P(0)^-1`` and ``r0 = P(0)^-1 Theta(0)``. Returns ``[I, B, K]`` per
@@ -265,22 +251,15 @@ def ewls(Phi: np.ndarray, y: np.ndarray, dt: float, lam: float, R0: np.ndarray,
     ----------
     Xu & Hollerbach (1998), eqs. 5-6 and Sec. II-D.
     """
+    from jointbench.estimators import _ewls_loops
+
     c, w0, wm, w1 = rk4_coefficients(lam, dt)
-    P = np.ascontiguousarray(np.moveaxis(Phi, -1, 0))           # (3, n_records, n)
-    y = np.ascontiguousarray(y)
-    f = _products(P, y)
-    Pm = np.add(P[..., 1:], P[..., :-1])                          # mid-points, 0.5 (a + b), in place
-    Pm *= 0.5
-    ym = np.add(y[:, 1:], y[:, :-1])
-    ym *= 0.5
-    fm = _products(Pm, ym)
-    drive = np.empty_like(f)
-    drive[:, 0] = np.concatenate([R0[_IU], r0])
-    d = drive[:, 1:]
-    np.multiply(f[:, :-1], w0, out=d)                           # w0 f0 + wm fm + w1 f1, left to right
-    d += np.multiply(fm, wm, out=fm)
-    d += np.multiply(f[:, 1:], w1, out=fm)
-    return _solve_spd3(sps.lfilter([1.0], [1.0, -c], drive, axis=-1), overwrite_x=True)
+    P = np.ascontiguousarray(np.moveaxis(Phi, -1, 0), dtype=float)    # (3, n_records, n)
+    y = np.ascontiguousarray(y, dtype=float)
+    R = np.empty((9, y.shape[-1]))            # R(t) and r(t) from R0, r0: x_k = c x_k-1 + w0 f0 + wm fm + w1 f1
+    _ewls_loops.recursion(P, y, float(w0), float(wm), float(w1), float(c),
+                          np.ascontiguousarray(np.concatenate([R0[_IU], r0]), dtype=float), R)
+    return _solve_spd3(R)
 
 
 def ewls_start(Phi: np.ndarray, y: np.ndarray, fs: float, init_window: float) -> tuple[np.ndarray, np.ndarray]:

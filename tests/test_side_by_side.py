@@ -155,9 +155,9 @@ def test_studies_never_started_after_an_interrupt_are_not_reported_as_success(tm
     assert r.returncode == 0 and r.stdout.strip() == "[130, 130, 130]", r.stdout + r.stderr
 
 
-def test_the_ensemble_solvers_loops_are_compiled_aside_into_the_disk_cache(tmp_path):
+def test_the_estimators_loops_are_compiled_aside_into_the_disk_cache(tmp_path):
     """preload's compile child (on the idle core while the parent imports) exits 0 and leaves the compiled
-    loops of the ensemble solver in numba's disk cache, where a study that fits ensembles loads them; run
+    loops of the ensemble solver and of FSEWLS in numba's disk cache, where a study that fits them loads them; run
     in a subprocess (NUMBA_CACHE_DIR is read at import)."""
     script = textwrap.dedent("""
         import os, sys
@@ -170,4 +170,5 @@ def test_the_ensemble_solvers_loops_are_compiled_aside_into_the_disk_cache(tmp_p
     out = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True, check=True)
     assert out.stdout.split() == ["0"], out.stderr
     kept = {p.name.split("-")[0] for p in tmp_path.rglob("*.nbi")}
-    assert {"_small_eigh._mdl_stack", "_small_eigh._lagged_gram"} <= kept, kept
+    want = {"_small_eigh._mdl_stack", "_small_eigh._lagged_gram", "_ewls_loops.recursion", "_ewls_loops.solve3"}
+    assert want <= kept, kept

@@ -30,8 +30,8 @@ def preload() -> None:
     The compiled loops (numba) cost seconds to compile on a machine where they never were, and loading
     them from numba's disk cache after that. This process compiles the simulator's
     (:func:`jointbench.sims.backend_ltv.warm`: every study simulates); meanwhile a child of its own
-    compiles the ensemble solver's into the disk cache (:func:`_compile_aside`), on the core this process
-    leaves idle while it imports, so a study that fits ensembles loads them from there.
+    compiles the estimators' into the disk cache (:func:`_compile_aside`), on the core this process
+    leaves idle while it imports, so a study that fits them loads them from there.
 
     Starts no thread (the BLAS thread count is fixed by the command line before numpy loads, Arrow's
     thread pool starts on first use), so forking afterwards is safe."""
@@ -56,7 +56,8 @@ def preload() -> None:
 
 
 def _compile_aside() -> int | None:
-    """A forked child that compiles the ensemble solver's loops (:func:`jointbench.estimators._small_eigh.warm`)
+    """A forked child that compiles the estimators' loops (the ensemble solver's,
+    :func:`jointbench.estimators._small_eigh.warm`, and FSEWLS's, :func:`jointbench.estimators._ewls_loops.warm`)
     into numba's disk cache and exits, silently (its pid; None when no process can be forked). Nothing
     waits for it: a fit that starts before it is done compiles the loops itself; when numba has no
     writable cache folder it exits at once (its work could not be shared). :func:`run_forked` reaps it
@@ -74,10 +75,11 @@ def _compile_aside() -> int | None:
             os.dup2(quiet, 1)
             os.dup2(quiet, 2)
             from jointbench import compiled
-            from jointbench.estimators import _small_eigh
+            from jointbench.estimators import _ewls_loops, _small_eigh
 
             if not compiled.uncached():
                 _small_eigh.warm()
+                _ewls_loops.warm()
             code = 0
         except BaseException:                     # noqa: BLE001 - a fit compiles them then
             pass
