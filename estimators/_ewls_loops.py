@@ -18,7 +18,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from jointbench.compiled import jit
+from jointbench.compiled import jit, wait_aside
+
+wait_aside()         # a command compiling these loops aside: load them from the disk cache when it is done
 
 
 @jit

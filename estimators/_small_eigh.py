@@ -30,7 +30,9 @@ import math
 
 import numpy as np
 
-from jointbench.compiled import jit, jit_inline
+from jointbench.compiled import jit, jit_inline, wait_aside
+
+wait_aside()         # a command compiling these loops aside: load them from the disk cache when it is done
 
 #: QR steps allowed per eigenvalue before giving up (LAPACK's dsteqr allows 30 as well)
 MAX_STEPS = 30

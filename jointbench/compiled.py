@@ -16,11 +16,14 @@ process, with one warning.
 """
 from __future__ import annotations
 
+import os
 import warnings
 
 from numba import njit
 
 _UNCACHED: list[str] = []
+#: the read end of a pipe whose other end a process compiling the kernels aside holds (see :func:`wait_aside`)
+_ASIDE: list[int] = []
 
 
 def jit(fn):
@@ -41,6 +44,32 @@ def uncached() -> tuple[str, ...]:
     """The kernels compiled so far that numba could not cache (no writable cache folder): compiled anew in
     each process."""
     return tuple(_UNCACHED)
+
+
+def compiling_aside(fd: int) -> None:
+    """Say that another process is compiling the kernels into the disk cache and holds the write end of the
+    pipe whose read end is ``fd`` (it closes it when done, by exiting): :func:`wait_aside` waits for that.
+    Set by :func:`jointbench.benchmarks.harness.side_by_side.preload` before it forks the studies."""
+    _ASIDE.append(fd)
+
+
+def wait_aside() -> None:
+    """Wait until the process compiling the kernels aside (:func:`compiling_aside`) is done, if there is one:
+    a kernel module calls it when it is first imported, so that its first call loads the compiled code
+    from the disk cache instead of compiling it a second time. Returns at once otherwise (and when that
+    process has died: its end of the pipe is closed either way)."""
+    while _ASIDE:
+        fd = _ASIDE.pop()
+        try:
+            while os.read(fd, 4096):
+                pass
+        except OSError:
+            pass
+        finally:
+            try:
+                os.close(fd)
+            except OSError:
+                pass
 
 
 def jit_inline(fn):

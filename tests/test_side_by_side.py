@@ -172,3 +172,24 @@ def test_the_estimators_loops_are_compiled_aside_into_the_disk_cache(tmp_path):
     kept = {p.name.split("-")[0] for p in tmp_path.rglob("*.nbi")}
     want = {"_small_eigh._mdl_stack", "_small_eigh._lagged_gram", "_ewls_loops.recursion", "_ewls_loops.solve3"}
     assert want <= kept, kept
+
+
+def test_a_study_waits_for_the_compile_aside_then_goes_on():
+    """wait_aside returns at once when nothing compiles aside, and otherwise only when the compiling process
+    has closed its end of the pipe (by exiting: here a thread closes it after 0.3 s), once."""
+    import threading
+
+    from jointbench import compiled
+
+    t0 = time.monotonic()
+    compiled.wait_aside()
+    assert time.monotonic() - t0 < 0.1
+    r, w = os.pipe()
+    compiled.compiling_aside(r)
+    threading.Timer(0.3, os.close, (w,)).start()
+    t0 = time.monotonic()
+    compiled.wait_aside()
+    assert 0.25 < time.monotonic() - t0 < 5
+    t0 = time.monotonic()
+    compiled.wait_aside()                  # done: never again
+    assert time.monotonic() - t0 < 0.1

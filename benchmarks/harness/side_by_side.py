@@ -58,19 +58,22 @@ def preload() -> None:
 def _compile_aside() -> int | None:
     """A forked child that compiles the estimators' loops (the ensemble solver's,
     :func:`jointbench.estimators._small_eigh.warm`, and FSEWLS's, :func:`jointbench.estimators._ewls_loops.warm`)
-    into numba's disk cache and exits, silently (its pid; None when no process can be forked). Nothing
-    waits for it: a fit that starts before it is done compiles the loops itself; when numba has no
+    into numba's disk cache and exits, silently (its pid; None when no process can be forked). A study
+    that first imports those loops waits for it (:func:`jointbench.compiled.wait_aside`: the pipe it holds
+    closes when it exits) and loads them from the cache, so they are compiled once; when numba has no
     writable cache folder it exits at once (its work could not be shared). :func:`run_forked` reaps it
     with the studies (a pid that is not a study's)."""
     sys.stdout.flush()
     sys.stderr.flush()
     try:
+        done_r, done_w = os.pipe()                # closed by the child's exit: what wait_aside waits for
         pid = os.fork()
     except OSError:
         return None
     if pid == 0:                                  # the child: compile, leave the cache, exit
         code = 1
         try:
+            os.close(done_r)
             quiet = os.open(os.devnull, os.O_WRONLY)    # warnings are the studies' to print
             os.dup2(quiet, 1)
             os.dup2(quiet, 2)
@@ -85,6 +88,10 @@ def _compile_aside() -> int | None:
             pass
         finally:
             os._exit(code)
+    os.close(done_w)
+    from jointbench import compiled
+
+    compiled.compiling_aside(done_r)              # the studies forked from here wait for it (wait_aside)
     return pid
 
 
