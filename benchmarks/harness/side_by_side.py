@@ -67,8 +67,13 @@ def _compile_aside() -> int | None:
     sys.stderr.flush()
     try:
         done_r, done_w = os.pipe()                # closed by the child's exit: what wait_aside waits for
+    except OSError:
+        return None
+    try:
         pid = os.fork()
     except OSError:
+        os.close(done_r)
+        os.close(done_w)
         return None
     if pid == 0:                                  # the child: compile, leave the cache, exit
         code = 1
