@@ -34,28 +34,13 @@ def recursion(P, y, w0, wm, w1, c, start, out):
     f1 = np.empty(9)
     fm = np.empty(9)
     x = np.empty(9)
-    pm = np.empty(3)
-    _products(P, y, 0, f0)
+    _products(P, y, 0, 0.0, f0)
     for m in range(9):
         x[m] = 0.0 + start[m]                     # lfilter from rest: 0 + the first input
         out[m, 0] = x[m]
     for k in range(1, n):
-        _products(P, y, k, f1)
-        for m in range(9):
-            fm[m] = 0.0
-        for r in range(R):
-            for i in range(3):
-                pm[i] = (P[i, r, k] + P[i, r, k - 1]) * 0.5
-            ym = (y[r, k] + y[r, k - 1]) * 0.5
-            fm[0] += pm[0] * pm[0]
-            fm[1] += pm[0] * pm[1]
-            fm[2] += pm[0] * pm[2]
-            fm[3] += pm[1] * pm[1]
-            fm[4] += pm[1] * pm[2]
-            fm[5] += pm[2] * pm[2]
-            fm[6] += pm[0] * ym
-            fm[7] += pm[1] * ym
-            fm[8] += pm[2] * ym
+        _products(P, y, k, 0.0, f1)
+        _products(P, y, k, 0.5, fm)
         for m in range(9):
             d = f0[m] * w0 + fm[m] * wm + f1[m] * w1
             x[m] = c * x[m] + d
@@ -64,12 +49,18 @@ def recursion(P, y, w0, wm, w1, c, start, out):
 
 
 @jit
-def _products(P, y, k, f):
-    """The nine products of sample ``k`` summed over the records, into ``f``."""
+def _products(P, y, k, mid, f):
+    """The nine products of sample ``k`` (``mid == 0``) or of the mid-point before it (``mid == 0.5``:
+    ``(a_k + a_k-1) 0.5``), summed over the records, into ``f``."""
     for m in range(9):
         f[m] = 0.0
     for r in range(y.shape[0]):
-        p0, p1, p2, yk = P[0, r, k], P[1, r, k], P[2, r, k], y[r, k]
+        if mid == 0.0:
+            p0, p1, p2, yk = P[0, r, k], P[1, r, k], P[2, r, k], y[r, k]
+        else:
+            p0, p1, p2 = (P[0, r, k] + P[0, r, k - 1]) * mid, (P[1, r, k] + P[1, r, k - 1]) * mid, \
+                (P[2, r, k] + P[2, r, k - 1]) * mid
+            yk = (y[r, k] + y[r, k - 1]) * mid
         f[0] += p0 * p0
         f[1] += p0 * p1
         f[2] += p0 * p2

@@ -241,7 +241,7 @@ def ewls(Phi: np.ndarray, y: np.ndarray, dt: float, lam: float, R0: np.ndarray,
     drive), followed by a column-scaled 3 x 3 solve per sample (:func:`_solve_spd3`).
     RK4 is not invariant under the change of variables ``(P, Theta) -> (R, r)``: the result differs
     from RK4 on eq. 6 itself (:func:`_ewls_riccati_rk4`) by RK4's truncation error, ``O(dt^4)``; the tests
-    check they agree. The nine products are laid out one per row (9, n), each one contiguous pass.
+    check they agree.
 
     ``Phi`` has shape (n_records, n, 3), ``y`` (n_records, n); ``dt`` is the step (s), ``lam`` the
     forgetting rate (1/s), ``R0 = P(0)^-1`` and ``r0 = P(0)^-1 Theta(0)``. Returns ``[I, B, K]`` per

@@ -96,7 +96,8 @@ def affine_recursion(E, v0: np.ndarray, v1: np.ndarray, x0: tuple[float, float])
     loop does); a second pass runs every block from its true start state. Each state is thus computed by
     the plain recursion from a nearby exact start: the rounding differs from a sequential loop by a few
     ulp. (The block structure made the recursion a few vectorised numpy passes per block step; compiled
-    now, :func:`jointbench.sims._ltv_kernels.affine`, it keeps the same operations, so the same numbers.)
+    now, :func:`jointbench.sims._ltv_kernels.ends` and :func:`~jointbench.sims._ltv_kernels.from_starts` for each
+    level, it keeps the same operations, so the same numbers.)
     Returns the two state components, length n.
     """
     from jointbench.sims import _ltv_kernels as kernels
