@@ -29,6 +29,7 @@ from jointbench.benchmarks.harness.cache import Cache, case_key
 from jointbench.benchmarks.harness.history import History
 from jointbench.benchmarks.runner import CaseResult, RunInterrupted, expand, expand_study, group_cases, run_cases
 from jointbench.benchmarks.tables import cases_frame, compare, curves_frame, swap_survival
+from jointbench.csv_text import write_csv
 from jointbench.errors import ConfigError, OutputError
 from jointbench.files import atomic_write, replace_as_set, staging_folder, sweep_stale_temps, write_text
 
@@ -56,9 +57,9 @@ class StudyRun:
 
 
 
-#: curves.csv.gz: gzip level 6 (zlib's default; level 9 took 1.5 times as long for a file 4 % smaller, issue 22)
-#: and no time stamp in the header, so that the same curves give the same bytes
-GZIP = {"method": "gzip", "compresslevel": 6, "mtime": 0}
+#: curves.csv.gz: gzip level 6 (zlib's default; level 9 took 1.5 times as long for a file 4 % smaller, issue 22);
+#: no time stamp or file name in the header (jointbench.csv_text.write_csv): the same curves, the same bytes
+GZIP_LEVEL = 6
 
 
 def results_root(out_root: Path | None = None) -> Path:
@@ -264,10 +265,10 @@ def run_study(ref: str | Path, parts: list[str] | None = None, out_root: Path | 
             # the last good set as it was (tests/test_outputs_set.py).
             stage = staging_folder(folder)
             try:
-                atomic_write(stage / "cases.csv", lambda p: rows.to_csv(p, index=False))
+                atomic_write(stage / "cases.csv", lambda p: write_csv(rows, p))
                 atomic_write(stage / "cases.parquet", lambda p: outputs.write_parquet(rows, p))
-                atomic_write(stage / "curves.csv.gz", lambda p: curves.to_csv(p, index=False, compression=GZIP))
-                atomic_write(stage / "comparison.csv", lambda p: comparison.to_csv(p, index=False))
+                atomic_write(stage / "curves.csv.gz", lambda p: write_csv(curves, p, gzip_level=GZIP_LEVEL))
+                atomic_write(stage / "comparison.csv", lambda p: write_csv(comparison, p))
                 failed = [r for r in results if r.status != "ok"]
                 if failed:
                     write_text(stage / "failures.log",

@@ -125,8 +125,6 @@ def test_every_case_failing_exits_non_zero_with_the_count(tmp_path):
 
 
 def test_estimate_outputs_are_one_set(tmp_path, monkeypatch):
-    import pandas as pd
-
     from tests.estimate_data import lti_ankle, save
 
     rec = save(tmp_path / "rec.npz", lti_ankle(0))
@@ -135,13 +133,15 @@ def test_estimate_outputs_are_one_set(tmp_path, monkeypatch):
     assert main(args) == 0
     good = _snapshot(tmp_path / "o")
     assert len(good) >= 3
-    real = pd.DataFrame.to_csv
+    from jointbench import csv_text
 
-    def to_csv(self, path, *a, **k):
+    real = csv_text.write_csv
+
+    def write_csv(frame, path, *a, **k):
         if "prediction" in Path(str(path)).name:
             raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
-        return real(self, path, *a, **k)
-    monkeypatch.setattr(pd.DataFrame, "to_csv", to_csv)
+        return real(frame, path, *a, **k)
+    monkeypatch.setattr(csv_text, "write_csv", write_csv)
     save(rec, lti_ankle(1))                                      # other data: every output would change
     assert main(args) == 2
     assert _snapshot(tmp_path / "o") == good

@@ -217,6 +217,8 @@ def prediction_frame(trials: list, predictions: list):
 def write_outputs(out: Path, plot: Path | None, o: Outcome) -> list[tuple[Path, int | None, list[str] | None]]:
     """Write every output as one set (:func:`jointbench.files.atomic_write_set`); nothing is written before
     :func:`compute` has succeeded."""
+    from jointbench.csv_text import write_csv      # pandas' bytes, faster (imports pandas: not for --list)
+
     written = [(out, len(o.frame), list(o.frame.columns))]
     tables = [(out, o.frame)]
     if o.response is not None:
@@ -226,7 +228,7 @@ def write_outputs(out: Path, plot: Path | None, o: Outcome) -> list[tuple[Path, 
     pred = prediction_frame(o.trials, o.predictions)
     tables.append((prediction_path(out), pred))
     written.append((prediction_path(out), len(pred), list(pred.columns)))
-    items = [(path, lambda p, table=table: table.to_csv(p, index=False)) for path, table in tables]
+    items = [(path, lambda p, table=table: write_csv(table, p)) for path, table in tables]
     if plot is not None and o.figure is not None:
         items.append((plot, lambda p: Path(p).write_bytes(o.figure)))
         written.append((plot, None, None))
