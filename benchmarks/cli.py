@@ -147,7 +147,8 @@ def _run_one(args, study: str, backend: str | None) -> int:
     lines += [f"  {r.status:4s}  {r.evidence:12s}  {r.check:18s} reproduced {r.reproduced:.5g}  "
               f"[{r.low:.5g}, {r.high:.5g}]" for r in comp.itertuples()]
     lines.append(f"wrote {run.folder}/report.md, comparison.csv, cases.csv, cases.parquet; history run {run.run_id}")
-    print("\n".join(lines), flush=True)
+    sys.stdout.write("\n".join(lines) + "\n")       # one write: under PYTHONUNBUFFERED print() makes two,
+    sys.stdout.flush()                                # and a study side by side could land between them
     if run.failed and not run.study.expected_failures:
         print(f"jointbench: {len(run.failed)} of {len(run.results)} cases failed (tracebacks in "
               f"{run.folder / 'failures.log'}); exit 1 (a study whose failures are expected says "
