@@ -42,12 +42,18 @@ def new_figure(*args, **kw):
     return plt.subplots(*args, **kw)
 
 
-def save(fig, folder, name: str) -> str:
+def save(fig, folder, name: str, dpi: int = 110) -> str:
+    """``fig`` as the PNG ``folder / name`` at ``dpi``, cropped to what is drawn
+    (:func:`jointbench.benchmarks.harness.png.tight_png`: one draw), and closed; returns ``name``."""
     import matplotlib.pyplot as plt
 
+    from jointbench.benchmarks.harness.png import tight_png
+
     folder.mkdir(parents=True, exist_ok=True)
-    fig.savefig(folder / name, dpi=110, bbox_inches="tight")
-    plt.close(fig)
+    try:
+        (folder / name).write_bytes(tight_png(fig, dpi))
+    finally:
+        plt.close(fig)
     return name
 
 

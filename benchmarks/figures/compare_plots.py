@@ -30,13 +30,7 @@ def save_both(fig, folder, name: str, dpi: int | None = None) -> str:
     print); returns the PNG's name."""
     folder.mkdir(parents=True, exist_ok=True)
     fig.savefig(folder / (name.rsplit(".", 1)[0] + ".pdf"), bbox_inches="tight")
-    if dpi is None:
-        return save(fig, folder, name)
-    import matplotlib.pyplot as plt
-
-    fig.savefig(folder / name, dpi=dpi, bbox_inches="tight")
-    plt.close(fig)
-    return name
+    return save(fig, folder, name) if dpi is None else save(fig, folder, name, dpi)
 
 
 def _vaf_text(v: float) -> str:

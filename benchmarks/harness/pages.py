@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import base64
 import dataclasses
-import io
 import math
 import os
 import re
@@ -146,12 +145,16 @@ def table(title: str, df: pd.DataFrame, columns: dict[str, str] | None = None, c
 
 
 def figure_png(fig, dpi: int = 100) -> bytes:
+    """``fig`` as PNG bytes cropped to what is drawn (:func:`jointbench.benchmarks.harness.png.tight_png`),
+    and closed."""
     import matplotlib.pyplot as plt
 
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=dpi, bbox_inches="tight")
-    plt.close(fig)
-    return buf.getvalue()
+    from jointbench.benchmarks.harness.png import tight_png
+
+    try:
+        return tight_png(fig, dpi)
+    finally:
+        plt.close(fig)
 
 
 # ------------------------------------------------------------------------------------------ rendering
