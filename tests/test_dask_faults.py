@@ -43,8 +43,11 @@ class Cluster:
         self.address = f"tcp://127.0.0.1:{_port()}"
         self.scheduler = self._spawn("scheduler", ["scheduler", "--host", "127.0.0.1", "--port",
                                                    self.address.rsplit(":", 1)[1], "--no-dashboard"], "Scheduler at")
+        # --no-nanny: the worker is the process started here (a nanny would start it in a second process,
+        # importing everything again: 2 CPU-s a worker); killing its process group loses it all the same
         self.workers = [self._spawn(f"worker{i}", ["worker", self.address, "--nthreads", "1", "--no-dashboard",
-                                                   "--death-timeout", "60"], "Registered to", worker_env)
+                                                   "--no-nanny", "--death-timeout", "60"], "Registered to",
+                                    worker_env)
                         for i in range(workers)]
 
     def _spawn(self, name: str, args: list[str], ready: str, env: dict | None = None) -> subprocess.Popen:
