@@ -78,8 +78,17 @@ def test_the_same_picture_as_savefig_in_one_draw(monkeypatch):
     plt.close("all")
 
 
-def test_content_beyond_the_canvas_is_saved_by_savefig():
-    assert tight_png(_figure(outside=True), DPI) == _savefig(_figure(outside=True))
+def test_content_beyond_the_canvas_is_savefigs_picture_in_two_draws(monkeypatch):
+    reference = _savefig(_figure(outside=True))
+    draws = []
+    real = Figure.draw
+
+    def counting(self, renderer):
+        draws.append(1)
+        return real(self, renderer)
+    monkeypatch.setattr(Figure, "draw", counting)
+    assert tight_png(_figure(outside=True), DPI) == reference      # the same bytes
+    assert len(draws) == 2                                          # savefig's tight path alone: 2
     plt.close("all")
 
 

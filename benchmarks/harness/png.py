@@ -7,8 +7,9 @@ of those draws (the test suite: 42 of 96 CPU-s in savefig, issue 22). :func:`tig
 the output's resolution, measures the extent with the same renderer, and cuts it out of the pixels: the
 same picture, with the content placed to the nearest whole pixel instead of at the fraction of a pixel
 where the second draw would place it; the pad beyond the canvas's edge is the figure's background, as
-``savefig`` paints it. A figure with something drawn outside its canvas (a legend anchored below the
-axes) is saved by ``savefig`` as before: only a second draw, shifted, holds it.
+``savefig`` paints it. A figure with something drawn outside its canvas (a label or legend beyond the
+edge) needs the second draw, shifted, to hold it: ``savefig`` makes it with the extent this draw measured
+(two draws, as before, and the same bytes as savefig's tight path).
 
 References
 ----------
@@ -35,9 +36,9 @@ def tight_png(fig, dpi: float) -> bytes:
     canvas.draw()
     inner = fig.get_tightbbox(canvas.get_renderer())
     width, height = fig.get_size_inches()
-    if inner.x0 < 0 or inner.y0 < 0 or inner.x1 > width or inner.y1 > height:
-        return _savefig(fig, dpi)                  # content beyond the canvas: only a second draw holds it
     box = inner.padded(pad)
+    if inner.x0 < 0 or inner.y0 < 0 or inner.x1 > width or inner.y1 > height:
+        return _beyond(fig, dpi, box)              # content beyond the canvas: only a second draw holds it
     pixels = np.asarray(canvas.buffer_rgba())
     rows, cols = pixels.shape[:2]
     # savefig's size (the renderer truncates the extent's pixels) from the nearest whole pixel of its
@@ -60,3 +61,26 @@ def _savefig(fig, dpi: float) -> bytes:
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=dpi, bbox_inches="tight")
     return buf.getvalue()
+
+
+def _beyond(fig, dpi: float, box) -> bytes:
+    """savefig's tight PNG for a figure drawn beyond its canvas, given the extent ``box`` (inches) that the
+    draw just made measured: savefig then draws once more (shifted) instead of twice. A placeholder
+    layout engine (what ``tight_layout()`` leaves; it lays nothing out) is set aside for that call,
+    since savefig draws once more for any engine."""
+    from matplotlib.layout_engine import PlaceHolderLayoutEngine
+
+    import matplotlib as mpl
+
+    engine = fig.get_layout_engine()
+    placeholder = isinstance(engine, PlaceHolderLayoutEngine) and not (
+        mpl.rcParams["figure.autolayout"] or mpl.rcParams["figure.constrained_layout.use"])   # None: no engine
+    if placeholder:
+        fig.set_layout_engine(None)                # None removes it ("none" would leave a placeholder)
+    try:
+        buf = io.BytesIO()
+        fig.savefig(buf, format="png", dpi=dpi, bbox_inches=box)
+        return buf.getvalue()
+    finally:
+        if placeholder:
+            fig.set_layout_engine(engine)
