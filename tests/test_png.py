@@ -56,15 +56,22 @@ def _best_offset_difference(a: np.ndarray, b: np.ndarray) -> float:
     return best
 
 
-def test_the_same_picture_as_savefig_in_one_draw(monkeypatch):
-    reference = _pixels(_savefig(_figure()))
-    draws = []
+@pytest.fixture
+def draws(monkeypatch):
+    """The figure draws made from the moment it is asked for (a list, one item a draw)."""
+    made = []
     real = Figure.draw
 
     def counting(self, renderer):
-        draws.append(1)
+        made.append(1)
         return real(self, renderer)
     monkeypatch.setattr(Figure, "draw", counting)
+    return made
+
+
+def test_the_same_picture_as_savefig_in_one_draw(request):
+    reference = _pixels(_savefig(_figure()))
+    draws = request.getfixturevalue("draws")
     fig = _figure()
     data = tight_png(fig, DPI)
     assert len(draws) == 1                                    # savefig's tight path draws twice
@@ -78,15 +85,9 @@ def test_the_same_picture_as_savefig_in_one_draw(monkeypatch):
     plt.close("all")
 
 
-def test_content_beyond_the_canvas_is_savefigs_picture_in_two_draws(monkeypatch):
+def test_content_beyond_the_canvas_is_savefigs_picture_in_two_draws(request):
     reference = _savefig(_figure(outside=True))
-    draws = []
-    real = Figure.draw
-
-    def counting(self, renderer):
-        draws.append(1)
-        return real(self, renderer)
-    monkeypatch.setattr(Figure, "draw", counting)
+    draws = request.getfixturevalue("draws")
     assert tight_png(_figure(outside=True), DPI) == reference      # the same bytes
     assert len(draws) == 2                                          # savefig's tight path alone: 2
     plt.close("all")
