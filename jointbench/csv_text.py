@@ -1,19 +1,19 @@
-"""A table as CSV text, byte for byte what ``DataFrame.to_csv(index=False)`` writes, about ten times faster.
+"""A table as CSV text, byte for byte what ``DataFrame.to_csv(index=False)`` writes, about five times faster.
 
 pandas turns every float into its text in numpy's formatter, one cell at a time: the 1.25 million rows
-of a KBR frequency response at 2.5 kHz (``OUT_frf.csv``, 115 MB) took 9.4 s to write on the 2-core
-machine, the shortest round-trip text of each float costing about 1.2 µs (issue 22). Arrow's cast of a
-float column to text (:func:`pyarrow.compute.cast`) finds the same shortest digits in C++, but lays some
-of them out differently (``3`` for ``3.0``, ``0.00001`` for ``1e-05``, ``1.5e-7`` for ``1.5e-07``,
-``1e+15`` for ``1000000000000000.0``): :func:`csv_bytes` takes Arrow's text only where the layouts
-agree (finite, not a whole number, magnitude in [1e-4, 1e15)) and Python's ``repr`` (what pandas
-writes) for every other cell, so the file is the one pandas writes; tests/test_csv_text.py compares
-them byte for byte over random tables of every kind of value.
+of a KBR frequency response at 2.5 kHz (``OUT_frf.csv``, 115 MB) took 9.1 s to write on the 2-core
+machine (1.9 s here; issue 22). Arrow's cast of a float column to text (:func:`pyarrow.compute.cast`)
+finds the same shortest round-trip digits in C++, but lays some of them out differently (``3`` for
+``3.0``, ``0.00001`` for ``1e-05``, ``1.5e-7`` for ``1.5e-07``, ``1.2e+10`` for ``12000000000.5``):
+:func:`csv_bytes` takes Arrow's text only where the layouts agree (finite, not a whole number, magnitude
+in :data:`_ARROW_RANGE`) and Python's ``repr`` (what pandas writes) for every other cell, so the file is
+the one pandas writes; tests/test_csv_text.py compares them byte for byte over random tables of every
+kind of value.
 
-Columns of float64, integers and booleans (numpy's or pandas' nullable ones) and text (``str`` or missing)
-take this path; a table with any
-other column (dates, categories, mixed objects), with column names that need quoting, or with one
-column (where the csv module quotes an empty field) is written by pandas itself.
+Columns of float64, integers and booleans (numpy's or pandas' nullable ones) and text (``str`` or
+missing) take this path; a table with any other column (dates, categories, mixed objects), with column
+names that need quoting, or with one column (where the csv module quotes an empty field) is written by
+pandas itself.
 """
 from __future__ import annotations
 
@@ -116,11 +116,9 @@ def csv_bytes(frame: pd.DataFrame) -> bytes:
     head = (",".join(frame.columns) + "\n").encode()
     if not len(frame):
         return head
-    def text(t):
-        return pa.scalar(t, pa.large_string())
-
-    columns[-1] = pc.binary_join_element_wise(columns[-1], text("\n"), text(""))     # each line's end
-    lines = pc.binary_join_element_wise(*columns, text(","))
+    newline, empty, comma = (pa.scalar(t, pa.large_string()) for t in ("\n", "", ","))
+    columns[-1] = pc.binary_join_element_wise(columns[-1], newline, empty)     # each line's end
+    lines = pc.binary_join_element_wise(*columns, comma)
     if hasattr(lines, "combine_chunks"):
         lines = lines.combine_chunks()
     offsets = np.frombuffer(lines.buffers()[1], dtype=np.int64, count=len(lines) + 1, offset=lines.offset * 8)

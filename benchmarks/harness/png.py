@@ -3,7 +3,7 @@
 ``savefig(bbox_inches="tight")`` draws a figure twice: once with rendering switched off to find the
 extent of what is drawn (text layout, ticks and labels: nearly all of the cost of a draw), then again,
 shifted by that extent, for the pixels. The figures of a study run spent half of their time in the first
-of those draws (the test suite: 42 of 96 CPU-s in savefig, issue 22). :func:`tight_png` draws once at
+of those draws (the test suite, sampled: 42 of 96 CPU-s in savefig, issue 22). :func:`tight_png` draws once at
 the output's resolution, measures the extent with the same renderer, and cuts it out of the pixels: the
 same picture, with the content placed to the nearest whole pixel instead of at the fraction of a pixel
 where the second draw would place it; the pad beyond the canvas's edge is the figure's background, as
@@ -68,9 +68,8 @@ def _beyond(fig, dpi: float, box) -> bytes:
     draw just made measured: savefig then draws once more (shifted) instead of twice. A placeholder
     layout engine (what ``tight_layout()`` leaves; it lays nothing out) is set aside for that call,
     since savefig draws once more for any engine."""
-    from matplotlib.layout_engine import PlaceHolderLayoutEngine
-
     import matplotlib as mpl
+    from matplotlib.layout_engine import PlaceHolderLayoutEngine
 
     engine = fig.get_layout_engine()
     placeholder = isinstance(engine, PlaceHolderLayoutEngine) and not (
