@@ -16,6 +16,7 @@ order chosen by MDL from the output variance explained by each singular vector).
 from __future__ import annotations
 
 import dataclasses
+import functools
 from typing import Literal
 
 import numpy as np
@@ -137,6 +138,68 @@ def gram_stack(X: np.ndarray) -> np.ndarray:
     (thousands of tiny products gain nothing from threads and lose much on a loaded machine)."""
     with one_blas_thread():
         return np.matmul(X.transpose(0, 2, 1), X)
+
+
+@functools.lru_cache(maxsize=16)
+def _symmetric_gather(M: int, L: int) -> np.ndarray:
+    """Where each entry of the ``M L x M L`` Kronecker Gram lies among the products of the pairs
+    ``m <= m'`` (rows) and ``l <= l'`` (columns) that :func:`basis_normal` forms: ``G[(m, l), (m', l')]`` is
+    entry ``(pair(m, m'), pair(l, l'))`` of that ``(M(M+1)/2, L(L+1)/2)`` product, flattened (read-only)."""
+    def pairs(k):
+        at = np.zeros((k, k), int)
+        i, j = np.triu_indices(k)
+        at[i, j] = at[j, i] = np.arange(len(i))
+        return at, len(i)
+    pm, _ = pairs(M)
+    pl, nl = pairs(L)
+    idx = (pm[:, None, :, None] * nl + pl[None, :, None, :]).reshape(M * L, M * L)
+    idx.flags.writeable = False
+    return idx
+
+
+def basis_normal(X: np.ndarray, Y: np.ndarray, Phi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Normal equations of ``y_r(t) = sum_k sum_m c[m, k] phi_m(t) x_r(t, k)``: ``G`` (M L x M L) and ``b``.
+
+    ``G = sum_t (phi(t) phi(t)^T) (x) S(t)`` with ``S(t) = sum_r x_r(t) x_r(t)^T``, ``b = sum_t phi(t) (x)
+    sum_r x_r(t) y_r(t)``: the least squares of Guarin & Kearney's basis-function TV-IRF
+    (:class:`estimators.guarin.Guarin`, the intrinsic pathway of ``tv_parallel_cascade``).
+
+    ``G`` is one long, thin product over the samples, ``sum_t p(t) s(t)^T``, of the products of basis
+    functions ``p(t) = phi_m(t) phi_m'(t)`` and the entries ``s(t) = S_ll'(t)``. Both factors are
+    symmetric in their pair, so only the pairs ``m <= m'`` and ``l <= l'`` are formed (about a third of
+    the products of all pairs: 231 x 45 of 441 x 81 for 21 functions and 9 lags) and ``G`` is gathered
+    from them. Each entry is the same sum over ``t`` as the product of all pairs computes.
+
+    Parameters
+    ----------
+    X : ndarray (T, R, L)
+        Lagged input of every realization at each of ``T`` samples.
+    Y : ndarray (T, R)
+        Output of every realization.
+    Phi : ndarray (T, M)
+        Basis functions of time at the samples.
+
+    References
+    ----------
+    Guarin, D. L. & Kearney, R. E. (2017). Estimation of time-varying, intrinsic and reflex dynamic joint
+    stiffness during movement. Front. Comput. Neurosci. 11:51, Sec. 2 (the expanded least squares).
+    """
+    T, M = Phi.shape
+    L = X.shape[2]
+    m, m2 = np.triu_indices(M)
+    lag, lag2 = np.triu_indices(L)
+    S = gram_stack(X)[:, lag, lag2]                      # (T, L(L+1)/2)
+    PhiT = Phi.T
+    P = PhiT[m] * PhiT[m2]                                # (M(M+1)/2, T): rows over the samples
+    with one_blas_thread():                               # a long, thin product: threads only wait
+        G = (P @ S).ravel()[_symmetric_gather(M, L)]
+    return G, basis_rhs(X, Y, Phi)
+
+
+def basis_rhs(X: np.ndarray, Y: np.ndarray, Phi: np.ndarray) -> np.ndarray:
+    """``b = sum_t phi(t) (x) sum_r x_r(t) y_r(t)``: the right-hand side of :func:`basis_normal`."""
+    q = np.einsum("trl,tr->tl", X, Y)
+    return (Phi.T @ q).reshape(-1)
 
 
 def mdl_solve(Phi: np.ndarray, phi: np.ndarray, yvar: np.ndarray, n_obs: float, solver: Solver,

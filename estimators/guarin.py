@@ -10,7 +10,7 @@ from scipy.interpolate import BSpline
 
 from jointbench.estimators import register
 from jointbench.estimators._resample import JackknifeSettings, realization_jackknife
-from jointbench.estimators._tvirf import (EnsembleEstimator, TVLagSettings, centred, gram_stack, one_blas_thread)
+from jointbench.estimators._tvirf import EnsembleEstimator, TVLagSettings, basis_normal, centred
 from jointbench.ensemble import Ensemble
 from jointbench.errors import InputError
 from jointbench.estimate_tv import TVIRFEstimate
@@ -193,12 +193,7 @@ class Guarin(EnsembleEstimator):
         Ly = X.shape[2]
         Yv = Y[first:last]
         Phi = time_basis(s.basis, M, n, s.width)[first:last]          # (rows, M)
-        S = gram_stack(X).reshape(n_rows, Ly * Ly)
-        q = np.einsum("trl,tr->tl", X, Yv)
-        PP = (Phi[:, :, None] * Phi[:, None, :]).reshape(n_rows, M * M)
-        with one_blas_thread():               # a long, thin product: threads only wait on a loaded machine
-            G = (PP.T @ S).reshape(M, M, Ly, Ly).transpose(0, 2, 1, 3).reshape(M * Ly, M * Ly)
-        b = (Phi.T @ q).reshape(M * Ly)
+        G, b = basis_normal(X, Yv, Phi)
         scale = np.sqrt(np.maximum(np.diag(G), 1e-300))
         Gs = G / scale[:, None] / scale[None, :]
         w, V = np.linalg.eigh(Gs)

@@ -10,8 +10,8 @@ from numpy.lib.stride_tricks import sliding_window_view
 
 from jointbench.estimators import register
 from jointbench.estimators import _reflex as rx
-from jointbench.estimators._tvirf import (EnsembleEstimator, TVLagSettings, centred, gram_stack, lag_samples,
-                                          one_blas_thread)
+from jointbench.estimators._tvirf import (EnsembleEstimator, TVLagSettings, basis_normal, basis_rhs, centred,
+                                          lag_samples, one_blas_thread)
 from jointbench.estimators.guarin import BasisKind, time_basis
 from jointbench.ensemble import Ensemble
 from jointbench.errors import InputError
@@ -53,21 +53,6 @@ class TVCascadeEstimate(TVIRFEstimate):
         out = super().summary()
         out.update({"vaf_total": self.vaf_total, "vaf_intrinsic": self.vaf_intrinsic, "vaf_reflex": self.vaf_reflex})
         return out
-
-
-def basis_normal(X: np.ndarray, Y: np.ndarray, Phi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Normal equations of ``y_r(t) = sum_k sum_m c[m, k] phi_m(t) x_r(t, k)``: ``G`` (M L x M L) and ``b``.
-
-    ``G = sum_t (phi(t) phi(t)^T) (x) S(t)`` with ``S(t) = sum_r x_r(t) x_r(t)^T`` (the form of
-    :class:`estimators.guarin.Guarin`'s least squares), ``b = sum_t phi(t) (x) sum_r x_r(t) y_r(t)``."""
-    T, M = Phi.shape
-    Lx = X.shape[2]
-    S = gram_stack(X).reshape(T, Lx * Lx)
-    q = np.einsum("trl,tr->tl", X, Y)
-    PP = (Phi[:, :, None] * Phi[:, None, :]).reshape(T, M * M)
-    with one_blas_thread():
-        G = (PP.T @ S).reshape(M, M, Lx, Lx).transpose(0, 2, 1, 3).reshape(M * Lx, M * Lx)
-    return G, (Phi.T @ q).reshape(M * Lx)
 
 
 @register("tv_parallel_cascade", tags=("ltv", "nonparametric", "irf", "ensemble", "reflex"))
@@ -158,7 +143,7 @@ class TVParallelCascade(EnsembleEstimator):
         k_I, k_R = M * LI, M + L + (p - 1 if p > 1 else 0)
         keep = s.keep_reflex == "always" or rx.mdl(rss, k_I + k_R, R * N) < rx.mdl(rss_I, k_I, R * N)
         if not keep:                                                # the intrinsic pathway alone, refitted
-            _, bI = _rhs(XI, Yv, Ph)
+            bI = basis_rhs(XI, Yv, Ph)
             cI = rx.solve_normal(GI, bI, s.rcond).reshape(M, LI)
             tqI, tqR = np.einsum("trl,tm,ml->tr", XI, Ph, cI), np.zeros_like(Yv)
         nl, h = rx.finish(a, h, V[first:last].ravel(), s, scale, offset) if keep else (None, None)
@@ -197,7 +182,7 @@ class TVParallelCascade(EnsembleEstimator):
         tqR = np.zeros_like(Yv)
         best, it, rss_I = -np.inf, 0, None
         for it in range(1, s.max_iter + 1):
-            _, bI = _rhs(XI, Yv - tqR, Ph)
+            bI = basis_rhs(XI, Yv - tqR, Ph)
             cI = rx.solve_normal(GI, bI, s.rcond).reshape(M, LI)
             tqI = np.einsum("trl,tm,ml->tr", XI, Ph, cI)
             if rss_I is None:
@@ -266,8 +251,3 @@ class TVParallelCascade(EnsembleEstimator):
                                 N=N * R, LI=M * LI, p=B.shape[-1], W=W, d_lo=d_lo, offset=offset)
         return ne.best_delay(cands)
 
-
-def _rhs(X: np.ndarray, Y: np.ndarray, Phi: np.ndarray) -> tuple[None, np.ndarray]:
-    """``b = sum_t phi(t) (x) sum_r x_r(t) y_r(t)`` (the right-hand side of :func:`basis_normal`)."""
-    q = np.einsum("trl,tr->tl", X, Y)
-    return None, (Phi.T @ q).reshape(-1)
