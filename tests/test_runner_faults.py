@@ -17,7 +17,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.harness_studies import (REPO, alive, cache_entries, children, cli, start, start_time, temporaries,
+from tests.harness_studies import (REPO, alive, cache_entries, children, cli_here, start, start_time, temporaries,
                                    tiny_study, wait_for)
 
 pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="uses /proc and POSIX signals")
@@ -73,7 +73,9 @@ def test_sigkill_at_a_random_point_resumes_without_orphans(tmp_path):
     n_kept = len(cache_entries(out))
     assert k <= n_kept < seeds, (k, n_kept)
     print(f"kill -9 after {n_kept} of {seeds} cases: workers {list(workers)} gone {time.monotonic() - t0:.2f} s later")
-    r = cli("run", study, "--out", out, "--workers", "2", "--quiet", timeout=900)
+    # the next run in this process (the signals were the killed run's; a resume is the cache and the history,
+    # the same in any process, without 2 CPU-s of another interpreter's start-up)
+    r = cli_here("run", study, "--out", out, "--workers", "2", "--quiet")
     assert r.returncode == 0, r.stderr
     assert re.search(rf"{seeds} cases \({n_kept} from cache, {seeds - n_kept} computed\)", r.stdout), (r.stdout, n_kept)
     recorded = history_cases(out)
@@ -116,7 +118,7 @@ def test_interrupt_returns_within_2s_and_keeps_finished_cases(tmp_path, how):
     assert temporaries(out) == []
     print(f"{how}: stopped in {took:.2f} s keeping {kept} of {seeds} cases")
     if how.startswith("SIGINT"):               # resuming is the same after either signal: once is enough
-        r = cli("run", study, "--out", out, "--workers", "2", "--quiet", timeout=900)
+        r = cli_here("run", study, "--out", out, "--workers", "2", "--quiet")       # in this process, as above
         done = f"{seeds} cases ({kept} from cache, {seeds - kept} computed)"
         assert r.returncode == 0 and done in r.stdout, r.stdout + r.stderr
 
