@@ -80,8 +80,9 @@ def _xu(d):
 
 
 def _vdr(d):
-    d["parts"]["table1"]["seeds"] = 1
-    d["parts"]["table1"]["sweep"] = {"variation": ["square10"], "snr_db": [10, math.inf]}
+    for part in ("table1", "table1_skirt_np7"):      # the second shares the first's simulated responses
+        d["parts"][part]["seeds"] = 1
+        d["parts"][part]["sweep"] = {"variation": ["square10"], "snr_db": [10, math.inf]}
     del d["parts"]["table1_snr_standard"], d["parts"]["table1_kbr_refined"]
 
 
