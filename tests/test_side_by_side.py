@@ -11,12 +11,13 @@ import sys
 import textwrap
 import time
 from pathlib import Path
+from types import SimpleNamespace
 
 import pandas as pd
 import pytest
 
 from jointbench.benchmarks.harness.side_by_side import exit_code, run_forked
-from tests.harness_studies import alive, cache_entries, children, cli, cli_here, start, tiny_study, wait_for
+from tests.harness_studies import alive, cache_entries, children, cli_env, cli_here, start, tiny_study, wait_for
 
 pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="uses fork, /proc and POSIX signals")
 
@@ -58,12 +59,31 @@ def _values(folder: Path) -> pd.DataFrame:
     return rows[keep].sort_values(["case_id", "metric", "estimator"]).reset_index(drop=True)
 
 
-def test_studies_side_by_side_give_the_numbers_of_runs_of_their_own(tmp_path):
+@pytest.fixture(scope="module")
+def side_by_side(tmp_path_factory):
+    """``run tiny_a tiny_b --jobs 2 --serial --quiet --write-readme`` from a folder with a stale README: the
+    command of make reproduce, once for the two tests below (a command with --jobs pays 5 CPU-s of
+    start-up, imports and compile-aside before its studies). What they read of the results folder and the
+    README is taken at once, before either test runs anything else there."""
+    from jointbench.benchmarks import status
+
+    folder = tmp_path_factory.mktemp("side_by_side")
+    a = tiny_study(folder / "configs", study="tiny_a", seeds=3, duration="8 s")
+    b = tiny_study(folder / "configs", study="tiny_b", seeds=2, duration="6 s")
+    readme = folder / "README.md"
+    readme.write_text(f"# x\n{status.BEGIN}\nstale\n{status.END}\ntail\n")
+    out = folder / "both"
+    r = subprocess.run([sys.executable, "-m", "jointbench.benchmarks", "run", str(a), str(b), "--jobs", "2",
+                        "--serial", "--quiet", "--write-readme", "--out", str(out)],
+                       cwd=folder, capture_output=True, text=True, timeout=300, env=cli_env())
+    return SimpleNamespace(a=a, b=b, out=out, readme=readme, r=r, block=status.block(out) if out.is_dir() else None,
+                           readme_text=readme.read_text())
+
+
+def test_studies_side_by_side_give_the_numbers_of_runs_of_their_own(side_by_side, tmp_path):
     """Two studies with --jobs 2: each summary printed whole, each study's rows those of a run of its own
     (the children share the parent's imports, nothing else), exit 0; --parts with two studies is refused."""
-    a = tiny_study(tmp_path / "configs", study="tiny_a", seeds=3, duration="8 s")
-    b = tiny_study(tmp_path / "configs", study="tiny_b", seeds=2, duration="6 s")
-    r = cli("run", a, b, "--jobs", "2", "--serial", "--quiet", "--out", tmp_path / "both")
+    a, b, r = side_by_side.a, side_by_side.b, side_by_side.r
     assert r.returncode == 0, r.stdout + r.stderr
     for study, n in (("tiny_a", 3), ("tiny_b", 2)):
         block = re.search(rf"^{study}: {n} cases \(0 from cache, {n} computed\).*?\n((?:  .*\n)+)"
@@ -71,39 +91,33 @@ def test_studies_side_by_side_give_the_numbers_of_runs_of_their_own(tmp_path):
         assert block and len(block.group(1).splitlines()) == 2, r.stdout      # its two checks, not interleaved
     alone = cli_here("run", a, "--serial", "--quiet", "--out", tmp_path / "alone")
     assert alone.returncode == 0, alone.stderr
-    pd.testing.assert_frame_equal(_values(tmp_path / "both" / "tiny_a"), _values(tmp_path / "alone" / "tiny_a"))
+    pd.testing.assert_frame_equal(_values(side_by_side.out / "tiny_a"), _values(tmp_path / "alone" / "tiny_a"))
     refused = cli_here("run", a, b, "--parts", "fit", "--out", tmp_path / "x")
     assert refused.returncode == 2 and "--parts fit names parts of one study" in refused.stderr
     refused = cli_here("run", a, b, "--set", "fit.seeds=1", "--out", tmp_path / "x")
     assert refused.returncode == 2 and "--set fit.seeds=1 names parts of one study" in refused.stderr
     every = cli_here("run", a, b, "--set", "*.seeds=1", "--serial", "--quiet", "--out", tmp_path / "x")
     assert every.returncode == 0 and every.stdout.count(": 1 cases (") == 2, every.stdout + every.stderr
-    again = cli_here("run", a, b, "--serial", "--quiet", "--out", tmp_path / "both")   # --jobs 1: in turn
+    again = cli_here("run", a, b, "--serial", "--quiet", "--out", side_by_side.out)   # --jobs 1: in turn
     assert again.returncode == 0 and again.stdout.count("from cache, 0 computed") == 2, again.stdout
 
 
-def test_write_readme_rewrites_the_status_block_after_the_studies(tmp_path, monkeypatch):
+def test_write_readme_rewrites_the_status_block_after_the_studies(side_by_side, tmp_path, monkeypatch):
     """``--write-readme`` (make reproduce): once the studies end well the command rewrites the status block
     of ./README.md from the results folder, as ``jointbench status --write-readme`` would."""
     from jointbench.benchmarks import status
 
-    a = tiny_study(tmp_path / "configs", study="tiny_a", seeds=2, duration="6 s")
-    b = tiny_study(tmp_path / "configs", study="tiny_b", seeds=2, duration="6 s")
-    readme = tmp_path / "README.md"
-    readme.write_text(f"# x\n{status.BEGIN}\nstale\n{status.END}\ntail\n")
-    r = subprocess.run([sys.executable, "-m", "jointbench.benchmarks", "run", str(a), str(b), "--jobs", "2",
-                        "--serial", "--quiet", "--write-readme", "--out", str(tmp_path / "out")],
-                       cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    a, b, r, readme = side_by_side.a, side_by_side.b, side_by_side.r, side_by_side.readme
     assert r.returncode == 0 and f"{readme}: status block rewritten" in r.stdout, r.stdout + r.stderr
-    assert status.readme_block(readme) == status.block(tmp_path / "out") and "tiny_b" in readme.read_text()
+    assert status.readme_block(readme) == side_by_side.block and "tiny_b" in side_by_side.readme_text
     # where there is no README (an installed wheel's user): one line before any case runs, for run and status.
-    # In this process, from that folder: the refusal comes before the studies are forked (3 CPU-s of two
-    # interpreters' start-up saved)
+    # In this process, from that folder (no interpreter of their own): the refusal comes before any study is
+    # forked
     elsewhere = tmp_path / "elsewhere"
     elsewhere.mkdir()
     monkeypatch.chdir(elsewhere)
     for args in (["run", str(a), str(b), "--jobs", "2", "--write-readme", "--out", str(elsewhere / "out")],
-                 ["status", "--write-readme", "--results", str(tmp_path / "out")]):
+                 ["status", "--write-readme", "--results", str(side_by_side.out)]):
         r = cli_here(*args)
         assert r.returncode == 2 and r.stderr.count("\n") == 1, r.stderr
         assert "README.md: No such file or directory: --write-readme rewrites" in r.stderr, r.stderr
