@@ -65,8 +65,13 @@ venv: $(STAMP)
 # Bytecode is cached (__pycache__, ignored by git) even where PYTHONDONTWRITEBYTECODE is set: without it each
 # worker rewrites the asserts of every test module again (pytest: 5.5 CPU-s of a 7.8 s collection, 2.3 s
 # with the cache) and each of the tests' CLI subprocesses compiles the package's sources again.
+# Headless Chromium (the browser tests: `make chromium`) is installed first, on a machine without it, so that
+# its apt-get is not inside the tests' time; failing soft: the tests then skip and say why (their fixture asks
+# `make chromium` again for the reason). JOINTBENCH_NO_BROWSER=1 skips both.
 TEST_WORKERS ?= 2
 test: $(STAMP)
+	@[ -n "$$JOINTBENCH_NO_BROWSER" ] || .ci/install-chromium >/dev/null 2>&1 || \
+	    echo "make test: no headless Chromium could be installed (the browser tests will skip and say why)"
 	PYTHONDONTWRITEBYTECODE= $(BIN)/python -m pytest -q $(if $(filter 0,$(TEST_WORKERS)),,-n $(TEST_WORKERS) --dist loadgroup)
 
 # Lint (ruff, installed with the test extra; the rules are pyproject.toml's [tool.ruff]): .ci/run calls it.
