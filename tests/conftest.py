@@ -16,11 +16,24 @@ import pytest
 #: test sets up what it needs)
 SPLIT = frozenset({"tests.test_dask_faults", "tests.test_runner_faults", "tests.test_outputs_set",
                    "tests.test_cli_estimate", "tests.test_history"})
-#: the longest modules (minutes of processes, builds and whole-study runs; pytest --durations), run first, so
-#: that the workers finish together rather than one of them starting a long module at the end
-FIRST = ("tests.test_plugins", "tests.test_outputs_set", "tests.test_dask_faults", "tests.test_runner_faults",
-         "tests.test_wheel", "tests.test_nightly", "tests.test_history", "tests.test_cli_estimate",
-         "tests.test_nightly_alarms")
+#: the modules that cost most (CPU-s of a make test run: their processes, builds and study runs), most first,
+#: so that the workers finish together rather than one of them starting a long unit at the end: the units go
+#: out in this order (the tests of a SPLIT module one by one), then every other module (each under 4 CPU-s) in
+#: collection order. A stale order costs balance, never a result.
+FIRST = ("tests.test_plugins",              # 21 CPU-s: pip installs, 4 processes, 2 local Dask clusters
+         "tests.test_side_by_side",         # 21: runs of several studies with --jobs, a cold numba compile
+         "tests.test_backends_harness",     # 16: each paper study on MuJoCo
+         "tests.test_nightly",              # 13: nightly runs, make nightly, Chromium
+         "tests.test_dask_faults",          # 22 in tests of 9, 5, 4, 2 ... (split)
+         "tests.test_wheel", "tests.test_executors", "tests.test_estimators",             # 10 each
+         "tests.test_comparison_report",    # 10
+         "tests.test_runner_faults",        # 16 in tests of 5, 4, 3, 2 ... (split)
+         "tests.test_history",              # 13 in tests of 4, 3, 2, 1 ... (split)
+         "tests.test_estimate_acceptance", "tests.test_estimate_robust", "tests.test_grid", "tests.test_api",
+         "tests.test_interval_coverage",    # 6-7 each
+         "tests.test_outputs_set", "tests.test_cli_estimate",                             # 7 each (split)
+         "tests.test_band_checks", "tests.test_nightly_alarms", "tests.test_sims_tv", "tests.test_westwick2012",
+         "tests.test_history_faults")       # 4-5 each
 
 
 def pytest_configure(config):
@@ -59,6 +72,11 @@ def pytest_xdist_make_scheduler(config, log):
     if config.getvalue("dist") != "loadgroup":
         return None                                  # xdist's own scheduler for any other --dist
     from xdist.scheduler import LoadScopeScheduling
+
+    # xdist 3.x hands out the units largest first by their number of tests (its --loadscope-reorder, on by
+    # default), not in collection order: the two tests of test_plugins (20 CPU-s) and every test of SPLIT
+    # were the last units given out, and a worker could start a 20 s unit while the other had nothing left
+    config.option.loadscopereorder = False
 
     class ModuleScheduling(LoadScopeScheduling):
         def _split_scope(self, nodeid: str) -> str:

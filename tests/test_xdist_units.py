@@ -36,3 +36,36 @@ def test_the_scheduler_groups_by_unit_under_loadgroup_only():
     sched = pytest_xdist_make_scheduler(Config("loadgroup"), None)
     assert sched._split_scope("tests/test_wheel.py::test_a[x]") == "tests/test_wheel.py"
     assert sched._split_scope("tests/test_history.py::test_y") == "tests/test_history.py::test_y"
+
+
+def test_the_units_go_out_in_collection_order_not_largest_first():
+    """xdist reorders the units by their number of tests unless told not to: the scheduler keeps the order of
+    the collection (conftest's FIRST, the costliest modules first)."""
+    pytest.importorskip("xdist")
+    from types import SimpleNamespace
+
+    class Config:
+        option = SimpleNamespace(loadscopereorder=True)        # xdist's default
+
+        def getvalue(self, name):
+            return {"dist": "loadgroup", "tx": ["2*popen"], "numprocesses": None}.get(name)
+
+    class Node:
+        def __init__(self, name):
+            self.gateway, self.sent, self.shutting_down = SimpleNamespace(id=name), [], False
+
+        def send_runtest_some(self, indexes):
+            self.sent.append(indexes)
+
+        def shutdown(self):
+            pass
+
+    collection = ["tests/test_plugins.py::test_a", "tests/test_plugins.py::test_b",
+                  *[f"tests/test_many.py::test_{i}" for i in range(5)], "tests/test_history.py::test_c"]
+    sched = pytest_xdist_make_scheduler(Config(), None)
+    nodes = [Node("gw0"), Node("gw1")]
+    for node in nodes:
+        sched.add_node(node)
+        sched.add_node_collection(node, collection)
+    sched.schedule()
+    assert nodes[0].sent[0] == [0, 1] and nodes[1].sent[0] == [2, 3, 4, 5, 6]    # test_plugins first
