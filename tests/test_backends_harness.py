@@ -88,17 +88,20 @@ def _vdr(d):
 
 @pytest.fixture(scope="module")
 def mujoco_runs(tmp_path_factory):
-    """Each paper study, reduced, run with --backend mujoco; westwick2012 also on its own backend."""
+    """Each paper study, reduced, run with --backend mujoco; westwick2012 also on its own backend. In this
+    process (serial): what is checked is the backend in the studies and their reports; MuJoCo in the pool's
+    worker processes is the apparatus smoke run's (test_apparatus_study_smoke), and a pool for these few cases
+    cost 2 CPU-s more than it saved."""
     tmp = tmp_path_factory.mktemp("backends")
     out = tmp / "results"
     runs = {}
     for study, edit in (("westwick2012", _westwick), ("xu1998", _xu), ("vanderuit2018_table1", _vdr)):
         path = study_copy(tmp, study, edit)
-        runs[study] = run_study(path, out_root=out, workers=2, progress=False, backend="mujoco")
+        runs[study] = run_study(path, out_root=out, serial=True, progress=False, backend="mujoco")
     path = study_copy(tmp, "westwick2012", _westwick)
-    runs["westwick2012/analytic"] = run_study(path, out_root=out, workers=2, progress=False)
+    runs["westwick2012/analytic"] = run_study(path, out_root=out, serial=True, progress=False)
     # again on MuJoCo, now that the study's own run exists (every case from the cache)
-    runs["westwick2012/again"] = run_study(path, out_root=out, workers=2, progress=False, backend="mujoco")
+    runs["westwick2012/again"] = run_study(path, out_root=out, serial=True, progress=False, backend="mujoco")
     return runs
 
 
