@@ -25,7 +25,7 @@ import pandas as pd
 from jointbench.benchmarks import backends, figures, report
 from jointbench.benchmarks.config import Study, load_study
 from jointbench.benchmarks.harness import fingerprint, outputs
-from jointbench.benchmarks.harness.cache import Cache, case_key
+from jointbench.benchmarks.harness.cache import Cache
 from jointbench.benchmarks.harness.history import History
 from jointbench.benchmarks.runner import CaseResult, RunInterrupted, expand, expand_study, group_cases, run_cases
 from jointbench.benchmarks.tables import cases_frame, compare, curves_frame, swap_survival
@@ -127,7 +127,7 @@ def check_budget(study: Study, cases: list, skipped: list, cache: Cache, workers
         if part.grid is None:
             continue
         mine = [c for c in cases if c.part == name]
-        todo = [c for c in mine if not (cache.enabled and cache.read and cache.path(case_key(c)).is_file())]
+        todo = [c for c in mine if not (cache.enabled and cache.read and cache.path(cache.key(c)).is_file())]
         if not todo:
             continue
         seconds = estimate_seconds(todo, group_cases(todo))
@@ -218,7 +218,7 @@ def run_study(ref: str | Path, parts: list[str] | None = None, out_root: Path | 
             done[1] = time.monotonic()
             history.progress(run_id, done[0])
 
-    keys = {c.case_id: case_key(c) for c in cases}
+    keys = {c.case_id: cache.key(c) for c in cases}
     check_metrics = {c.id: str(c.select.get("metric", "")) for c in study.checks}
     t0 = time.perf_counter()
     ran: dict = {}
@@ -245,7 +245,7 @@ def run_study(ref: str | Path, parts: list[str] | None = None, out_root: Path | 
             hits = [cache.get(c) for c in extra]
             if all(h is not None for h in hits):
                 results += hits
-                keys.update({c.case_id: case_key(c) for c in extra})
+                keys.update({c.case_id: cache.key(c) for c in extra})
                 from_cache.append(name)
     commit = fingerprint.git_commit()
     rows = cases_frame(results, commit)

@@ -54,31 +54,48 @@ class Cache:
         self.hits = self.rejected = self.written = 0
         self.problems: list[str] = []
         self._warn = warn or (lambda msg: print(f"jointbench: {msg}", file=sys.stderr))
+        self._keys: dict[int, tuple] = {}     # id(case) -> (case, material, its canonical text, key)
 
     def path(self, key: str) -> Path:
         return self.folder / key[:2] / f"{key}.json"
+
+    def key(self, case: Case) -> str:
+        """:func:`case_key` of ``case``, worked out once per case object of this cache's run (the run
+        asks for it to record the case, again to look it up and, when it is computed, to store it)."""
+        return self._material(case)[2]
+
+    def _material(self, case: Case) -> tuple[dict, str, str]:
+        """(:func:`key_material`, its canonical JSON text, the key) of ``case``, remembered with the case
+        (held here, so that its ``id`` names no other object while remembered)."""
+        got = self._keys.get(id(case))
+        if got is None or got[0] is not case:
+            material = key_material(case)
+            text = fingerprint.canonical(material)
+            got = self._keys[id(case)] = (case, material, text, fingerprint.sha_text(text))
+        return got[1:]
 
     def get(self, case: Case) -> CaseResult | None:
         """The verified entry of ``case``, or None (absent, disabled or refused)."""
         if not (self.enabled and self.read):
             return None
-        material = key_material(case)
-        key = fingerprint.sha(material)
+        _, text, key = self._material(case)
         p = self.path(key)
         if not p.is_file():
             return None                      # absent (a folder, a FIFO or a device there is replaced by put)
         problem = None
         try:
+            # the entry was read from JSON: its canonical text is canonical_json's, without the round
+            # trip through JSON that fingerprint.canonical makes (it gives the same text)
             entry = json.loads(p.read_text())
             if not isinstance(entry, dict) or entry.get("format") != FORMAT:
                 problem = "unknown entry format"
             elif entry.get("key") != key:
                 problem = f"the entry is keyed {str(entry.get('key'))[:12]}..., another case's or code's"
-            elif fingerprint.sha(entry.get("material")) != key:
+            elif fingerprint.sha_text(stored := fingerprint.canonical_json(entry.get("material"))) != key:
                 problem = "its material does not hash to its key"
-            elif fingerprint.canonical(entry["material"]) != fingerprint.canonical(material):
+            elif stored != text:
                 problem = "its material differs from this case's"
-            elif fingerprint.sha(entry.get("result")) != entry.get("checksum"):
+            elif fingerprint.sha_text(fingerprint.canonical_json(entry.get("result"))) != entry.get("checksum"):
                 problem = "its result does not match its checksum (edited or damaged)"
             else:
                 problem = _result_problem(entry["result"])
@@ -101,8 +118,7 @@ class Cache:
         """Store a successful result under its key (other entries are left alone)."""
         if not self.enabled or res.status != "ok":
             return
-        material = key_material(res.case)
-        key = fingerprint.sha(material)
+        material, _, key = self._material(res.case)
         # the result (most of the entry: rows and curves) encoded once, for the checksum (canonical: its
         # JSON read back, keys sorted) and for the file, whose text is json.dumps of the whole entry
         result = json.dumps(_result_payload(res), allow_nan=True)
