@@ -31,57 +31,167 @@ def cases_frame(results, commit: str) -> pd.DataFrame:
     return df[front + sorted(c for c in df.columns if c not in front)]
 
 
+#: label types joined column by column: a list of them gets the dtype a broadcast one gets
+_LABEL_TYPES = (str, float, int, bool)
+
+
+def _kind(cols: dict) -> tuple | None:
+    """What a curve's frame is made of (its column names, the kinds of ``x`` and ``y``, its labels' types),
+    or None when it gets a frame of its own: ``x`` and ``y`` of one length, each a non-empty list of Python
+    floats or a numeric 1-D array, the labels of :data:`_LABEL_TYPES` (integers within int64)."""
+    points = []
+    for v in (cols["x"], cols["y"]):
+        if isinstance(v, list) and v and set(map(type, v)) == {float}:
+            points.append("floats")
+        elif isinstance(v, np.ndarray) and v.ndim == 1 and len(v) and v.dtype.kind in "fiub":
+            points.append(v.dtype.str)
+        else:
+            return None
+    if len(cols["x"]) != len(cols["y"]):
+        return None
+    types = tuple(type(v) for k, v in cols.items() if k not in ("x", "y"))
+    if any(t not in _LABEL_TYPES for t in types) or any(
+            type(v) is int and not -2 ** 63 <= v < 2 ** 63 for v in cols.values()):
+        return None
+    return tuple(cols), *points, types
+
+
+def _joined(pieces: dict, counts: list[int]) -> pd.DataFrame:
+    """One frame of curves of one :func:`_kind`: ``x`` and ``y`` concatenated, each label repeated over
+    its curve's points."""
+    out = {}
+    for name, values in pieces.items():
+        if name in ("x", "y"):
+            out[name] = np.concatenate([np.asarray(v, dtype=float) if isinstance(v, list) else v for v in values])
+        else:                       # one type per column (the kind): text as objects, numbers as themselves
+            kind = type(values[0])
+            out[name] = np.repeat(np.array(values, dtype={str: object, int: np.int64}.get(kind, kind)), counts)
+    return pd.DataFrame(out)
+
+
 def curves_frame(results) -> pd.DataFrame:
-    """Curves in long form: one row per point."""
-    frames = []
+    """Curves in long form: one row per point.
+
+    The frame that concatenating one frame per curve gives (columns in order of appearance, a column a
+    curve lacks empty there, dtypes by the same rules): the curves of one :func:`_kind` (a few kinds a
+    study) are joined column by column into one frame each, those frames concatenated and the rows put
+    back in the curves' order (a frame per curve, 633 of them in vanderuit2018_table1, cost 0.6 CPU-s;
+    issue 22). A curve of no kind gets a frame of its own, as before."""
+    groups: dict = {}       # kind -> [pieces: column -> values per curve, points per curve, rows]
+    spans = []              # per curve, in order: (kind or own key, first row in that frame, rows)
     for r in results:
+        fixed = {"part": r.case.part, "case_id": r.case.case_id, "seed": r.case.seed, **r.case.sweep}
         for c in r.curves:
-            labels = {k: v for k, v in c.items() if k not in ("x", "y")}
-            # one constructor call, the labels broadcast as columns (as many assignments did, a column each)
-            frames.append(pd.DataFrame({"x": c["x"], "y": c["y"], "part": r.case.part, "case_id": r.case.case_id,
-                                        "seed": r.case.seed, **r.case.sweep, **labels}))
-    if not frames:
+            cols = {"x": c["x"], "y": c["y"], **fixed, **{k: v for k, v in c.items() if k not in ("x", "y")}}
+            kind = _kind(cols)
+            if kind is None:
+                own = pd.DataFrame(cols)
+                groups[key := object()] = own
+                spans.append((key, 0, len(own)))
+                continue
+            g = groups.setdefault(kind, [{k: [] for k in cols}, [], 0])
+            n = len(cols["x"])
+            spans.append((kind, g[2], n))
+            for k, v in cols.items():
+                g[0][k].append(v)
+            g[1].append(n)
+            g[2] += n
+    if not spans:
         return pd.DataFrame(columns=["part", "case_id", "seed", "curve", "series", "x", "y"])
-    return pd.concat(frames, ignore_index=True)
+    frames = [g if isinstance(g, pd.DataFrame) else _joined(g[0], g[1]) for g in groups.values()]
+    start = dict(zip(groups, np.cumsum([0] + [len(f) for f in frames[:-1]])))
+    out = pd.concat(frames, ignore_index=True) if len(frames) > 1 else frames[0]
+    order = np.concatenate([np.arange(start[key] + first, start[key] + first + n) for key, first, n in spans])
+    if not np.array_equal(order, np.arange(len(out))):
+        out = out.take(order).reset_index(drop=True)
+    return out
 
 
-def _match(col: pd.Series, value) -> pd.Series:
-    if isinstance(value, Mapping):       # a range: {lt|le|gt|ge: bound}
-        num = pd.to_numeric(col, errors="coerce").astype(float)
-        ok = num.notna()
-        for op, bound in value.items():
-            ok &= {"lt": num < bound, "le": num <= bound, "gt": num > bound, "ge": num >= bound}[op]
-        return ok
-    if isinstance(value, (int, float)) and not isinstance(value, bool):
-        num = pd.to_numeric(col, errors="coerce")
-        return pd.Series(np.isclose(num.astype(float), float(value), rtol=1e-9, atol=0), index=col.index)
-    return col.astype(str) == str(value)
+class Selection:
+    """The tidy rows prepared for many selections (the checks of :func:`compare`): each column's values,
+    text and numbers are taken out of the frame once, as numpy arrays, and a selection narrows a set of row
+    positions with them; only the columns a caller asks for are cut out of the frame.
+
+    Row by row the same conditions as comparing the frame's columns each time (``==`` on the values of
+    ``part``, ``status`` and ``metric``; text for other values, numbers for numbers and ranges): the
+    conditions look at one row at a time, so computing them once for every row and then picking positions
+    is the same as computing them for the rows picked (issue 22: the ~600 selections of a run of
+    vanderuit2018_table1 cut its 25 columns each time, 1.5 CPU-s).
+    """
+
+    def __init__(self, rows: pd.DataFrame):
+        self.rows = rows
+        self._arrays: dict = {}
+        self._parts: dict = {}
+        self._frames: dict = {}
+
+    def _array(self, kind: str, column: str) -> np.ndarray:
+        got = self._arrays.get((kind, column))
+        if got is None:
+            col = self.rows[column]
+            if kind == "values":
+                got = col.to_numpy()
+            elif kind == "text":
+                got = col.astype(str).to_numpy()
+            else:                                         # numbers: NaN where a value is not one
+                got = pd.to_numeric(col, errors="coerce").astype(float).to_numpy()
+            self._arrays[(kind, column)] = got
+        return got
+
+    def _match(self, column: str, value, pos: np.ndarray) -> np.ndarray:
+        if isinstance(value, Mapping):       # a range: {lt|le|gt|ge: bound}
+            num = self._array("numbers", column)[pos]
+            ok = ~np.isnan(num)
+            for op, bound in value.items():
+                ok &= {"lt": num < bound, "le": num <= bound, "gt": num > bound, "ge": num >= bound}[op]
+            return ok
+        if isinstance(value, (int, float)) and not isinstance(value, bool):
+            return np.isclose(self._array("numbers", column)[pos], float(value), rtol=1e-9, atol=0)
+        return np.asarray(self._array("text", column)[pos] == str(value), dtype=bool)
+
+    def positions(self, part: str, where: Mapping, within: np.ndarray | None = None) -> np.ndarray:
+        """Positions of the rows of ``part`` (successful cases) matching ``where`` (among ``within``, positions
+        of such rows, when given), in the frame's order."""
+        pos = self._parts.get(part) if within is None else within
+        if pos is None:
+            pos = self._parts[part] = np.flatnonzero((self._array("values", "part") == part)
+                                                     & (self._array("values", "status") == "ok"))
+        columns = self.rows.columns
+        metric = where.get("metric")
+        if isinstance(metric, str) and "metric" in columns:    # the most selective first
+            pos = pos[self._array("values", "metric")[pos] == metric]
+        for k, v in where.items():
+            if k not in columns:
+                return pos[:0]
+            if k == "metric" and isinstance(v, str):
+                continue
+            pos = pos[self._match(k, v, pos)]
+        return pos
+
+    def frame(self, pos: np.ndarray, *columns: str) -> pd.DataFrame:
+        """The rows at ``pos``, with ``value`` and those of ``columns`` that exist."""
+        cols = tuple(dict.fromkeys(c for c in ("value", *columns) if c in self.rows.columns))
+        narrow = self._frames.get(cols)
+        if narrow is None:
+            narrow = self._frames[cols] = self.rows[list(cols)]
+        return narrow.iloc[pos]
+
+    def values(self, pos: np.ndarray) -> np.ndarray:
+        """``value`` of the rows at ``pos``, as floats."""
+        return self.rows["value"].to_numpy(float)[pos]
 
 
 def select(rows: pd.DataFrame, part: str, where: Mapping) -> pd.DataFrame:
-    """Rows of ``part`` (successful cases) whose columns equal ``where`` (or lie in its ranges).
-
-    The conditions narrow a set of row positions column by column (the metric first: the most selective);
-    the frame itself is cut once at the end (cutting every column at every step cost seconds a study)."""
-    mask = (rows["part"] == part) & (rows["status"] == "ok")
-    metric = where.get("metric")
-    if isinstance(metric, str) and "metric" in rows.columns:
-        mask &= rows["metric"] == metric
-    pos = np.flatnonzero(mask.to_numpy())
-    for k, v in where.items():
-        if k not in rows.columns:
-            return rows.iloc[0:0]
-        if k == "metric" and isinstance(v, str):
-            continue
-        pos = pos[_match(rows[k].iloc[pos], v).to_numpy()]
-    return rows.iloc[pos]
+    """Rows of ``part`` (successful cases) whose columns equal ``where`` (or lie in its ranges): see
+    :class:`Selection` (for many selections of one frame, use one)."""
+    return rows.iloc[Selection(rows).positions(part, where)]
 
 
-def _out_of_domain(rows: pd.DataFrame, part: str, where: Mapping, domain: Mapping) -> pd.DataFrame:
-    """Rows matching ``where`` but not ``domain``."""
-    every = select(rows, part, where)
-    inside = select(every, part, domain)
-    return every.drop(index=inside.index)
+def _out_of_domain(rows: Selection, part: str, where: Mapping, domain: Mapping) -> np.ndarray:
+    """Positions of the rows matching ``where`` but not ``domain``."""
+    every = rows.positions(part, where)
+    inside = rows.positions(part, domain, within=every)
+    return every[~np.isin(every, inside)]
 
 
 def aggregate(values, how: str) -> float:
@@ -106,9 +216,9 @@ def _grouped(sel: pd.DataFrame, column: str, how: str) -> pd.Series:
     return g.loc[list(order)]
 
 
-def _trend(c: Check, rows: pd.DataFrame) -> tuple[float, str, int]:
+def _trend(c: Check, rows: Selection) -> tuple[float, str, int]:
     """Largest move against ``c.direction`` between consecutive aggregates over ``c.over``."""
-    sel = select(rows, c.part, {**c.select, **(c.domain or {})})
+    sel = rows.frame(rows.positions(c.part, {**c.select, **(c.domain or {})}), c.over)
     m = _grouped(sel, c.over, c.aggregate)
     if len(m) < 2:
         return np.nan, "", len(sel)
@@ -124,11 +234,12 @@ def _differences(c: Check, a: pd.DataFrame, b: pd.DataFrame) -> pd.Series:
     return pd.Series({k: float(ma[k] - mb[k]) for k in keys}, dtype=float)
 
 
-def _difference(c: Check, rows: pd.DataFrame) -> tuple[float, str, int]:
+def _difference(c: Check, rows: Selection) -> tuple[float, str, int]:
     """aggregate(select) - aggregate(versus) per value of ``c.by``; the group closest to (or furthest
     beyond) a bound is the reproduced value."""
     dom = c.domain or {}
-    a, b = select(rows, c.part, {**c.select, **dom}), select(rows, c.part, {**(c.versus or {}), **dom})
+    a = rows.frame(rows.positions(c.part, {**c.select, **dom}), c.by)
+    b = rows.frame(rows.positions(c.part, {**(c.versus or {}), **dom}), c.by)
     d = _differences(c, a, b)
     if d.empty:
         return np.nan, "", len(a) + len(b)
@@ -138,18 +249,18 @@ def _difference(c: Check, rows: pd.DataFrame) -> tuple[float, str, int]:
     return float(d[worst]), (f"{c.by} -> {spread}" if c.by else spread), len(a) + len(b)
 
 
-def _outside(c: Check, rows: pd.DataFrame) -> str:
+def _outside(c: Check, rows: Selection) -> str:
     """What the rows outside the check's domain give (shown, not scored)."""
     if not c.domain:
         return ""
     if c.kind == "difference":
-        a = _out_of_domain(rows, c.part, c.select, c.domain)
-        b = _out_of_domain(rows, c.part, c.versus or {}, c.domain)
+        a = rows.frame(_out_of_domain(rows, c.part, c.select, c.domain), c.by)
+        b = rows.frame(_out_of_domain(rows, c.part, c.versus or {}, c.domain), c.by)
         d = _differences(c, a, b)
         body = ", ".join(f"{k}: {v:+.4g}" for k, v in d.items())
         return f"{c.by} -> {body}" if body else ""
-    out = _out_of_domain(rows, c.part, c.select, c.domain)
     col = next(iter(c.domain))
+    out = rows.frame(_out_of_domain(rows, c.part, c.select, c.domain), col)
     g = _grouped(out, col if col in out.columns else "", c.aggregate)
     return f"{col} -> " + ", ".join(f"{k}: {v:.4g}" for k, v in g.items()) if len(g) else ""
 
@@ -170,12 +281,12 @@ def compare(checks: tuple[Check, ...], rows: pd.DataFrame, parts_run: set[str], 
     ``commit`` is stamped on every row (``...-dirty`` rows say loudly that they must not be committed).
     """
     out = []
+    rows = Selection(rows)
     for c in checks:
         if c.part not in parts_run:
             continue
         if c.kind == "value":
-            sel = select(rows, c.part, {**c.select, **(c.domain or {})})
-            v = sel["value"].to_numpy(float)
+            v = rows.values(rows.positions(c.part, {**c.select, **(c.domain or {})}))
             v = v[np.isfinite(v)]
             n = len(v)
             rep = aggregate(v, c.aggregate)

@@ -1,0 +1,182 @@
+"""What a study run does besides computing its cases, made cheaper (issue 22), with the same results: the
+comparison's selections (tables.Selection), the curves' frame (tables.curves_frame), the case keys (one
+per case object, cache.Cache.key) and the Parquet table (outputs.parquet_frame)."""
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from jointbench.benchmarks.config import Check
+from jointbench.benchmarks.harness import cache as cache_mod
+from jointbench.benchmarks.harness.case import Case, CaseResult
+from jointbench.benchmarks.harness.outputs import parquet_frame
+from jointbench.benchmarks.tables import Selection, compare, curves_frame, select
+
+NAN = float("nan")
+
+
+def _rows() -> pd.DataFrame:
+    """Ten rows of two parts: text with a gap, numbers with inf and NaN, a column mixing kinds."""
+    return pd.DataFrame({
+        "part": ["p", "p", "p", "p", "p", "p", "q", "q", "p", "p"],
+        "status": ["ok", "ok", "ok", "failed", "ok", "ok", "ok", "ok", "ok", "ok"],
+        "metric": ["K", "K", "B", "K", "K", "K", "K", "K", "K", "K"],
+        "estimator": ["a", "b", "a", "a", NAN, "a", "a", "a", "b", "a"],
+        "snr_db": [5.0, 5.0, 5.0, 5.0, 10.0, np.inf, 5.0, 10.0, NAN, 10.0],
+        "fs": pd.Series(["native", 100, 250, 100, 250, 100, 100, 100, 250, "native"], dtype=object),
+        "flag": [True, False, True, True, True, False, True, True, True, False],
+        "value": [1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, NAN, 10.0],
+    })
+
+
+def _select_column_by_column(rows: pd.DataFrame, part: str, where) -> pd.DataFrame:
+    """The selection as it was: each condition on the frame cut so far (the rows' own columns each time)."""
+    sel = rows[(rows["part"] == part) & (rows["status"] == "ok")]
+    for k, v in where.items():
+        if k not in sel.columns:
+            return rows.iloc[0:0]
+        col = sel[k]
+        if isinstance(v, dict):
+            num = pd.to_numeric(col, errors="coerce").astype(float)
+            ok = num.notna()
+            for op, bound in v.items():
+                ok &= {"lt": num < bound, "le": num <= bound, "gt": num > bound, "ge": num >= bound}[op]
+        elif isinstance(v, (int, float)) and not isinstance(v, bool):
+            ok = pd.Series(np.isclose(pd.to_numeric(col, errors="coerce").astype(float), float(v), rtol=1e-9,
+                                      atol=0), index=col.index)
+        else:
+            ok = col.astype(str) == str(v)
+        sel = sel[ok]
+    return sel
+
+
+WHERES = [{}, {"metric": "K"}, {"metric": "K", "estimator": "a"}, {"metric": "K", "snr_db": 5},
+          {"snr_db": float("inf")}, {"snr_db": {"ge": 5, "lt": 11}}, {"fs": 100}, {"fs": "native"},
+          {"fs": {"gt": 150}}, {"flag": True}, {"estimator": "nan"}, {"metric": "K", "missing": 1},
+          {"metric": "Z"}, {"value": {"le": 5}}]
+
+
+@pytest.mark.parametrize("where", WHERES, ids=[json.dumps(w) for w in WHERES])
+@pytest.mark.parametrize("part", ["p", "q", "r"])
+def test_a_selection_is_the_rows_comparing_the_columns_one_by_one_gives(part, where):
+    rows = _rows()
+    expected = _select_column_by_column(rows, part, where)
+    pd.testing.assert_frame_equal(select(rows, part, where), expected)
+    one = Selection(rows)                      # one prepared frame for many selections: the same rows
+    for _ in range(2):
+        pd.testing.assert_frame_equal(rows.iloc[one.positions(part, where)], expected)
+
+
+def test_selection_by_hand():
+    s = Selection(_rows())
+    assert s.positions("p", {"metric": "K", "estimator": "a"}).tolist() == [0, 5, 9]   # row 3 failed
+    assert s.positions("p", {"snr_db": {"ge": 5, "lt": 11}, "metric": "K"}).tolist() == [0, 1, 4, 9]
+    assert s.positions("p", {"fs": 100}).tolist() == [1, 5]            # the text 'native' is no number
+    assert s.positions("p", {"metric": "K"}, within=np.array([1, 2, 5])).tolist() == [1, 5]
+    assert s.positions("p", {"nope": 1}).tolist() == []
+    assert s.values(np.array([0, 8])).tolist()[0] == 1.0 and np.isnan(s.values(np.array([8]))[0])
+    assert list(s.frame(np.array([0, 1]), "estimator", "nope").columns) == ["value", "estimator"]
+
+
+def test_compare_scores_value_trend_difference_and_the_rows_outside_the_domain():
+    rows = _rows()
+    checks = (
+        Check(id="v", part="p", description="", source="", published="", select={"metric": "K", "estimator": "a"},
+              low=0, high=6, aggregate="median"),
+        Check(id="t", part="p", description="", source="", published="", select={"metric": "K", "estimator": "a"},
+              low=0, high=0, kind="trend", over="snr_db", direction="increasing", slack=0.0),
+        Check(id="d", part="p", description="", source="", published="", select={"metric": "K", "estimator": "a"},
+              versus={"metric": "K", "estimator": "b"}, by="snr_db", low=-2, high=2, kind="difference",
+              aggregate="mean"),
+        Check(id="o", part="p", description="", source="", published="", select={"metric": "K", "estimator": "a"},
+              domain={"snr_db": {"lt": 7}}, domain_reason="r", low=0, high=2, aggregate="mean"),
+    )
+    out = compare(checks, rows, {"p"}).set_index("check")
+    # value: K of a in p (rows 0, 5, 9: 1, 6, 10) -> median 6, inside [0, 6]
+    assert out.loc["v", "reproduced"] == 6.0 and out.loc["v", "status"] == "pass" and out.loc["v", "n"] == 3
+    # trend over snr_db: 5 -> 1, 10 -> 10, inf -> 6: the largest fall is 4 (10 -> 6), above slack 0
+    assert out.loc["t", "reproduced"] == 4.0 and out.loc["t", "status"] == "miss"
+    # difference a - b at snr_db 5: 1 - 2 (b's 10 dB row is NaN: no group there)
+    assert out.loc["d", "reproduced"] == -1.0 and out.loc["d", "spread"] == "snr_db -> 5.0: -1"
+    # the domain keeps snr 5 (row 0); outside it: 10 -> 10, inf -> 6
+    assert out.loc["o", "reproduced"] == 1.0 and out.loc["o", "out_of_domain"] == "snr_db -> 10.0: 10, inf: 6"
+
+
+def _case(part="p", seed=0, sweep=None) -> Case:
+    return Case(study="s", part=part, protocol="x", params={}, sweep=sweep or {}, experiment=None,
+                estimators={}, seed=seed, where="w")
+
+
+def _concatenated(results) -> pd.DataFrame:
+    """The curves' frame as it was made: one frame per curve, concatenated."""
+    frames = [pd.DataFrame({"x": c["x"], "y": c["y"], "part": r.case.part, "case_id": r.case.case_id,
+                            "seed": r.case.seed, **r.case.sweep, **{k: v for k, v in c.items() if k not in ("x", "y")}})
+              for r in results for c in r.curves]
+    return pd.concat(frames, ignore_index=True)
+
+
+def _curves_results() -> list[CaseResult]:
+    a = {"curve": "k", "series": "truth", "x": [0.0, 1.0], "y": [2.0, 3.0]}
+    b = {"curve": "k", "series": "est", "n": 3, "x": [0.0, 1.0, 2.0], "y": [4.0, 5.0, 6.0]}
+    ints = {"curve": "lags", "series": "h", "x": np.arange(3), "y": np.array([0.5, 0.25, 0.125])}
+    flag = {"curve": "k", "series": "on", "ok": True, "x": [1.0], "y": [1.0]}
+    mixed = {"curve": "k", "series": "odd", "x": [1, 2.5], "y": [1.0, 2.0]}          # a frame of its own
+    return [CaseResult(_case(seed=0, sweep={"snr": 5.0}), "ok", [], [a, b, ints], 0.0),
+            CaseResult(_case(seed=1, sweep={"snr": 10.0}), "ok", [], [b, a, flag, mixed, a], 0.0),
+            CaseResult(_case(part="q", seed=2), "ok", [], [ints, a], 0.0)]
+
+
+def test_the_curves_frame_is_the_concatenation_of_one_frame_per_curve():
+    results = _curves_results()
+    got = curves_frame(results)
+    pd.testing.assert_frame_equal(got, _concatenated(results))
+    # by hand: the rows in the curves' order, columns in order of appearance, a missing label empty
+    assert list(got.columns) == ["x", "y", "part", "case_id", "seed", "snr", "curve", "series", "n", "ok"]
+    assert got["series"].tolist()[:8] == ["truth"] * 2 + ["est"] * 3 + ["h"] * 3
+    assert got["seed"].tolist() == [0] * 8 + [1] * 10 + [2] * 5
+    assert got["n"].dtype == float and got["n"].isna().sum() == len(got) - 6
+    assert got["ok"].dtype == object and got["ok"].tolist().count(True) == 1
+    assert got["snr"].iloc[-5:].isna().all() and got["snr"].iloc[:18].tolist() == [5.0] * 8 + [10.0] * 10
+
+
+def test_the_curves_frame_of_one_kind_and_of_none():
+    one = [CaseResult(_case(seed=s), "ok", [], [{"curve": "c", "series": "s", "x": [0.0, 1.0], "y": [1.0, 2.0]}],
+                      0.0) for s in range(3)]
+    got = curves_frame(one)
+    pd.testing.assert_frame_equal(got, _concatenated(one))
+    assert got["case_id"].tolist() == ["p-seed0"] * 2 + ["p-seed1"] * 2 + ["p-seed2"] * 2
+    assert list(curves_frame([]).columns) == ["part", "case_id", "seed", "curve", "series", "x", "y"]
+    bad = [CaseResult(_case(), "ok", [], [{"curve": "c", "x": [0.0, 1.0], "y": [1.0]}], 0.0)]
+    with pytest.raises(ValueError):                       # x and y of two lengths: as before, an error
+        curves_frame(bad)
+
+
+def test_a_case_key_is_worked_out_once_per_case_and_is_case_key(tmp_path, monkeypatch):
+    calls = []
+    real = cache_mod.key_material
+    monkeypatch.setattr(cache_mod, "key_material", lambda c: calls.append(c) or real(c))
+    case = _case()
+    cache = cache_mod.Cache(tmp_path / "cache")
+    key = cache.key(case)
+    assert cache.key(case) == key and cache.get(case) is None and len(calls) == 1
+    assert key == cache_mod.case_key(case)
+    other = dataclasses.replace(case, seed=1)               # an equal-looking case object of its own
+    assert cache.key(other) != key and len(calls) == 3     # (case_key above called it once more)
+    rows = [{"estimator": "e", "metric": "K", "value": 1.5}]
+    cache.put(CaseResult(case, "ok", rows, [], 0.1))
+    assert len(calls) == 3
+    again = cache_mod.Cache(tmp_path / "cache", warn=lambda m: None)
+    assert again.get(case).rows == rows and again.rejected == 0
+
+
+def test_the_parquet_table_leaves_text_columns_as_they_are():
+    rows = pd.DataFrame({"a": pd.Series(["x", NAN, "y"], dtype="str"), "b": pd.Series([NAN] * 3, dtype="str"),
+                         "c": pd.Series(["1.5", None, 2.5], dtype=object), "seed": [1.0, 2.0, 3.0]})
+    out = parquet_frame(rows)
+    pd.testing.assert_series_equal(out["a"], rows["a"])                  # text and NaN: unchanged
+    assert out["b"].dtype == object and out["b"].tolist() == [None] * 3  # no text at all: missing values
+    assert out["c"].fillna("-").tolist() == ["1.5", "-", "2.5"] and str(out["seed"].dtype) == "Int64"
