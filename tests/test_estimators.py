@@ -395,9 +395,10 @@ def small_elbow():
     20 s at 200 Hz, the angle low-passed at 4 Hz: the same fraction of the band excited as by the recovery
     record's 10 Hz at 500 Hz, so each estimator runs the same lines of code on it (traced: the MDL
     pseudo-inverse keeps some of the lag directions, the parallel cascades search every candidate delay),
-    at a twelfth of the cost: a parallel cascade's unknowns and candidate delays grow with the sampling
-    rate (tv_parallel_cascade: 4.5 CPU-s a fit on the 60 s record at 500 Hz, 0.2 s here). With the torque
-    jittered by 1e-14 (unseeded) before each fit, every case of the test fails (checked)."""
+    for a sixteenth of the CPU (the 15 cases: 18.7 -> 1.1 CPU-s): a parallel cascade's unknowns and candidate
+    delays grow with the sampling rate (tv_parallel_cascade: 4.5 CPU-s a fit on the 60 s record at 500 Hz,
+    0.2 s here). With the torque jittered by 1e-14 (unseeded) before each fit, every case of the test fails
+    (checked)."""
     return elbow_trial(seed=7, duration=20.0, fs=200.0, fc=4.0, name="small elbow")
 
 
