@@ -20,20 +20,18 @@ SPLIT = frozenset({"tests.test_dask_faults", "tests.test_runner_faults", "tests.
 #: so that the workers finish together rather than one of them starting a long unit at the end: the units go
 #: out in this order (the tests of a SPLIT module one by one), then every other module (each under 4 CPU-s) in
 #: collection order. A stale order costs balance, never a result.
-FIRST = ("tests.test_plugins",              # 21 CPU-s: pip installs, 4 processes, 2 local Dask clusters
-         "tests.test_side_by_side",         # 21: runs of several studies with --jobs, a cold numba compile
-         "tests.test_backends_harness",     # 16: each paper study on MuJoCo
-         "tests.test_nightly",              # 13: nightly runs, make nightly, Chromium
-         "tests.test_dask_faults",          # 22 in tests of 9, 5, 4, 2 ... (split)
-         "tests.test_wheel", "tests.test_executors", "tests.test_estimators",             # 10 each
-         "tests.test_comparison_report",    # 10
-         "tests.test_runner_faults",        # 16 in tests of 5, 4, 3, 2 ... (split)
-         "tests.test_history",              # 13 in tests of 4, 3, 2, 1 ... (split)
-         "tests.test_estimate_acceptance", "tests.test_estimate_robust", "tests.test_grid", "tests.test_api",
-         "tests.test_interval_coverage",    # 6-7 each
-         "tests.test_outputs_set", "tests.test_cli_estimate",                             # 7 each (split)
-         "tests.test_band_checks", "tests.test_nightly_alarms", "tests.test_sims_tv", "tests.test_westwick2012",
-         "tests.test_history_faults")       # 4-5 each
+FIRST = ("tests.test_side_by_side",         # 21 CPU-s: runs of several studies with --jobs, a cold numba compile
+         "tests.test_plugins",              # 20: pip installs, 4 processes, 2 local Dask clusters
+         "tests.test_backends_harness",     # 14: each paper study on MuJoCo
+         "tests.test_nightly",              # 12: nightly runs, make nightly, Chromium
+         "tests.test_dask_faults",          # 19 in tests of 8, 5, 4, 1 ... (split)
+         "tests.test_estimators", "tests.test_comparison_report", "tests.test_executors", "tests.test_wheel",  # 9-10
+         "tests.test_runner_faults",        # 15 in tests of 5, 4, 3, 2 ... (split)
+         "tests.test_history",              # 11 in tests of 4, 3, 1 ... (split)
+         "tests.test_estimate_robust", "tests.test_estimate_acceptance",                  # 7 each
+         "tests.test_outputs_set", "tests.test_cli_estimate",                             # 6 each (split)
+         "tests.test_grid", "tests.test_interval_coverage", "tests.test_sims_tv", "tests.test_band_checks",
+         "tests.test_westwick2012")         # 4-5 each
 
 
 def pytest_configure(config):
