@@ -204,3 +204,13 @@ def test_a_run_freezes_what_lives_through_it_and_unfreezes_it_whatever_happens()
     with pytest.raises(KeyboardInterrupt):
         run(True)
     assert gc.get_freeze_count() == 0 and run_study.__wrapped__.__name__ == "run_study"
+
+
+def test_the_noise_levels_of_a_figure_are_the_distinct_values_of_its_rows():
+    from jointbench.benchmarks.figures.vanderuit2018 import _floats, _snr_order
+
+    levels = pd.Series([5.0, float("inf"), 10.0, 5.0, 10.0] * 100)
+    assert _floats(levels) == {5.0, 10.0, float("inf")} and _snr_order(levels) == [5.0, 10.0, float("inf")]
+    with_nan = pd.Series([5.0, NAN, 5.0, NAN])
+    as_iterated = {float(v) for v in with_nan}              # each NaN read from a row is an element of its own
+    assert len(_floats(with_nan)) == len(as_iterated) == 3 and 5.0 in _floats(with_nan)

@@ -68,8 +68,9 @@ def published_overall(checks) -> dict[tuple[str, str, str], object]:
 
 def table2_frame(rows: pd.DataFrame, checks, digits: int = 1) -> pd.DataFrame:
     """Table II: one row per subject plus 'Overall' and 'Overall (published)', 'mean ± SD' cells."""
-    cols = [c for c in COLUMNS if not _ok(rows)[(_ok(rows)["metric"] == c[2]) & (_ok(rows)["estimator"] == c[1])
-                                                & (_ok(rows).get("mode", pd.Series(dtype=str)) == c[0])].empty]
+    ok = _ok(rows)
+    cols = [c for c in COLUMNS if not ok[(ok["metric"] == c[2]) & (ok["estimator"] == c[1])
+                                         & (ok.get("mode", pd.Series(dtype=str)) == c[0])].empty]
     st = subject_stats(rows, cols)
     if st.empty:
         return pd.DataFrame()
@@ -93,8 +94,9 @@ def stiffness_frame(rows: pd.DataFrame) -> pd.DataFrame:
     if "mode" not in ok.columns:
         return pd.DataFrame()
     recs = []
+    names = set(ok["estimator"].unique())
     for mode in ("single", "ensemble"):
-        for est in [m for m in METHODS if m in set(ok["estimator"])]:
+        for est in [m for m in METHODS if m in names]:
             sel = ok[(ok["mode"] == mode) & (ok["estimator"] == est)]
             if sel.empty or not sel["metric"].isin(["rmse_k"]).any():
                 continue
