@@ -60,7 +60,13 @@ def _text_cells(values: pd.Series):
     import pyarrow as pa
     import pyarrow.compute as pc
 
-    cells = pa.array(values.to_numpy(dtype=object), type=pa.large_string(), from_pandas=True).fill_null("")
+    if isinstance(values.dtype, pd.StringDtype) and values.dtype.storage == "pyarrow":
+        cells = pa.array(values.array, type=pa.large_string())      # Arrow's own text, no copy through Python
+        if isinstance(cells, pa.ChunkedArray):
+            cells = cells.combine_chunks()
+    else:
+        cells = pa.array(values.to_numpy(dtype=object), type=pa.large_string(), from_pandas=True)
+    cells = cells.fill_null("")
     pattern = "[" + "".join({"\n": r"\n", "\r": r"\r"}.get(ch, ch) for ch in _special()) + "]"
     quote = pc.match_substring_regex(cells, pattern)
     if pc.any(quote).as_py():
