@@ -323,12 +323,13 @@ class History:
         cases, rows = [], []
         for r in results:
             c = r.case
+            case_id = c.case_id                 # a property that formats the sweep: once per case, not per row
             labels = json.dumps(dict(c.sweep), sort_keys=True, default=str)
-            cases.append((run_id, c.case_id, c.part, c.seed, keys.get(c.case_id), r.status, r.error,
+            cases.append((run_id, case_id, c.part, c.seed, keys.get(case_id), r.status, r.error,
                           r.wall_time_s, int(r.cached), labels))
             for row in r.rows:
                 extra = {k: v for k, v in row.items() if k not in ("metric", "value", "estimator")}
-                rows.append((run_id, c.case_id, str(row.get("estimator") or ""), str(row["metric"]),
+                rows.append((run_id, case_id, str(row.get("estimator") or ""), str(row["metric"]),
                              _num(row.get("value")),
                              json.dumps({**c.sweep, **extra}, sort_keys=True, default=str)))
         checks = []
