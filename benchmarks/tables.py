@@ -474,13 +474,15 @@ def fidelity(comparison: pd.DataFrame) -> pd.DataFrame:
     ev = comp["evidence"].fillna("unrecorded") if "evidence" in comp else pd.Series("unrecorded", index=comp.index)
     cause = (comp["cause"].astype(object).fillna("").astype(str).replace("nan", "") if "cause" in comp
              else pd.Series("", index=comp.index))
+    passed = comp["status"] == "pass"
     recs = []
     for target in dict.fromkeys(comp["_target"]):
         sel = comp["_target"] == target
 
-        def count(mask):
-            g = comp[sel & mask]
-            return f"{int((g['status'] == 'pass').sum())} of {len(g)}" if len(g) else "–"
+        def count(mask):             # counted on the masks (cutting the frame for each cost 0.1 CPU-s a README)
+            m = sel & mask
+            n = int(m.sum())
+            return f"{int((m & passed).sum())} of {n}" if n else "–"
         miss = sel & (comp["status"] != "pass")
         causes = cause[miss]
         named = causes[causes != ""].value_counts()
