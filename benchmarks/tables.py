@@ -63,10 +63,25 @@ def _joined(pieces: dict, counts: list[int]) -> pd.DataFrame:
     for name, values in pieces.items():
         if name in ("x", "y"):
             out[name] = np.concatenate([np.asarray(v, dtype=float) if isinstance(v, list) else v for v in values])
-        else:                       # one type per column (the kind): text as objects, numbers as themselves
+        elif type(values[0]) is str:            # one type per column (the kind)
+            out[name] = _repeated_text(values, counts)
+        else:
             kind = type(values[0])
-            out[name] = np.repeat(np.array(values, dtype={str: object, int: np.int64}.get(kind, kind)), counts)
+            out[name] = np.repeat(np.array(values, dtype={int: np.int64}.get(kind, kind)), counts)
     return pd.DataFrame(out)
+
+
+def _repeated_text(values: list[str], counts: list[int]):
+    """Each of ``values`` repeated ``counts`` times, as the column pandas makes of such a list: its
+    Arrow-backed text is built by Arrow from the few distinct strings (pandas converted every one of the
+    176 000 strings of a column of xu1998's curves, 13 ms a column), its other text as Python objects."""
+    dtype = pd.Series(values[:1]).dtype
+    if isinstance(dtype, pd.StringDtype) and dtype.storage == "pyarrow":
+        import pyarrow as pa
+
+        picks = pa.array(np.repeat(np.arange(len(values)), counts))
+        return pd.array(pa.array(values, pa.large_string()).take(picks), dtype=dtype)
+    return np.repeat(np.array(values, dtype=object), counts)
 
 
 def curves_frame(results) -> pd.DataFrame:
