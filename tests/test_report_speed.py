@@ -14,7 +14,8 @@ from jointbench.benchmarks.config import Check
 from jointbench.benchmarks.harness import cache as cache_mod
 from jointbench.benchmarks.harness.case import Case, CaseResult
 from jointbench.benchmarks.harness.outputs import parquet_frame
-from jointbench.benchmarks.tables import Selection, compare, curves_frame, select
+from jointbench.benchmarks.selection import Selection, select
+from jointbench.benchmarks.tables import compare, curves_frame
 
 NAN = float("nan")
 
