@@ -7,7 +7,7 @@ import numpy as np
 import pandas as pd
 
 from jointbench.benchmarks.config import Check
-from jointbench.benchmarks.selection import Selection, select  # noqa: F401 - select lived here before
+from jointbench.benchmarks.selection import Selection
 
 ROW_FRONT = ["study", "part", "case_id", "seed", "estimator", "metric", "value", "status", "error",
              "wall_time_s", "git_commit"]

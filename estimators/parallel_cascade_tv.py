@@ -126,7 +126,7 @@ class TVParallelCascade(EnsembleEstimator):
         XI = sliding_window_view(np.concatenate([np.zeros((m2, R)), U, np.zeros((m1, R))]), LI, axis=0)[..., ::-1]
         XI = XI[first:last]                                         # (N, R, LI)
         Yv = Y[first:last]
-        GI, _ = basis_normal(XI, Yv, Ph)
+        GI, bI_alone = basis_normal(XI, Yv, Ph)                      # bI_alone: the intrinsic pathway alone
         ss = float(np.sum((Yv - Yv.mean(axis=0)) ** 2))
         if len(cands) == 1:
             d = int(cands[0])
@@ -143,8 +143,7 @@ class TVParallelCascade(EnsembleEstimator):
         k_I, k_R = M * LI, M + L + (p - 1 if p > 1 else 0)
         keep = s.keep_reflex == "always" or rx.mdl(rss, k_I + k_R, R * N) < rx.mdl(rss_I, k_I, R * N)
         if not keep:                                                # the intrinsic pathway alone, refitted
-            bI = basis_rhs(XI, Yv, Ph)
-            cI = rx.solve_normal(GI, bI, s.rcond).reshape(M, LI)
+            cI = rx.solve_normal(GI, bI_alone, s.rcond).reshape(M, LI)
             tqI, tqR = np.einsum("trl,tm,ml->tr", XI, Ph, cI), np.zeros_like(Yv)
         nl, h = rx.finish(a, h, V[first:last].ravel(), s, scale, offset) if keep else (None, None)
         gain = np.zeros(n)
