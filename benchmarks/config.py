@@ -26,7 +26,7 @@ from jointbench.benchmarks.locate import (CONFIGS, find_file, find_model, load_p
                                           study_path)
 # the one YAML reader of configs: strict and within limits (benchmarks/config_yaml.py)
 from jointbench.benchmarks.config_yaml import MAX_YAML_DEPTH, StrictLoader, load_yaml as _load_yaml  # noqa: F401
-from jointbench.errors import ConfigError
+from jointbench.core.errors import ConfigError
 
 
 
@@ -150,7 +150,7 @@ class Study:
     checks: tuple[Check, ...]
     not_reproduced: tuple[NotReproduced, ...] = ()
     method_swap: MethodSwap | None = None
-    plugins: tuple[str, ...] = ()      # outside modules with estimators (jointbench.plugins), imported
+    plugins: tuple[str, ...] = ()      # outside modules with estimators (jointbench.core.plugins), imported
     expected_failures: bool = False   # cases are expected to fail: `jointbench run` exits 0 all the same
 
 

@@ -15,7 +15,7 @@ from typing import Any
 
 import yaml
 
-from jointbench.errors import ConfigError
+from jointbench.core.errors import ConfigError
 
 
 class _DuplicateKey(yaml.YAMLError):
@@ -110,7 +110,7 @@ def _check_size(text: str, path: Path, loader=StrictLoader) -> None:
 def load_yaml(path: Path) -> Any:
     """Parse a YAML file strictly: duplicate keys are errors naming the file, key and line; the file must
     be a regular UTF-8 file within the limits above (every refusal is one line naming the file)."""
-    from jointbench.files import decode_text, file_problem
+    from jointbench.core.files import decode_text, file_problem
 
     problem = file_problem(path, MAX_CONFIG_BYTES)
     if problem is not None:

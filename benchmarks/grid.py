@@ -41,7 +41,7 @@ the stiffness and its time variation explain, :mod:`benchmarks.identifiability`)
 A combination an estimator cannot run is skipped and reported with the reason: a perturbation it cannot
 identify from (:meth:`estimators.Estimator.supports`: skirt and KBR need a multisine), data it does not
 take (its ``accepts``: an ensemble method given single trials), or valid settings that cannot go together
-(:class:`~jointbench.errors.Incompatible`: a rate that does not divide the simulation rate, a model on the
+(:class:`~jointbench.core.errors.Incompatible`: a rate that does not divide the simulation rate, a model on the
 wrong apparatus, a backend that cannot simulate the experiment). Any other error in a combination (a
 typo'd key, a negative duration, zero inertia, a profile file that is missing or makes K negative, an
 unstable MuJoCo step) is a config error naming the combination, before anything runs (exit 2). A name or
@@ -60,8 +60,8 @@ from typing import Any, Callable, Mapping
 from jointbench import estimators
 from jointbench import sims
 from jointbench.benchmarks.grid_tuning import AXES, _matches, _only, _search, candidates, grid_settings
-from jointbench.errors import ConfigError, Incompatible
-from jointbench.schema import param, parse
+from jointbench.core.errors import ConfigError, Incompatible
+from jointbench.core.schema import param, parse
 
 NATIVE = "native"
 DATA = ("trial", "ensemble")
@@ -228,7 +228,7 @@ def parse_grid(data: Mapping, experiment: Mapping | None, part_estimators: Mappi
         if v == NATIVE:
             fs.append(v)
             continue
-        from jointbench.schema import _number   # the unit-aware number reader of every config value
+        from jointbench.core.schema import _number   # the unit-aware number reader of every config value
 
         x = _number(v, "Hz", f"{where}: grid", f"fs[{i}]", False)
         if not x > 0:

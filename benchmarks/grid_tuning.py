@@ -13,7 +13,7 @@ import json
 from typing import Any, Mapping
 
 from jointbench import estimators
-from jointbench.errors import ConfigError
+from jointbench.core.errors import ConfigError
 
 #: the axes a grid may have, in the order they appear in case ids (re-exported by benchmarks.grid)
 AXES = ("scenario", "joint", "variation", "perturbation", "noise", "fs", "backend", "estimator", "data", "tuning")

@@ -12,7 +12,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any, Sequence
 
-from jointbench.errors import ConfigError
+from jointbench.core.errors import ConfigError
 
 
 def _package_configs() -> Path:
@@ -91,10 +91,10 @@ def find_file(ref: str | Path, roots: Sequence[Path], where: str, key: str) -> P
 
 def load_plugins(value: Any, where: str, roots: Sequence[Path]) -> tuple[str, ...]:
     """Import a study's ``plugins`` (module names, or ``.py`` files and package folders beside the study) so
-    that their estimators are registered; returns their specs (:func:`jointbench.plugins.load`). A bare
+    that their estimators are registered; returns their specs (:func:`jointbench.core.plugins.load`). A bare
     name is an installed module when one is importable, else a package folder or ``<name>.py`` beside the
     study."""
-    from jointbench import plugins
+    from jointbench.core import plugins
 
     if value is None:
         return ()

@@ -15,8 +15,8 @@ from jointbench.benchmarks.harness.history import History
 from jointbench.benchmarks.harness.nightly import NightlyConfig, NightlyResult, StudyOutcome
 from jointbench.benchmarks.harness.nightly_pages import write_pages
 from jointbench.benchmarks.study import HISTORY_FILE, run_study
-from jointbench.errors import JointBenchError
-from jointbench.files import sweep_stale_temps
+from jointbench.core.errors import JointBenchError
+from jointbench.core.files import sweep_stale_temps
 
 
 def run_nightly(config: NightlyConfig, out_root: Path, workers: int | None = None, serial: bool = False,

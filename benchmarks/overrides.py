@@ -16,7 +16,7 @@ from typing import Any, Callable, Mapping, Sequence
 
 import yaml
 
-from jointbench.errors import ConfigError
+from jointbench.core.errors import ConfigError
 
 
 @dataclasses.dataclass(frozen=True)

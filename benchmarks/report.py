@@ -20,7 +20,7 @@ from jointbench.benchmarks.harness.pages import (Code, Figure, Items, Page, Para
                                                  to_html, to_markdown)
 from jointbench.benchmarks.tables import (DIRTY_BANNER, difference_counts, difference_rows, evidence_counts, fidelity,
                                           headline, headline_rows)
-from jointbench.files import write_text
+from jointbench.core.files import write_text
 
 #: what each kind of evidence means, as the report says it
 EVIDENCE_TEXT = {

@@ -19,8 +19,8 @@ from jointbench.benchmarks.config import Part, Study
 from jointbench.benchmarks.harness.cache import Cache
 from jointbench.benchmarks.harness.case import Case, CaseResult, parse_inputs, run_case, run_group
 from jointbench.benchmarks.harness.pool import ExecutorLost, InlineExecutor, WorkerMismatch, WorkerPool, run_task
-from jointbench.errors import ConfigError
-from jointbench.schema import parse
+from jointbench.core.errors import ConfigError
+from jointbench.core.schema import parse
 
 __all__ = ["Case", "CaseResult", "Cache", "RunInterrupted", "expand", "expand_study", "group_cases", "run_case",
            "run_cases"]

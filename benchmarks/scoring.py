@@ -15,7 +15,7 @@ def frozen_stiffness(trial, f_hz: float = 0.0) -> np.ndarray:
     frozen impedance (angle to torque) at ``f_hz`` (0: the static gain, what an IRF's sum and a parametric
     K estimate; the lowest multisine line: what KBR and skirt report). From the trial's input-to-output
     transfer function: itself when the angle is imposed, its inverse when the torque is."""
-    return trial.frozen_stiffness(f_hz)      # jointbench.types.Trial.frozen_stiffness: one definition
+    return trial.frozen_stiffness(f_hz)      # jointbench.core.types.Trial.frozen_stiffness: one definition
 
 
 def scored_samples(time_s: np.ndarray, discard: float) -> np.ndarray:

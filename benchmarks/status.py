@@ -15,7 +15,7 @@ import pandas as pd
 from jointbench.benchmarks.config import EVIDENCE
 from jointbench.benchmarks.harness.pages import markdown_table as markdown
 from jointbench.benchmarks.tables import difference_counts, evidence_counts, fidelity, headline
-from jointbench.errors import ConfigError
+from jointbench.core.errors import ConfigError
 
 BEGIN = "<!-- status:begin -->"
 END = "<!-- status:end -->"

@@ -31,9 +31,9 @@ from jointbench.benchmarks.harness.cache import Cache
 from jointbench.benchmarks.harness.history import History
 from jointbench.benchmarks.runner import CaseResult, RunInterrupted, expand, expand_study, group_cases, run_cases
 from jointbench.benchmarks.tables import cases_frame, compare, curves_frame, swap_survival
-from jointbench.csv_text import write_csv
-from jointbench.errors import ConfigError, OutputError
-from jointbench.files import atomic_write, replace_as_set, staging_folder, sweep_stale_temps, write_text
+from jointbench.core.csv_text import write_csv
+from jointbench.core.errors import ConfigError, OutputError
+from jointbench.core.files import atomic_write, replace_as_set, staging_folder, sweep_stale_temps, write_text
 
 HISTORY_FILE = "history.sqlite"
 CACHE_FOLDER = "cache"
@@ -61,7 +61,7 @@ class StudyRun:
 
 #: curves.csv.gz: gzip level 1 (issue 22: zlib's default 6 took 2.7 times as long, 0.14 CPU-s for xu1998's
 #: 16 MB, for a file 13 % smaller; 9 took 1.5 times as long as 6 for 4 % less; the file is not committed); no
-#: time stamp or file name in the header (jointbench.csv_text.write_csv): the same curves, the same bytes
+#: time stamp or file name in the header (jointbench.core.csv_text.write_csv): the same curves, the same bytes
 GZIP_LEVEL = 1
 
 

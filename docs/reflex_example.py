@@ -21,8 +21,8 @@ import pandas as pd
 
 from jointbench import estimators
 from jointbench.benchmarks.harness.pages import markdown_table as markdown
-from jointbench.signal import decimate
-from jointbench.types import Trial
+from jointbench.core.signal import decimate
+from jointbench.core.types import Trial
 
 RECORDS = ["z_pf", "z_pf2", "z_df", "z_df2", "z_df3"]
 DECIMATE, TORQUE_SIGN = 10, -1.0

@@ -1,8 +1,8 @@
 """Estimators: one file per method, registered by ``@register("name")``.
 
 Every estimator is a class with a ``Settings`` dataclass (parsed strictly by
-:func:`jointbench.schema.parse`, and checked on construction) and a ``fit(trials) -> Estimate`` method.
-An estimator sees only :class:`~jointbench.types.Trial` objects without their truth (it fits blind), never
+:func:`jointbench.core.schema.parse`, and checked on construction) and a ``fit(trials) -> Estimate`` method.
+An estimator sees only :class:`~jointbench.core.types.Trial` objects without their truth (it fits blind), never
 how they were made: this package imports
 the core of ``jointbench`` only, never ``jointbench.sims`` or ``jointbench.benchmarks``. Installed as
 ``jointbench.estimators`` (the repository's ``estimators/`` folder).
@@ -14,12 +14,12 @@ import functools
 from abc import ABC, abstractmethod
 from typing import Any, ClassVar, Mapping, Sequence
 
-from jointbench.ensemble import DATA_KINDS, Ensemble, data_kind
-from jointbench.errors import InputError
-from jointbench.estimate import Estimate
-from jointbench.registry import Registry, import_submodules, scan_registrations
-from jointbench.schema import checked, parse
-from jointbench.types import Trial
+from jointbench.core.ensemble import DATA_KINDS, Ensemble, data_kind
+from jointbench.core.errors import InputError
+from jointbench.core.estimate import Estimate
+from jointbench.core.registry import Registry, import_submodules, scan_registrations
+from jointbench.core.schema import checked, parse
+from jointbench.core.types import Trial
 
 #: the estimators: the built-in ones, and those of installed plugins (entry-point group jointbench.estimators)
 REGISTRY: Registry[type["Estimator"]] = Registry("estimator", entry_points="jointbench.estimators")
@@ -48,7 +48,7 @@ def blind(data, estimator: str = "?"):
 
 
 def _fits_blind(fit):
-    """``fit`` receiving its data without the truth (:class:`~jointbench.types.HiddenTruth`)."""
+    """``fit`` receiving its data without the truth (:class:`~jointbench.core.types.HiddenTruth`)."""
     if getattr(fit, "_fits_blind", False):
         return fit
 
@@ -68,9 +68,9 @@ class NoSettings:
 class Estimator(ABC):
     """Base class: holds validated settings, fits a trial, pooled records or an ensemble.
 
-    ``accepts`` declares the kinds of data the estimator takes (:data:`jointbench.ensemble.DATA_KINDS`):
+    ``accepts`` declares the kinds of data the estimator takes (:data:`jointbench.core.ensemble.DATA_KINDS`):
     ``trial`` (one record), ``pooled`` (several records of one stationary condition, fitted together)
-    and ``ensemble`` (an :class:`~jointbench.ensemble.Ensemble`: realizations of one time-varying
+    and ``ensemble`` (an :class:`~jointbench.core.ensemble.Ensemble`: realizations of one time-varying
     condition, aligned in time). Anything else is a one-line :class:`InputError`, and a harness can ask
     :meth:`refuses` first to skip with the reason.
     """
@@ -95,7 +95,7 @@ class Estimator(ABC):
 
     def __init_subclass__(cls, **kwargs):
         """Every estimator's ``Settings`` checks its values on construction, as :func:`make` does
-        (:func:`jointbench.schema.checked`): ``IRFLeastSquares.Settings(lag_before=-5.0)`` is refused. And
+        (:func:`jointbench.core.schema.checked`): ``IRFLeastSquares.Settings(lag_before=-5.0)`` is refused. And
         every estimator fits blind: a subclass that overrides :meth:`fit` itself gets its data without the
         truth too."""
         super().__init_subclass__(**kwargs)
@@ -129,7 +129,7 @@ class Estimator(ABC):
         """Fit one trial, several records of the same condition (pooled) or an ensemble.
 
         Blind: the estimator sees the data without their truth (a simulated trial's ``truth`` is replaced
-        by :class:`~jointbench.types.HiddenTruth`, which raises :class:`~jointbench.types.TruthHidden` when
+        by :class:`~jointbench.core.types.HiddenTruth`, which raises :class:`~jointbench.core.types.TruthHidden` when
         read); the caller's trials keep theirs for scoring."""
         if isinstance(trials, Ensemble):
             why = self.refuses(trials)

@@ -6,7 +6,7 @@ Private module (the leading underscore keeps it out of the estimator registry). 
 their refusals; :func:`band_of_trials`; fsewls also its fitted band's share, :func:`excited_share`).
 
 A frequency is *excited* when its squared coherence is significant at 95 % (the test of
-:meth:`jointbench.estimate.FRFEstimate.significant`, Carter, Knapp & Nuttall 1973). Above the band of
+:meth:`jointbench.core.estimate.FRFEstimate.significant`, Carter, Knapp & Nuttall 1973). Above the band of
 a band-limited input, single frequencies pass that test by chance (5 % of them), with ``H`` there the
 ratio of noise to the window's leakage (10^3 - 10^4 times the joint's impedance): one of them given the
 weight of its coherence dominates a least-squares fit. The input's band is therefore the span of
@@ -31,9 +31,9 @@ import math
 
 import numpy as np
 
-from jointbench.errors import InputError
-from jointbench.estimate import FRFEstimate
-from jointbench.types import Trial
+from jointbench.core.errors import InputError
+from jointbench.core.estimate import FRFEstimate
+from jointbench.core.types import Trial
 
 #: fewest adjacent excited frequencies that count as a run of the input's band
 MIN_RUN = 3

@@ -100,7 +100,7 @@ def pointwise_bands(Phi: np.ndarray, y: np.ndarray, Theta: np.ndarray, dt: float
     behind a changing parameter) or the bias of the filters."""
     from scipy import stats
 
-    from jointbench.estimate import Intervals
+    from jointbench.core.estimate import Intervals
 
     cov = ewls_covariance(Phi, y, Theta, dt, lam, delay, steady)
     z = float(stats.norm.ppf(0.5 + level / 2))

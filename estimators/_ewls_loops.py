@@ -1,7 +1,7 @@
 """The recursion and the per-sample solve of FSEWLS's EWLS (eq. 6), compiled (numba).
 
 Private module of :func:`jointbench.estimators._fsewls_kernels.ewls`, imported on its first fit (compiled
-by :mod:`jointbench.compiled`, cached on disk). Each loop does, for every sample, the operations of the
+by :mod:`jointbench.core.compiled`, cached on disk). Each loop does, for every sample, the operations of the
 numpy formulation it replaced in the same order (IEEE arithmetic, no fused multiply-add), so the
 estimates are the same to the last bit (tests/test_fsewls.py keeps that formulation as the reference):
 the products of the regressors at the samples and the mid-points, the RK4 drive ``w0 f0 + wm fm + w1 f1``,
@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from jointbench.compiled import jit, wait_aside
+from jointbench.core.compiled import jit, wait_aside
 
 wait_aside()         # a command compiling these loops aside: load them from the disk cache when it is done
 

@@ -27,7 +27,7 @@ from math import gcd
 
 import numpy as np
 
-from jointbench.errors import InputError
+from jointbench.core.errors import InputError
 
 
 #: Bins this far (dB) below the strongest bin count as empty whatever the median: an exactly

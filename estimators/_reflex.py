@@ -37,8 +37,8 @@ from typing import Literal
 import numpy as np
 from numpy.polynomial import chebyshev
 
-from jointbench.errors import InputError
-from jointbench.schema import param
+from jointbench.core.errors import InputError
+from jointbench.core.schema import param
 
 Nonlinearity = Literal["rectifier", "polynomial", "linear"]
 

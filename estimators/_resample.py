@@ -30,10 +30,10 @@ from typing import Callable
 
 import numpy as np
 
-from jointbench.ensemble import Ensemble
-from jointbench.errors import InputError
-from jointbench.estimate import Intervals
-from jointbench.schema import param
+from jointbench.core.ensemble import Ensemble
+from jointbench.core.errors import InputError
+from jointbench.core.estimate import Intervals
+from jointbench.core.schema import param
 
 #: confidence level of the bands
 LEVEL = 0.95

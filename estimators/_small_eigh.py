@@ -22,7 +22,7 @@ differ from the exact ones: tests/test_small_eigh.py). Each matrix is first scal
 rotations of one matrix wait on each other, those of ``B`` matrices run side by side.
 
 The kernels are compiled by numba in nopython mode on first use and cached on disk
-(:mod:`jointbench.compiled`: how every compiled loop of the package is compiled and cached).
+(:mod:`jointbench.core.compiled`: how every compiled loop of the package is compiled and cached).
 """
 from __future__ import annotations
 
@@ -30,7 +30,7 @@ import math
 
 import numpy as np
 
-from jointbench.compiled import jit, jit_inline, wait_aside
+from jointbench.core.compiled import jit, jit_inline, wait_aside
 
 wait_aside()         # a command compiling these loops aside: load them from the disk cache when it is done
 

@@ -24,10 +24,10 @@ from numpy.lib.stride_tricks import sliding_window_view
 from threadpoolctl import ThreadpoolController
 
 from jointbench.estimators import Estimator
-from jointbench.ensemble import Ensemble
-from jointbench.errors import InputError
-from jointbench.schema import param
-from jointbench.types import Trial
+from jointbench.core.ensemble import Ensemble
+from jointbench.core.errors import InputError
+from jointbench.core.schema import param
+from jointbench.core.types import Trial
 
 Solver = Literal["mdl", "full"]
 

@@ -29,10 +29,10 @@ import scipy.fft
 import scipy.linalg
 from numpy.lib.stride_tricks import sliding_window_view
 
-from jointbench.errors import InputError
-from jointbench.estimate import IRFEstimate, Intervals
-from jointbench.schema import param
-from jointbench.types import Trial
+from jointbench.core.errors import InputError
+from jointbench.core.estimate import IRFEstimate, Intervals
+from jointbench.core.schema import param
+from jointbench.core.types import Trial
 
 Edges = Literal["zero", "valid"]
 #: the regression rows of a fit: an :data:`Edges` setting, or "full" (internal, the correlation method's rows:

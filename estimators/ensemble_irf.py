@@ -9,10 +9,10 @@ import numpy as np
 from jointbench.estimators import register
 from jointbench.estimators._resample import JackknifeSettings, realization_jackknife
 from jointbench.estimators._tvirf import EnsembleEstimator, TVLagSettings, centred, fill_invalid, lagged, mdl_solve
-from jointbench.ensemble import Ensemble
-from jointbench.errors import InputError
-from jointbench.estimate_tv import TVIRFEstimate
-from jointbench.schema import param
+from jointbench.core.ensemble import Ensemble
+from jointbench.core.errors import InputError
+from jointbench.core.estimate_tv import TVIRFEstimate
+from jointbench.core.schema import param
 
 
 def _moving_sum(x: np.ndarray, width: int) -> np.ndarray:
@@ -52,9 +52,9 @@ class EnsembleIRF(EnsembleEstimator):
 
     Notes
     -----
-    Takes an :class:`~jointbench.ensemble.Ensemble` only. Needs at least as many equations per time
+    Takes an :class:`~jointbench.core.ensemble.Ensemble` only. Needs at least as many equations per time
     as lags: ``R (2P + 1) >= L`` (else :class:`InputError`). Returns a
-    :class:`~jointbench.estimate.TVIRFEstimate`, valid from sample ``M2 + P`` to ``n - 1 - M1 - P``
+    :class:`~jointbench.core.estimate.TVIRFEstimate`, valid from sample ``M2 + P`` to ``n - 1 - M1 - P``
     (the lags and the pool stay inside the record), held outside; ``h`` is not scaled by ``1/fs``
     (REKLAB's ``tv_ident`` returns ``h fs``).
 

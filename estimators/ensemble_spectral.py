@@ -10,10 +10,10 @@ from scipy import signal as sps
 
 from jointbench.estimators import register
 from jointbench.estimators._tvirf import EnsembleEstimator, centred, fill_invalid
-from jointbench.ensemble import Ensemble
-from jointbench.errors import InputError
-from jointbench.estimate_tv import TVIRFEstimate
-from jointbench.schema import param
+from jointbench.core.ensemble import Ensemble
+from jointbench.core.errors import InputError
+from jointbench.core.estimate_tv import TVIRFEstimate
+from jointbench.core.schema import param
 
 #: bins whose input power (time mean) is below this fraction of the strongest bin's are not fitted: there the
 #: input may be mostly the taper's leakage from its band (Hann: -31 dB sidelobes), and ``H`` that of other bins
@@ -80,7 +80,7 @@ class EnsembleSpectralEstimate(TVIRFEstimate):
     would wrap the long, band-limited impulse response of ``- I w^2`` (measured: VAF 71 % against 94 % on
     the Xu elbow at 200 Hz, -15 % against 92 % with 0.5 s windows).
 
-    Attributes (besides those of :class:`~jointbench.estimate_tv.TVIRFEstimate`)
+    Attributes (besides those of :class:`~jointbench.core.estimate_tv.TVIRFEstimate`)
     ----------------------------------------------------------------------------
     freq : ndarray (F,)
         The frequencies (Hz) the FRF is estimated at: the window's bins where the input has power and the
@@ -240,7 +240,7 @@ class EnsembleSpectral(EnsembleEstimator):
 
     Notes
     -----
-    Takes an :class:`~jointbench.ensemble.Ensemble` of at least 2 realizations (the coherence of one is 1
+    Takes an :class:`~jointbench.core.ensemble.Ensemble` of at least 2 realizations (the coherence of one is 1
     by construction); :class:`InputError` when a window is longer than the records or too short to hold
     a fitted frequency, when the input has no power or no significant coherence (95 %, ``R (1 + 4 pool /
     window)`` effective averages) in the band. Valid from the first to the last window centre with input

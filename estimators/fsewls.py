@@ -18,10 +18,10 @@ from jointbench.estimators._fsewls_kernels import (  # noqa: F401 - the kernels 
     _IU, highpass, _highpass_sos, highpass_time_constant, svf_pole, _odd_fast_len, svf,
     rk4_coefficients, _products, _forcing, _unpack, _solve_spd3, ewls, ewls_start, ewls_regression,
     _ewls_riccati_rk4)
-from jointbench.errors import InputError
-from jointbench.estimate import Intervals, ParametricEstimate, Prediction
-from jointbench.schema import param
-from jointbench.types import Trial
+from jointbench.core.errors import InputError
+from jointbench.core.estimate import Intervals, ParametricEstimate, Prediction
+from jointbench.core.schema import param
+from jointbench.core.types import Trial
 
 
 
@@ -41,7 +41,7 @@ class FSEWLSEstimate(ParametricEstimate):
     highpassed : ndarray, shape (2, n_records, n)
         Angle and torque after the high-pass ``H`` (eq. 3; as measured when it is off), means kept.
 
-    :attr:`valid` = :meth:`steady` (read by :func:`jointbench.ensemble.valid_mask`). :meth:`predict` and
+    :attr:`valid` = :meth:`steady` (read by :func:`jointbench.core.ensemble.valid_mask`). :meth:`predict` and
     :meth:`frequency_response` give torque from angle (impedance), whichever signal the trial imposed.
 
     References

@@ -11,10 +11,10 @@ from scipy.interpolate import BSpline
 from jointbench.estimators import register
 from jointbench.estimators._resample import JackknifeSettings, realization_jackknife
 from jointbench.estimators._tvirf import EnsembleEstimator, TVLagSettings, basis_normal, centred
-from jointbench.ensemble import Ensemble
-from jointbench.errors import InputError
-from jointbench.estimate_tv import TVIRFEstimate
-from jointbench.schema import param
+from jointbench.core.ensemble import Ensemble
+from jointbench.core.errors import InputError
+from jointbench.core.estimate_tv import TVIRFEstimate
+from jointbench.core.schema import param
 
 BasisKind = Literal["gaussian", "bspline", "legendre"]
 
@@ -52,7 +52,7 @@ def time_basis(kind: str, count: int, n: int, width: float = 1.0) -> np.ndarray:
 
 @dataclasses.dataclass(eq=False)
 class GuarinEstimate(TVIRFEstimate):
-    """The intrinsic TV-IRF (:class:`~jointbench.estimate.TVIRFEstimate`) plus, when fitted, the reflex
+    """The intrinsic TV-IRF (:class:`~jointbench.core.estimate.TVIRFEstimate`) plus, when fitted, the reflex
     pathway: the input's velocity delayed by ``reflex_delay`` samples, through ``nonlinearity``, then a
     causal TV-IRF ``reflex_h`` (lags ``0 ... reflex_lags - 1`` by time).
 
@@ -117,7 +117,7 @@ class Guarin(EnsembleEstimator):
 
     Notes
     -----
-    Takes one trial or an :class:`~jointbench.ensemble.Ensemble` (several records are taken as an
+    Takes one trial or an :class:`~jointbench.core.ensemble.Ensemble` (several records are taken as an
     ensemble). Raises :class:`InputError` when the basis is larger than the data can support: more
     unknowns than equations, or basis functions closer than two samples. Returns a
     :class:`GuarinEstimate` (``h`` not scaled by ``1/fs``; Guarin's scripts return ``h fs``), valid

@@ -11,12 +11,12 @@ from jointbench.estimators import Estimator, register
 from jointbench.estimators._band import band_of_trials
 from jointbench.estimators._twosided import (LEVEL, Edges, LagSettings, fit_irf, input_output, irf_intervals,
                                              lag_samples, regressor, t_quantile)
-from jointbench import differentiators as dd
-from jointbench.errors import InputError
-from jointbench.estimate import IRFEstimate, Intervals, ParametricEstimate
-from jointbench.schema import param
-from jointbench.signal import bandlimit_fb
-from jointbench.types import Trial
+from jointbench.core import differentiators as dd
+from jointbench.core.errors import InputError
+from jointbench.core.estimate import IRFEstimate, Intervals, ParametricEstimate
+from jointbench.core.schema import param
+from jointbench.core.signal import bandlimit_fb
+from jointbench.core.types import Trial
 
 
 #: smallest ratio of the least to the largest singular value of the (column-scaled) differentiator regressors
@@ -85,9 +85,9 @@ class IBKIRF(Estimator):
     :class:`estimators.irf_ls.IRFLeastSquares` (``irf_method='ls'``, eq. 14) or
     :class:`estimators.irf_corr.IRFCorrelation` (``'corr'``, eq. 15). The discrete differentiator IRFs
     of an ``N``-point record, ``h0`` (eq. 10), ``h1`` (eq. 12) and ``h2`` (eq. 13, corrected ``n = 0``
-    term, see :mod:`jointbench.differentiators`), are taken on the same lags. With ``bandlimit`` set,
+    term, see :mod:`jointbench.core.differentiators`), are taken on the same lags. With ``bandlimit`` set,
     the IRF and the three differentiators are low-passed by the same Butterworth filter applied forward
-    and backward (:func:`jointbench.signal.bandlimit_fb`); the differentiators are filtered on a window
+    and backward (:func:`jointbench.core.signal.bandlimit_fb`); the differentiators are filtered on a window
     widened by the filter's settling length and then cropped. Finally ``I``, ``B``, ``K`` minimise
     ``sum_k (h(k) - I h2(k) - B h1(k) - K h0(k))^2``.
 
@@ -118,8 +118,8 @@ class IBKIRF(Estimator):
 
     Notes
     -----
-    :meth:`fit` returns a :class:`~jointbench.estimate.ParametricEstimate` whose ``basis`` is the
-    nonparametric :class:`~jointbench.estimate.IRFEstimate` the parameters were fitted to (band-limited
+    :meth:`fit` returns a :class:`~jointbench.core.estimate.ParametricEstimate` whose ``basis`` is the
+    nonparametric :class:`~jointbench.core.estimate.IRFEstimate` the parameters were fitted to (band-limited
     when ``bandlimit`` is set).
 
     Intervals (95 %): ``I``, ``B``, ``K`` are linear in the IRF (``x = A^+ F h``, ``F`` the band-limiting

@@ -10,10 +10,10 @@ from scipy import stats
 from jointbench.estimators import Estimator, register
 from jointbench.estimators._band import EDGE, MAX_GAP, input_band
 from jointbench.estimators.spectral import LEVEL, WelchSettings, frf_estimate, segment_spectra
-from jointbench.errors import InputError
-from jointbench.estimate import Intervals, ParametricEstimate
-from jointbench.schema import param
-from jointbench.types import Trial
+from jointbench.core.errors import InputError
+from jointbench.core.estimate import Intervals, ParametricEstimate
+from jointbench.core.schema import param
+from jointbench.core.types import Trial
 
 
 def weighted_ibk_fit(f: np.ndarray, H: np.ndarray, coh: np.ndarray, name: str = "ibk_spectral",
@@ -58,7 +58,7 @@ class IBKSpectral(Estimator):
     to the input's band (:mod:`estimators._band`): above a band-limited input's top, ``H`` is noise over
     the window's leakage and a few frequencies of chance coherence dominate the weighted fit (I, B, K off
     by factors, a negative VAF). The band used is printed (``band``) and is the estimate's
-    :attr:`~jointbench.estimate.ParametricEstimate.band_hz` (the CSV's ``band_lo_hz``, ``band_hi_hz``).
+    :attr:`~jointbench.core.estimate.ParametricEstimate.band_hz` (the CSV's ``band_lo_hz``, ``band_hi_hz``).
 
     Parameters
     ----------
@@ -70,8 +70,8 @@ class IBKSpectral(Estimator):
 
     Notes
     -----
-    :meth:`fit` returns a :class:`~jointbench.estimate.ParametricEstimate` whose ``basis`` is the
-    :class:`~jointbench.estimate.FRFEstimate` the parameters were fitted to.
+    :meth:`fit` returns a :class:`~jointbench.core.estimate.ParametricEstimate` whose ``basis`` is the
+    :class:`~jointbench.core.estimate.FRFEstimate` the parameters were fitted to.
 
     Intervals (95 %): a delete-a-group jackknife over the Welch segments (:meth:`_jackknife`), t
     quantiles. They describe the noise, not a model that does not fit (e.g. reflexes, or an uncorrected

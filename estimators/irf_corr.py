@@ -5,8 +5,8 @@ import dataclasses
 
 from jointbench.estimators import Estimator, register
 from jointbench.estimators._twosided import LagSettings, estimate_irf
-from jointbench.estimate import IRFEstimate
-from jointbench.types import Trial
+from jointbench.core.estimate import IRFEstimate
+from jointbench.core.types import Trial
 
 
 @register("irf2_corr", tags=("lti", "nonparametric", "irf"))
@@ -37,7 +37,7 @@ class IRFCorrelation(Estimator):
 
     Notes
     -----
-    :meth:`fit` returns an :class:`~jointbench.estimate.IRFEstimate` with ``lags = -M1 ... M2``
+    :meth:`fit` returns an :class:`~jointbench.core.estimate.IRFEstimate` with ``lags = -M1 ... M2``
     (samples) and ``h`` not scaled by ``1/fs``.
 
     References

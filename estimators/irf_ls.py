@@ -5,9 +5,9 @@ import dataclasses
 
 from jointbench.estimators import Estimator, register
 from jointbench.estimators._twosided import Edges, LagSettings, estimate_irf
-from jointbench.estimate import IRFEstimate
-from jointbench.schema import param
-from jointbench.types import Trial
+from jointbench.core.estimate import IRFEstimate
+from jointbench.core.schema import param
+from jointbench.core.types import Trial
 
 
 @register("irf2_ls", tags=("lti", "nonparametric", "irf"))
@@ -37,7 +37,7 @@ class IRFLeastSquares(Estimator):
 
     Notes
     -----
-    :meth:`fit` returns an :class:`~jointbench.estimate.IRFEstimate` with ``lags = -M1 ... M2``
+    :meth:`fit` returns an :class:`~jointbench.core.estimate.IRFEstimate` with ``lags = -M1 ... M2``
     (samples) and ``h`` not scaled by ``1/fs``.
 
     With 'zero' edges the padding puts a step in the angle at each record end; the inertial part of the

@@ -10,10 +10,10 @@ from scipy import stats
 
 from jointbench.estimators import Estimator, _kbr_posterior as kp, _kbr_solve as ks, register
 from jointbench.estimators._multisine_lines import multisine_bins
-from jointbench.errors import InputError
-from jointbench.estimate import Estimate, Intervals, Prediction
-from jointbench.schema import param
-from jointbench.types import Trial
+from jointbench.core.errors import InputError
+from jointbench.core.estimate import Estimate, Intervals, Prediction
+from jointbench.core.schema import param
+from jointbench.core.types import Trial
 
 
 @dataclasses.dataclass(eq=False)
@@ -249,7 +249,7 @@ class KBR(Estimator):
     -----
     :meth:`fit` returns a :class:`KBREstimate`. :meth:`KBREstimate.stiffness` is ``|H(j w_1, t)|`` at
     the lowest excited line (the paper's "magnitude of the FRF at the lowest frequency"). Fits one
-    record at a time; given an :class:`~jointbench.ensemble.Ensemble` it fits the ensemble average
+    record at a time; given an :class:`~jointbench.core.ensemble.Ensemble` it fits the ensemble average
     (ensemble mode, van de Ruit et al. 2018, Table II).
 
     References

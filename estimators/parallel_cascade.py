@@ -10,15 +10,15 @@ from jointbench.estimators import _reflex as rx
 from jointbench.estimators._twosided import (LagSettings, check_lengths, estimate_irf, fit_irf, irf_intervals,
                                              lag_samples,
                                                 mdl_pseudo_inverse)
-from jointbench.estimate import IRFEstimate, Prediction
-from jointbench.errors import InputError
-from jointbench.schema import param
-from jointbench.types import Trial
+from jointbench.core.estimate import IRFEstimate, Prediction
+from jointbench.core.errors import InputError
+from jointbench.core.schema import param
+from jointbench.core.types import Trial
 
 
 @dataclasses.dataclass(eq=False)
 class ParallelCascadeEstimate(IRFEstimate):
-    """The intrinsic two-sided IRF (an :class:`~jointbench.estimate.IRFEstimate`: ``lags``, ``h``, its
+    """The intrinsic two-sided IRF (an :class:`~jointbench.core.estimate.IRFEstimate`: ``lags``, ``h``, its
     intervals, :meth:`stiffness` = ``sum(h)``) and the reflex pathway: the velocity delayed by
     ``reflex_delay`` samples, through ``nonlinearity``, then the causal IRF ``reflex_h`` (lags
     ``reflex_delay ... reflex_delay + len(reflex_h) - 1``). ``reflex_h`` is None when the reflex pathway

@@ -13,15 +13,15 @@ from jointbench.estimators import _reflex as rx
 from jointbench.estimators._tvirf import (EnsembleEstimator, TVLagSettings, basis_normal, basis_rhs, centred,
                                           lag_samples, one_blas_thread)
 from jointbench.estimators.guarin import BasisKind, time_basis
-from jointbench.ensemble import Ensemble
-from jointbench.errors import InputError
-from jointbench.estimate_tv import TVIRFEstimate
-from jointbench.schema import param
+from jointbench.core.ensemble import Ensemble
+from jointbench.core.errors import InputError
+from jointbench.core.estimate_tv import TVIRFEstimate
+from jointbench.core.schema import param
 
 
 @dataclasses.dataclass(eq=False)
 class TVCascadeEstimate(TVIRFEstimate):
-    """The intrinsic TV-IRF (:class:`~jointbench.estimate_tv.TVIRFEstimate`: ``h`` lags x time, its
+    """The intrinsic TV-IRF (:class:`~jointbench.core.estimate_tv.TVIRFEstimate`: ``h`` lags x time, its
     :meth:`stiffness`) and the reflex pathway ``g(t) sum_k h_R(k) N(v(t - d - k))``: a time-varying gain
     ``reflex_gain`` on a Hammerstein cascade (``nonlinearity``, ``reflex_h`` on lags ``reflex_delay ...``);
     ``reflex_h`` is None when the pathway was not kept. VAFs as :class:`estimators.parallel_cascade.

@@ -12,10 +12,10 @@ from scipy import signal as sps
 from jointbench.estimators import Estimator, register
 from jointbench.estimators._reflex import solve_normal
 from jointbench.estimators._twosided import LagSettings, check_lengths, lag_samples, regressor, t_quantile
-from jointbench.estimate import Estimate, Intervals, Prediction
-from jointbench.errors import InputError
-from jointbench.schema import param
-from jointbench.types import Trial
+from jointbench.core.estimate import Estimate, Intervals, Prediction
+from jointbench.core.errors import InputError
+from jointbench.core.schema import param
+from jointbench.core.types import Trial
 
 if TYPE_CHECKING:  # pragma: no cover
     import pandas as pd

@@ -9,10 +9,10 @@ import numpy as np
 from jointbench.estimators import register
 from jointbench.estimators._resample import JackknifeSettings, realization_jackknife
 from jointbench.estimators._tvirf import EnsembleEstimator, TVLagSettings, fill_invalid, lagged, mdl_solve
-from jointbench.ensemble import Ensemble
-from jointbench.errors import InputError
-from jointbench.estimate_tv import TVIRFEstimate
-from jointbench.schema import param
+from jointbench.core.ensemble import Ensemble
+from jointbench.core.errors import InputError
+from jointbench.core.estimate_tv import TVIRFEstimate
+from jointbench.core.schema import param
 
 
 #: windows whose normal equations are formed at once (bounds memory at about 2000 L^2 numbers)
@@ -47,9 +47,9 @@ class SDS(EnsembleEstimator):
 
     Notes
     -----
-    Takes one trial (segments of that trial alone) or an :class:`~jointbench.ensemble.Ensemble`
+    Takes one trial (segments of that trial alone) or an :class:`~jointbench.core.ensemble.Ensemble`
     (realizations of equal length and rate, aligned in time); several records are taken as an
-    ensemble. Returns a :class:`~jointbench.estimate.TVIRFEstimate`, valid from sample ``W // 2`` of
+    ensemble. Returns a :class:`~jointbench.core.estimate.TVIRFEstimate`, valid from sample ``W // 2`` of
     the first window to that of the last, held outside; ``h`` is not scaled by ``1/fs``.
 
     References

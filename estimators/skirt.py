@@ -28,10 +28,10 @@ import pandas as pd
 
 from jointbench.estimators import Estimator, register
 from jointbench.estimators._multisine_lines import multisine_bins
-from jointbench.errors import InputError
-from jointbench.estimate import Estimate, Intervals, Prediction
-from jointbench.schema import param
-from jointbench.types import Trial
+from jointbench.core.errors import InputError
+from jointbench.core.estimate import Estimate, Intervals, Prediction
+from jointbench.core.schema import param
+from jointbench.core.types import Trial
 
 
 def basis(n_p: int, t: np.ndarray, duration: float) -> np.ndarray:
@@ -76,7 +76,7 @@ class SkirtEstimate(Estimate):
     ``G(jw, t) = sum_p G_p(jw) b_p(t)`` with the basis of :func:`basis` on the fitted record
     (``t`` measured from ``time[0]``, ``T = duration``). ``G_p`` is known at :attr:`lines_hz` only;
     between lines it is interpolated linearly (real and imaginary parts separately) and outside
-    ``[lines_hz[0], lines_hz[-1]]`` held at the end value, as :class:`~jointbench.estimate.FRFEstimate`
+    ``[lines_hz[0], lines_hz[-1]]`` held at the end value, as :class:`~jointbench.core.estimate.FRFEstimate`
     does. Outside the record the basis is extrapolated (the ramp keeps rising, the (co)sines repeat).
 
     Attributes
@@ -217,14 +217,14 @@ class Skirt(Estimator):
     ``I_Y(k) = sum_n r_n x^n``, ``x`` the bin scaled to [-1, 1] over the band (eq. A.2, order
     ``N_r``). Only the estimate at the centre line is kept; the first (last) line is taken from the
     first (last) band. Several records of one condition share the ``G_p`` (same length, same lines)
-    and each has its own transient polynomial. Given an :class:`~jointbench.ensemble.Ensemble`, the
+    and each has its own transient polynomial. Given an :class:`~jointbench.core.ensemble.Ensemble`, the
     skirt fits the ensemble average (ensemble mode, van de Ruit et al. 2018, Table II).
 
     Lines are detected from the input's DFT (bins more than ``threshold_db`` above the median bin
     power and above both neighbours, on a regular grid with empty bins between them, with at most 1 %
     of the power off them: the rule of every multisine estimator,
     :func:`estimators._multisine_lines.multisine_bins`) or given as ``lines_hz``. Requirements
-    (each an :class:`~jointbench.errors.InputError` otherwise): at least three lines; successive
+    (each an :class:`~jointbench.core.errors.InputError` otherwise): at least three lines; successive
     lines at least ``2M + 1`` bins apart, so that the skirts (``+-M`` bins) of neighbouring lines
     never share a bin (each (co)sine pair is equivalent to one unknown at ``k_e - m`` and one at
     ``k_e + m``: a shared bin makes two unknowns inseparable); lowest line above bin ``M``, highest

@@ -9,10 +9,10 @@ import scipy.fft
 from scipy import signal as sps
 
 from jointbench.estimators import Estimator, register
-from jointbench.errors import InputError
-from jointbench.estimate import FRFEstimate, Intervals
-from jointbench.schema import param
-from jointbench.types import Trial
+from jointbench.core.errors import InputError
+from jointbench.core.estimate import FRFEstimate, Intervals
+from jointbench.core.schema import param
+from jointbench.core.types import Trial
 
 #: confidence level of the frequency response's band
 LEVEL = 0.95
@@ -218,12 +218,12 @@ class Spectral(Estimator):
 
     Notes
     -----
-    :meth:`fit` returns a :class:`~jointbench.estimate.FRFEstimate` at the Welch frequencies
+    :meth:`fit` returns a :class:`~jointbench.core.estimate.FRFEstimate` at the Welch frequencies
     ``0 ... fs/2`` (resolution ``1/segment``). Unlike the IRF estimates (eqs. 14, 15) it does not
     depend on a memory length. Its intervals are the coherence band of :func:`frf_band` (gain and phase,
     with the overlap's effective number of averages, :func:`effective_averages`); it predicts (for its
     VAF) only with ``H`` at the frequencies whose coherence is significant
-    (:meth:`~jointbench.estimate.FRFEstimate.significant`).
+    (:meth:`~jointbench.core.estimate.FRFEstimate.significant`).
 
     References
     ----------

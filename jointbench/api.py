@@ -8,7 +8,7 @@ Fit recordings (or any arrays) through the same checked pipeline as ``jointbench
     fit.estimate.parameters(), fit.vaf, fit.frame
 
 Simulate a trial from a config mapping (joint models by name) or a study's scenario, and score against
-the stiffness the estimator should find (:meth:`jointbench.types.Trial.frozen_stiffness`)::
+the stiffness the estimator should find (:meth:`jointbench.core.types.Trial.frozen_stiffness`)::
 
     trial = api.simulate("matrix:xu1998_elbow", seed=0, duration="10 s")
     k_true = trial.frozen_stiffness()
@@ -23,7 +23,7 @@ This module is a room of its own above the harness (tests/test_architecture.py):
 ``jointbench.sims``, ``jointbench.estimators`` and ``jointbench.benchmarks``; only the command-line modules
 sit on it. Everything heavy is imported inside the functions, and importing it changes nothing for the
 caller (no BLAS thread limits, no environment variables). Errors are
-:class:`~jointbench.errors.JointBenchError` subclasses whose messages name the arguments. See docs/api.md.
+:class:`~jointbench.core.errors.JointBenchError` subclasses whose messages name the arguments. See docs/api.md.
 """
 from __future__ import annotations
 
@@ -31,13 +31,13 @@ import dataclasses
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Mapping, Sequence
 
-from jointbench.errors import ConfigError
-from jointbench.types import Trial
+from jointbench.core.errors import ConfigError
+from jointbench.core.types import Trial
 
 if TYPE_CHECKING:  # pragma: no cover
     import pandas as pd
 
-    from jointbench.benchmarks.recordings.fitting import Fit
+    from jointbench.fitting.pipeline import Fit
 
 __all__ = ["StudyResult", "estimators", "experiment", "fit", "history", "history_cases", "history_checks",
            "history_rows", "joint", "load_plugin", "read", "run", "scenario", "scenarios", "settings", "simulate"]
@@ -63,15 +63,15 @@ def settings(estimator: str) -> "pd.DataFrame":
     import pandas as pd
 
     from jointbench import estimators as reg
-    from jointbench.schema import describe
+    from jointbench.core.schema import describe
 
     return pd.DataFrame(describe(reg.REGISTRY.get(estimator).Settings), columns=["key", "type", "default", "meaning"])
 
 
 def load_plugin(ref: str):
     """Import an outside estimator module (a name, or the path of a ``.py`` file or package folder) and
-    return its :class:`jointbench.plugins.Plugin` record; its estimators are then registered."""
-    from jointbench import plugins
+    return its :class:`jointbench.core.plugins.Plugin` record; its estimators are then registered."""
+    from jointbench.core import plugins
 
     return plugins.load(ref, "load_plugin")
 
@@ -80,18 +80,18 @@ def load_plugin(ref: str):
 def read(path: str | Path | Sequence[str | Path], *, array: str | None = None, fs: float | None = None,
          ensemble: bool = False, schedule: str | None = None):
     """Read records (CSV, NPZ, MATLAB ``.mat``; ``FILE:ARRAY`` picks an N x 2 array) as ``jointbench
-    estimate --input`` does: a list of :class:`~jointbench.types.Trial`, or an
-    :class:`~jointbench.ensemble.Ensemble` (a file with 2-D angle and torque, or ``ensemble=True``).
+    estimate --input`` does: a list of :class:`~jointbench.core.types.Trial`, or an
+    :class:`~jointbench.core.ensemble.Ensemble` (a file with 2-D angle and torque, or ``ensemble=True``).
 
     ``schedule`` names a recorded scheduling variable (a CSV column, an NPZ/.mat array) to read beside the
     angle and torque into each trial's ``channels`` (``jointbench estimate --schedule``); the names derived
     from the angle (``angle_slow``, ``angle``) need no column."""
-    from jointbench.benchmarks.recordings import checks, io, io_ensemble
-    from jointbench.benchmarks.recordings import schedule as sched
+    from jointbench.fitting import checks, read, read_ensemble
+    from jointbench.fitting import schedule as sched
 
     paths = [path] if isinstance(path, (str, Path)) else list(path)
-    sources = [io.parse_source(str(p), array) for p in paths]
-    records = io_ensemble.read_records(sources, fs=fs, ensemble=ensemble)
+    sources = [read.parse_source(str(p), array) for p in paths]
+    records = read_ensemble.read_records(sources, fs=fs, ensemble=ensemble)
     if schedule:
         records = sched.attach(records, sources, schedule, checks.PYTHON)
     return records
@@ -101,7 +101,7 @@ def _records(data, angle, torque, fs, time, array, name: str, names):
     """(records, ensemble name or None) of the data given to :func:`fit`."""
     import numpy as np
 
-    from jointbench.ensemble import Ensemble
+    from jointbench.core.ensemble import Ensemble
 
     if data is not None and (angle is not None or torque is not None):
         raise ConfigError("fit: give either data (records, an ensemble or file paths) or angle= and torque=")
@@ -172,7 +172,7 @@ def fit(estimator, data=None, *, angle=None, torque=None, fs: float | None = Non
     Returns
     -------
     Fit
-        ``estimate`` (:class:`~jointbench.estimate.Estimate`), ``frame`` (parameters over time with 95 %
+        ``estimate`` (:class:`~jointbench.core.estimate.Estimate`), ``frame`` (parameters over time with 95 %
         intervals), ``response`` (IRF/FRF), ``vaf`` / ``vafs`` (each record's predicted-torque VAF, %),
         ``predictions``, ``trials`` (as fitted), ``notes``.
 
@@ -182,11 +182,11 @@ def fit(estimator, data=None, *, angle=None, torque=None, fs: float | None = Non
         Bad settings or arguments, unusable data: one line naming the argument or the record.
     """
     from jointbench import estimators as reg
-    from jointbench.benchmarks.recordings import checks, fitting
+    from jointbench.fitting import checks, pipeline
 
     names = names or checks.PYTHON
     if schedule is not None:
-        from jointbench.benchmarks.recordings import schedule as sched
+        from jointbench.fitting import schedule as sched
 
         if not isinstance(estimator, str):
             raise ConfigError("fit: schedule= applies to an estimator given by name; give a built one its "
@@ -197,7 +197,7 @@ def fit(estimator, data=None, *, angle=None, torque=None, fs: float | None = Non
                                              and all(isinstance(d, (str, Path)) for d in data)):
             data = read(data, array=array, fs=fs, schedule=schedule)
     if isinstance(estimator, str):
-        est = fitting.estimator_from(estimator, settings, names)
+        est = pipeline.estimator_from(estimator, settings, names)
     elif isinstance(estimator, reg.Estimator):
         if settings:
             raise ConfigError("fit: settings= applies to an estimator given by name; this one is built already")
@@ -211,7 +211,7 @@ def fit(estimator, data=None, *, angle=None, torque=None, fs: float | None = Non
             ens_name = f"{len(records)} records" if len(records) > 1 else records[0].name
     if window is not None:
         window = checks.as_window(window, names)
-    return fitting.compute(est, records, torque_sign=torque_sign, decimate=decimate, window=window,
+    return pipeline.compute(est, records, torque_sign=torque_sign, decimate=decimate, window=window,
                            plot=Path(f"figure.{figure}") if figure else None, ensemble=ens_name, names=names)
 
 
@@ -336,7 +336,7 @@ def run(study: str | Path | Mapping[str, Any], *, parts: Sequence[str] | None = 
     """
     import pandas as pd
 
-    from jointbench import plugins as _plugins
+    from jointbench.core import plugins as _plugins
     from jointbench.benchmarks.harness.pool import make_executor
     from jointbench.benchmarks.study import run_study
 

@@ -9,7 +9,7 @@ a model, so ``import jointbench.sims`` neither needs nor loads them (tests/test_
 """
 from __future__ import annotations
 
-from jointbench.registry import Registry, import_submodules
+from jointbench.core.registry import Registry, import_submodules
 
 JOINTS = Registry("joint model")
 PERTURBATIONS = Registry("perturbation")

@@ -1,7 +1,7 @@
 """The two loops of backend ``ltv`` compiled (numba): the per-step series and the blockwise recursion.
 
 Private module of :mod:`jointbench.sims.backend_ltv`, imported on its first simulation (numba costs a
-few tenths of a second to import; compiled by :mod:`jointbench.compiled`, cached on disk). Each kernel
+few tenths of a second to import; compiled by :mod:`jointbench.core.compiled`, cached on disk). Each kernel
 does, for every element, the operations of the numpy formulation it replaced, in the same order (IEEE
 arithmetic, no fused multiply-add), so the numbers are the same to the last bit (tests/test_sims_tv.py
 keeps the numpy formulations as references). In numpy each operation was a pass over arrays of
@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from jointbench.compiled import jit
+from jointbench.core.compiled import jit
 
 #: steps of the series computed together: the innermost loop runs over them (vector instructions), and
 #: their temporaries stay in the first-level cache

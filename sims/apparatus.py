@@ -14,8 +14,8 @@ from typing import ClassVar, Literal, Mapping
 
 import numpy as np
 
-from jointbench.errors import ConfigError, Incompatible
-from jointbench.schema import param
+from jointbench.core.errors import ConfigError, Incompatible
+from jointbench.core.schema import param
 
 
 def derivative(d: np.ndarray, h: float) -> np.ndarray:

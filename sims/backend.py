@@ -5,7 +5,7 @@ torque) and after it (sensors, noise, acquisition, the truth's frozen transfer f
 in :func:`sims.simulate`, so two backends given the same experiment and seed differ only by their
 physics. A backend is a class registered in :data:`sims.BACKENDS` that derives :class:`Backend`:
 
-- :meth:`Backend.check` (what it supports): raise :class:`~jointbench.errors.ConfigError` when it cannot
+- :meth:`Backend.check` (what it supports): raise :class:`~jointbench.core.errors.ConfigError` when it cannot
   simulate an experiment (a feature it does not model, a model it cannot build, a step that is unstable).
   :class:`sims.Experiment` calls it while validating, so a config error surfaces before any run;
 - :meth:`Backend.respond` (simulate): the limb's angle, velocity, acceleration, the torque the load cell
@@ -26,7 +26,7 @@ from typing import Any, ClassVar, Mapping
 
 import numpy as np
 
-from jointbench.errors import Incompatible
+from jointbench.core.errors import Incompatible
 from jointbench.sims import BACKENDS
 
 

@@ -19,9 +19,9 @@ I theta'' + B theta' + K theta - T_v at the sample instants.
 from __future__ import annotations
 
 import numpy as np
-from jointbench.lazy import scipy_linalg, scipy_signal as sps   # imported on first use (0.8 CPU-s)
+from jointbench.core.lazy import scipy_linalg, scipy_signal as sps   # imported on first use (0.8 CPU-s)
 
-from jointbench.errors import ConfigError, Incompatible
+from jointbench.core.errors import ConfigError, Incompatible
 from jointbench.sims import BACKENDS
 from jointbench.sims.backend import Backend, Response, lti_applies
 

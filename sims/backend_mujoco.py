@@ -57,7 +57,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from jointbench.errors import ConfigError
+from jointbench.core.errors import ConfigError
 from jointbench.sims import BACKENDS
 from jointbench.sims.apparatus import derivative
 from jointbench.sims.backend import Backend, Response, nonlinear_parts

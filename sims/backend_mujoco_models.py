@@ -38,7 +38,7 @@ import os
 
 import numpy as np
 
-from jointbench.errors import ConfigError
+from jointbench.core.errors import ConfigError
 
 #: the control columns of each model, in actuator order
 CONTROLS = {

@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from jointbench.errors import ConfigError
+from jointbench.core.errors import ConfigError
 from jointbench.sims.reflex_stretch import ReflexStepper
 
 #: longest window (steps) without a reflex delay bounding it

@@ -35,9 +35,9 @@ from __future__ import annotations
 from typing import ClassVar
 
 import numpy as np
-from jointbench.lazy import scipy_signal as sps
+from jointbench.core.lazy import scipy_signal as sps
 
-from jointbench.errors import ConfigError
+from jointbench.core.errors import ConfigError
 from jointbench.sims import BACKENDS
 from jointbench.sims.backend import Backend, Response
 from jointbench.sims.backend_ltv import step_weights

@@ -21,10 +21,10 @@ from typing import Any, Callable, Literal, Mapping
 
 import numpy as np
 
-from jointbench.errors import ConfigError, Incompatible
-from jointbench.schema import param, parse
-from jointbench.signal import decimate, decimate_fft
-from jointbench.types import Trial
+from jointbench.core.errors import ConfigError, Incompatible
+from jointbench.core.schema import param, parse
+from jointbench.core.signal import decimate, decimate_fft
+from jointbench.core.types import Trial
 from jointbench.sims import BACKENDS, JOINTS, PERTURBATIONS, REFLEXES
 from jointbench.sims import backend as _backend
 from jointbench.sims import reuse as _reuse
@@ -56,8 +56,8 @@ class Acquisition:
     trim : float
         Seconds removed at both ends of the acquired record (filter and start-up transients).
     decimation : {'fir', 'fft'}
-        'fir': ``fs`` must divide ``fs_sim`` by a whole factor q; :func:`jointbench.signal.decimate`
-        (zero-phase FIR anti-alias filter). 'fft': :func:`jointbench.signal.decimate_fft` (keep the DFT
+        'fir': ``fs`` must divide ``fs_sim`` by a whole factor q; :func:`jointbench.core.signal.decimate`
+        (zero-phase FIR anti-alias filter). 'fft': :func:`jointbench.core.signal.decimate_fft` (keep the DFT
         bins below the new Nyquist rate); ``fs · duration`` must be a whole number of samples.
 
     References

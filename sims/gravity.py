@@ -22,8 +22,8 @@ import math
 
 import numpy as np
 
-from jointbench.errors import ConfigError
-from jointbench.schema import param
+from jointbench.core.errors import ConfigError
+from jointbench.core.schema import param
 
 
 @dataclasses.dataclass(frozen=True)

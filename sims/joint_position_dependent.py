@@ -39,8 +39,8 @@ from typing import Any, ClassVar, Mapping
 import numpy as np
 from numpy.polynomial import polynomial as P
 
-from jointbench.errors import ConfigError
-from jointbench.schema import param
+from jointbench.core.errors import ConfigError
+from jointbench.core.schema import param
 from jointbench.sims import JOINTS
 
 _GRID = 10001      # points on which a function's range is checked

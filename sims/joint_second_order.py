@@ -11,8 +11,8 @@ from typing import ClassVar
 
 import numpy as np
 
-from jointbench.errors import ConfigError
-from jointbench.schema import param
+from jointbench.core.errors import ConfigError
+from jointbench.core.schema import param
 from jointbench.sims import JOINTS
 
 

@@ -13,8 +13,8 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from jointbench.errors import ConfigError
-from jointbench.schema import param
+from jointbench.core.errors import ConfigError
+from jointbench.core.schema import param
 from jointbench.sims import JOINTS
 from jointbench.sims.joint_time_varying import _checked_profiles, _positive
 

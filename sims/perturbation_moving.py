@@ -22,8 +22,8 @@ from typing import Any, ClassVar, Mapping
 
 import numpy as np
 
-from jointbench.errors import ConfigError
-from jointbench.schema import param, parse
+from jointbench.core.errors import ConfigError
+from jointbench.core.schema import param, parse
 from jointbench.sims import PERTURBATIONS
 from jointbench.sims.profile import parse_profile
 

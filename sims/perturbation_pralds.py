@@ -5,10 +5,10 @@ import dataclasses
 from typing import ClassVar
 
 import numpy as np
-from jointbench.lazy import scipy_signal as sps   # imported on first use: 0.6 CPU-s with scipy.stats
+from jointbench.core.lazy import scipy_signal as sps   # imported on first use: 0.6 CPU-s with scipy.stats
 
-from jointbench.errors import ConfigError
-from jointbench.schema import param
+from jointbench.core.errors import ConfigError
+from jointbench.core.schema import param
 from jointbench.sims import PERTURBATIONS
 
 

@@ -24,8 +24,8 @@ from typing import Any, ClassVar, Literal, Mapping
 
 import numpy as np
 
-from jointbench.errors import ConfigError
-from jointbench.schema import param, parse
+from jointbench.core.errors import ConfigError
+from jointbench.core.schema import param, parse
 from jointbench.sims import PROFILES
 
 

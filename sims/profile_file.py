@@ -15,8 +15,8 @@ from typing import ClassVar, Literal
 
 import numpy as np
 
-from jointbench.errors import ConfigError
-from jointbench.schema import param
+from jointbench.core.errors import ConfigError
+from jointbench.core.schema import param
 from jointbench.sims import PROFILES
 from jointbench.sims.profile import interpolate
 
@@ -96,7 +96,7 @@ MAX_PROFILE_ROWS = 1_000_000
 
 def _load(path: str, sha256: str | None) -> tuple[np.ndarray, np.ndarray]:
     """``(times, values)`` of a profile file, checked; every error names the file."""
-    from jointbench.files import file_problem
+    from jointbench.core.files import file_problem
 
     p = Path(path)
     problem = file_problem(p, MAX_PROFILE_BYTES)
@@ -153,7 +153,7 @@ def _read(resolved: str, mtime_ns: int, shown: str) -> tuple[np.ndarray, np.ndar
 def _read_csv(path: str, shown: str) -> tuple[np.ndarray, np.ndarray]:
     import io
 
-    from jointbench.files import decode_text
+    from jointbench.core.files import decode_text
 
     data = Path(path).read_bytes()
     n_lines = data.count(b"\n")

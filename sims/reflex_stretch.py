@@ -42,10 +42,10 @@ import math
 from typing import Any, ClassVar, Literal
 
 import numpy as np
-from jointbench.lazy import scipy_signal as sps
+from jointbench.core.lazy import scipy_signal as sps
 
-from jointbench.errors import ConfigError
-from jointbench.schema import param
+from jointbench.core.errors import ConfigError
+from jointbench.core.schema import param
 from jointbench.sims import REFLEXES
 from jointbench.sims.profile import parse_profile
 
@@ -87,7 +87,7 @@ class StretchReflex:
             raise ConfigError("missing required key 'gain' (N.m.s/rad; 0 for a pathway without torque)")
         gain = self.gain
         if isinstance(gain, str):         # a constant with its unit, e.g. '5 N.m.s/rad'
-            from jointbench.schema import _number
+            from jointbench.core.schema import _number
 
             gain = _number(gain, "N.m.s/rad", "reflex", "gain", False)
         object.__setattr__(self, "gain", parse_profile(gain, "key 'gain'"))

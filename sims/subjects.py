@@ -29,9 +29,9 @@ import math
 
 import numpy as np
 
-from jointbench.errors import ConfigError
-from jointbench.schema import param
-from jointbench.types import Trial
+from jointbench.core.errors import ConfigError
+from jointbench.core.schema import param
+from jointbench.core.types import Trial
 from jointbench.sims.experiment import Experiment, simulate
 from jointbench.sims.profile import Piecewise
 

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from jointbench.types import Truth
+from jointbench.core.types import Truth
 
 
 def truth(exp, signals: dict[str, np.ndarray], angle: np.ndarray | None = None) -> Truth:

@@ -4,10 +4,10 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
-from jointbench.lazy import scipy_signal as sps   # imported on first use: 0.6 CPU-s with scipy.stats
+from jointbench.core.lazy import scipy_signal as sps   # imported on first use: 0.6 CPU-s with scipy.stats
 
-from jointbench.errors import ConfigError
-from jointbench.schema import param
+from jointbench.core.errors import ConfigError
+from jointbench.core.schema import param
 from jointbench.sims.perturbation_filtered_noise import scale_to_rms
 
 

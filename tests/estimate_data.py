@@ -23,8 +23,8 @@ import numpy as np
 import pytest
 from threadpoolctl import threadpool_limits
 
-from jointbench.benchmarks.cli import main
-from jointbench.types import Trial
+from jointbench.cli import main
+from jointbench.core.types import Trial
 from jointbench.sims import simulate
 from jointbench.sims.experiment import Experiment
 
@@ -82,7 +82,7 @@ def run(argv) -> tuple[int, str, str]:
 
 @pytest.fixture(autouse=True)
 def one_blas_thread():
-    """One BLAS thread, as the command itself runs (benchmarks.cli): threads on a loaded 2-core machine
+    """One BLAS thread, as the command itself runs (jointbench.cli.studies): threads on a loaded 2-core machine
     turn seconds of linear algebra into minutes. Autouse in the modules that import it."""
     with threadpool_limits(limits=1):
         yield

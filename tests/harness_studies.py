@@ -65,7 +65,7 @@ def cli_env() -> dict:
 
 def cli(*args, timeout: float = 300, **kw) -> subprocess.CompletedProcess:
     """``jointbench ARGS`` in a fresh process."""
-    return subprocess.run([sys.executable, "-m", "jointbench.benchmarks", *map(str, args)], cwd=REPO,
+    return subprocess.run([sys.executable, "-m", "jointbench", *map(str, args)], cwd=REPO,
                           capture_output=True, text=True, timeout=timeout, env=cli_env(), **kw)
 
 
@@ -76,7 +76,7 @@ def cli_here(*args, timeout: float | None = None) -> subprocess.CompletedProcess
     import contextlib
     import io
 
-    from jointbench.benchmarks.cli import main
+    from jointbench.cli import main
 
     out, err = io.StringIO(), io.StringIO()
     with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
@@ -102,7 +102,7 @@ def start(*args, log: Path, prefix: list[str] | None = None) -> subprocess.Popen
     """``jointbench ARGS`` in the background, in its own session (its own process group, as a
     terminal's foreground job, its signals at their defaults), stdout and stderr to ``log``."""
     f = open(log, "w")
-    return subprocess.Popen([*(prefix or []), sys.executable, "-m", "jointbench.benchmarks", *map(str, args)], cwd=REPO,
+    return subprocess.Popen([*(prefix or []), sys.executable, "-m", "jointbench", *map(str, args)], cwd=REPO,
                             stdout=f, stderr=subprocess.STDOUT, env=cli_env(), start_new_session=True,
                             preexec_fn=_as_a_terminal_job)
 

@@ -2,7 +2,7 @@
 I-B-K impedance in periodic steady state, computed exactly line by line (no simulator involved)."""
 import numpy as np
 
-from jointbench.types import Trial
+from jointbench.core.types import Trial
 
 #: van de Ruit et al. 2018, Sec. IV-D: period 10 s, lines 0.1 ... 19.3 Hz every 0.8 Hz
 LINES = np.arange(0.1, 19.31, 0.8)

@@ -8,7 +8,7 @@ import pandas as pd
 import pytest
 
 from jointbench import api, estimators
-from jointbench.errors import ConfigError, InputError
+from jointbench.core.errors import ConfigError, InputError
 from tests.estimate_data import gated_wrist
 from tests.harness_studies import cli_here
 

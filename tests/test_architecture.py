@@ -1,10 +1,19 @@
-"""Dependencies flow one way: jointbench <- {sims, estimators} <- benchmarks <- api <- CLI.
+"""The floors of the house: every module imports only the floors beneath its own (and its own room).
 
-The repository's folders ``jointbench/``, ``sims/``, ``estimators/`` and ``benchmarks/`` are one installed
-namespace: ``jointbench``, ``jointbench.sims``, ``jointbench.estimators``, ``jointbench.benchmarks``
-(pyproject.toml's package-dir). Here each folder is a *room*: ``core`` (jointbench/), ``sims``,
-``estimators`` and ``benchmarks``; and two rooms on top: ``api`` (jointbench/api.py, the Python API, which
-may use everything below it) and ``cli`` (the command-line modules, which wrap the API and the harness).
+One installed namespace, ``jointbench``; the repository's folders ``sims/``, ``estimators/`` and ``benchmarks/``
+are its sub-packages ``jointbench.sims``, ``jointbench.estimators`` and ``jointbench.benchmarks``
+(pyproject.toml's package-dir). From the ground up (:data:`FLOORS`):
+
+1. ``core``: ``jointbench/core/`` (and the package's face, ``jointbench/__init__.py``, and the shipped configs);
+2. ``sims`` and ``estimators``, side by side: neither imports the other (an estimator never knows how its
+   data were made);
+3. ``fitting``: ``jointbench/fitting/``, the user's fitting path (it needs no simulator: :data:`ALSO_FORBIDDEN`);
+4. ``benchmarks``: the harness;
+5. ``api``: ``jointbench/api.py``;
+6. ``cli``: ``jointbench/cli/`` and ``jointbench/__main__.py``.
+
+Every import counts, at the top of a module or inside a function, under ``TYPE_CHECKING`` or not: a
+function-local import that climbs a floor is a climb all the same.
 """
 import ast
 import re
@@ -16,52 +25,52 @@ from pathlib import Path
 import pytest
 
 REPO = Path(__file__).resolve().parents[1]
-#: room -> installed package
-PACKAGE_OF = {"core": "jointbench", "sims": "jointbench.sims", "estimators": "jointbench.estimators",
-              "benchmarks": "jointbench.benchmarks"}
-FOLDER_OF = {"core": "jointbench", "sims": "sims", "estimators": "estimators", "benchmarks": "benchmarks"}
-FORBIDDEN = {
-    "core": {"sims", "estimators", "benchmarks", "api", "cli"},
-    "sims": {"estimators", "benchmarks", "api", "cli"},
-    "estimators": {"sims", "benchmarks", "api", "cli"},
-    "benchmarks": {"api", "cli"},          # the harness: the API and the CLI sit on it, never the reverse
-    "api": {"cli"},
+#: the repository's code folders and the installed packages they are (pyproject.toml's package-dir)
+PACKAGE_DIRS = {"jointbench": "jointbench", "sims": "jointbench.sims", "estimators": "jointbench.estimators",
+                "benchmarks": "jointbench.benchmarks", "configs": "jointbench.configs"}
+#: room -> (floor, the module names that make it: a name, or a package and everything under it)
+ROOMS = {
+    "core": (1, ("jointbench", "jointbench.core", "jointbench.configs")),
+    "sims": (2, ("jointbench.sims",)),
+    "estimators": (2, ("jointbench.estimators",)),
+    "fitting": (3, ("jointbench.fitting",)),
+    "benchmarks": (4, ("jointbench.benchmarks",)),
+    "api": (5, ("jointbench.api",)),
+    "cli": (6, ("jointbench.cli", "jointbench.__main__")),
 }
-#: the API room (a module of the jointbench folder) and the command-line modules (in the benchmarks folder)
-API_MODULES = {"jointbench.api"}
-CLI_MODULES = {"jointbench.benchmarks.cli", "jointbench.benchmarks.cli_history", "jointbench.benchmarks.__main__",
-               "jointbench.benchmarks.recordings.cli"}
-CODE = sorted(FOLDER_OF.values()) + ["tests", "docs", "examples", "configs"]
+FLOORS = {room: floor for room, (floor, _) in ROOMS.items()}
+#: rooms a room must not import although they lie beneath it
+ALSO_FORBIDDEN = {"fitting": {"sims"}}
+CODE = sorted(PACKAGE_DIRS) + ["tests", "docs", "examples", "tools"]
 
 
 def room_of(module: str) -> str | None:
-    """The room a module name belongs to (None: not the project's)."""
-    parts = module.split(".")
-    if parts[0] != "jointbench":
-        return None
-    if module in API_MODULES:
-        return "api"
-    if module in CLI_MODULES:
-        return "cli"
-    if len(parts) > 1 and parts[1] in ("sims", "estimators", "benchmarks"):
-        return parts[1]
-    return "core"
+    """The room of a module name (the longest prefix that names one; ``jointbench`` alone is the core's face);
+    None: not the project's."""
+    best, length = None, -1
+    for room, (_, names) in ROOMS.items():
+        for n in names:
+            exact_only = n == "jointbench"
+            hit = module == n or (not exact_only and module.startswith(n + "."))
+            if hit and len(n) > length:
+                best, length = room, len(n)
+    return best
 
 
-def _package_of_file(path: Path) -> str:
-    """The installed package a file under one of the code folders belongs to."""
+def module_of_file(path: Path) -> str:
+    """The installed module name of a file under one of the code folders."""
     rel = path.relative_to(REPO).with_suffix("").parts
-    room = next((r for r, f in FOLDER_OF.items() if f == rel[0]), None)
-    if room is None:
-        return ".".join(rel[:-1])
-    return ".".join([PACKAGE_OF[room], *rel[1:-1]])
+    parts = PACKAGE_DIRS[rel[0]].split(".") + list(rel[1:])
+    if parts[-1] == "__init__":
+        parts = parts[:-1]
+    return ".".join(parts)
 
 
-def imported_modules(path: Path) -> set[str]:
-    """Every module ``path`` imports, in full (``from a.b import c`` gives ``a.b`` and ``a.b.c``: c may be
-    a module); relative imports resolved against the file's package."""
-    tree = ast.parse(path.read_text(), str(path))
-    package = _package_of_file(path)
+def imported_modules(source: str, module: str, is_package: bool = False) -> set[str]:
+    """Every module ``source`` (the text of ``module``) imports anywhere, in full (``from a.b import c`` gives
+    ``a.b`` and ``a.b.c``: c may be a module); relative imports resolved against the module's package."""
+    tree = ast.parse(source)
+    package = module if is_package else module.rpartition(".")[0]
     out = set()
     for node in ast.walk(tree):
         if isinstance(node, ast.Import):
@@ -76,65 +85,72 @@ def imported_modules(path: Path) -> set[str]:
     return out
 
 
-def imported_rooms(path: Path) -> set[str]:
-    return {r for m in imported_modules(path) if m and (r := room_of(m)) is not None}
+def code_files() -> list[Path]:
+    return [f for folder in PACKAGE_DIRS for f in sorted((REPO / folder).rglob("*.py"))]
 
 
-def files_of(room: str) -> list[Path]:
-    """The source files of a room."""
-    every = [f for folder in FOLDER_OF.values() for f in sorted((REPO / folder).rglob("*.py"))]
-    return [f for f in every if room_of(_module_of_file(f)) == room]
-
-
-def _module_of_file(path: Path) -> str:
-    package = _package_of_file(path)
-    return package if path.name == "__init__.py" else f"{package}.{path.stem}"
-
-
-@pytest.mark.parametrize("room", sorted(FORBIDDEN))
-def test_layering(room):
+def climbs(module: str, imports: set[str]) -> list[str]:
+    """The imports of ``module`` that break the floors: a floor above its own, another room of its own floor,
+    or a room :data:`ALSO_FORBIDDEN` to it."""
+    own = room_of(module)
     bad = []
-    assert files_of(room), room
-    for f in files_of(room):
-        hit = imported_rooms(f) & FORBIDDEN[room]
-        if hit:
-            bad.append(f"{f.relative_to(REPO)} imports {sorted(hit)}")
-    assert not bad, "\n".join(bad)
-
-
-def test_recordings_need_only_the_core():
-    """benchmarks/recordings (``jointbench estimate``) imports jointbench and estimators, nothing else of the
-    project: not the rest of benchmarks (harness, protocols, figures, config), not sims; its command-line
-    module also uses the API (``jointbench.api.fit``), the library modules do not."""
-    room = REPO / "benchmarks" / "recordings"
-    files = sorted(room.rglob("*.py"))
-    assert files, room
-    inside = ("jointbench.benchmarks", "jointbench.benchmarks.recordings")  # the package itself and this room
-
-    def outside(m: str, cli: bool) -> bool:
+    for m in sorted(imports):
         room = room_of(m)
-        return (room == "sims" or (room == "api" and not cli)
-                or (room == "benchmarks" and m not in inside and not m.startswith(inside[1] + ".")))
+        if room is None or room == own:
+            continue
+        if FLOORS[room] > FLOORS[own]:
+            bad.append(f"{m} (floor {FLOORS[room]} {room}, above floor {FLOORS[own]} {own})")
+        elif FLOORS[room] == FLOORS[own]:
+            bad.append(f"{m} ({room}, beside {own} on floor {FLOORS[own]})")
+        elif room in ALSO_FORBIDDEN.get(own, ()):
+            bad.append(f"{m} ({room}: never imported by {own})")
+    return bad
 
+
+def test_every_module_has_a_floor():
+    homeless = [str(f.relative_to(REPO)) for f in code_files() if room_of(module_of_file(f)) is None]
+    assert not homeless, homeless
+
+
+def test_the_floors_hold():
+    """No module imports a floor above its own or a room beside it, function-local imports included."""
     bad = []
-    for f in files:
-        cli = room_of(_module_of_file(f)) == "cli"   # recordings/cli.py wraps jointbench.api.fit
-        hit = sorted(m for m in imported_modules(f) if outside(m, cli))
-        if hit:
-            bad.append(f"{f.relative_to(REPO)} imports {hit}")
+    for f in code_files():
+        module = module_of_file(f)
+        hits = climbs(module, imported_modules(f.read_text(), module, f.name == "__init__.py"))
+        bad += [f"{f.relative_to(REPO)} imports {h}" for h in hits]
     assert not bad, "\n".join(bad)
+
+
+@pytest.mark.parametrize("module, source", [
+    ("jointbench.core.types", "def f():\n    from jointbench.benchmarks import study\n"),
+    ("jointbench.estimators.kbr", "import jointbench.sims.experiment"),
+    ("jointbench.fitting.read", "from jointbench.sims import simulate"),
+    ("jointbench.benchmarks.study", "if TYPE_CHECKING:\n    from jointbench.api import Fit\n"),
+    ("jointbench.api", "from jointbench.cli import main"),
+    ("jointbench.sims.experiment", "from ..estimators import make"),
+])
+def test_a_climb_is_caught(module, source):
+    """The floor test is not vacuous: each of these imports breaks a floor and is named."""
+    assert climbs(module, imported_modules(source, module))
+
+
+def test_the_floors_in_order():
+    assert [r for r, _ in sorted(FLOORS.items(), key=lambda kv: kv[1])] == \
+        ["core", "sims", "estimators", "fitting", "benchmarks", "api", "cli"]
+    assert room_of("jointbench") == "core" and room_of("jointbench.api") == "api"
+    assert room_of("jointbench.apis") is None and room_of("jointbench.benchmarks.study") == "benchmarks"
+    assert room_of("jointbench.cli.estimate") == "cli" and room_of("numpy") is None
 
 
 def test_runtime_never_reads_shared():
     """../shared exists only beside developers' checkouts: code outside tests must not refer to it."""
-    for pkg in FOLDER_OF.values():
-        for f in (REPO / pkg).rglob("*.py"):
-            assert "shared/data" not in f.read_text(), f"{f} refers to ../shared"
+    for f in code_files():
+        assert "shared/data" not in f.read_text(), f"{f} refers to ../shared"
 
 
 def test_modules_stay_small():
-    big = [f"{f.relative_to(REPO)}: {n}" for pkg in FOLDER_OF.values()
-           for f in (REPO / pkg).rglob("*.py") if (n := len(f.read_text().splitlines())) > 500]
+    big = [f"{f.relative_to(REPO)}: {n}" for f in code_files() if (n := len(f.read_text().splitlines())) > 500]
     assert not big, big
 
 
@@ -173,7 +189,7 @@ def test_protocol_and_figure_indexes_match_the_registries():
 def test_importing_the_study_module_loads_no_protocol_or_figure():
     """Lazy registration: ``jointbench list`` and a study's start pay for no protocol, figure or
     scipy.stats import (each was 0.5-0.7 CPU-s of every CLI process)."""
-    code = ("import sys, jointbench.benchmarks.study, jointbench.benchmarks.cli as c; c.main(['list']); "
+    code = ("import sys, jointbench.benchmarks.study, jointbench.cli as c; c.main(['list']); "
             "print(sorted(m for m in sys.modules if m.startswith(('jointbench.benchmarks.protocols.', "
             "'jointbench.benchmarks.figures.', 'scipy.stats'))))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
@@ -184,15 +200,6 @@ def test_importing_the_study_module_loads_no_protocol_or_figure():
 BARE = re.compile(r"^\s*(?:import|from)\s+(sims|estimators|benchmarks)\b", re.M)
 
 
-def test_the_api_room_is_above_the_harness_and_below_the_cli():
-    """jointbench/api.py is its own room: the core files are the other modules of jointbench/, the harness
-    never imports the API, the API never imports a command-line module, and the CLI wraps the API."""
-    assert [f.name for f in files_of("api")] == ["api.py"]
-    assert (REPO / "jointbench" / "api.py") not in files_of("core")
-    assert "api" in imported_rooms(REPO / "benchmarks" / "recordings" / "cli.py")
-    assert room_of("jointbench.benchmarks.study") == "benchmarks" and room_of("jointbench.benchmarks.cli") == "cli"
-
-
 def test_importing_the_api_and_the_cli_sets_no_blas_threads():
     """Importing jointbench.api or the CLI module leaves the caller's environment and BLAS pools alone."""
     import subprocess
@@ -200,7 +207,7 @@ def test_importing_the_api_and_the_cli_sets_no_blas_threads():
 
     code = ("import os, json; before = dict(os.environ); import numpy; from threadpoolctl import threadpool_info; "
             "n0 = [p['num_threads'] for p in threadpool_info()]; "
-            "import jointbench.api, jointbench.benchmarks.cli, jointbench.benchmarks.recordings.cli; "
+            "import jointbench.api, jointbench.cli; "
             "n1 = [p['num_threads'] for p in threadpool_info()]; "
             "print(json.dumps([sorted(set(os.environ.items()) ^ set(before.items())), n0 == n1]))")
     env = {k: v for k, v in __import__("os").environ.items() if not k.endswith("_NUM_THREADS")}
@@ -233,10 +240,10 @@ def test_the_wheel_installs_one_top_level_package():
     cfg = tomllib.loads((REPO / "pyproject.toml").read_text())["tool"]["setuptools"]
     assert all(p == "jointbench" or p.startswith("jointbench.") for p in cfg["packages"]), cfg["packages"]
     dirs = cfg["package-dir"]
-    for room, folder in FOLDER_OF.items():
-        assert dirs[PACKAGE_OF[room]] == folder
+    for folder, package in PACKAGE_DIRS.items():
+        assert dirs[package] == folder
     # every sub-package of a code folder is listed (a new folder would otherwise be left out of the wheel)
-    for room, folder in FOLDER_OF.items():
+    for folder, package in PACKAGE_DIRS.items():
         for init in (REPO / folder).rglob("__init__.py"):
-            sub = ".".join([PACKAGE_OF[room], *init.parent.relative_to(REPO / folder).parts])
+            sub = ".".join([package, *init.parent.relative_to(REPO / folder).parts])
             assert sub in cfg["packages"], f"{init.parent} is not installed: add {sub!r} to pyproject's packages"

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from jointbench.errors import ConfigError
+from jointbench.core.errors import ConfigError
 from jointbench.sims import Experiment, simulate
 from tests.test_sims import SPEC as SERVO_SPEC   # Westwick & Perreault's experiment (Sec. IV)
 
@@ -62,7 +62,7 @@ def both(spec: dict, seed: int = 0):
 
 # ------------------------------------------------------------------------------ the library choice
 def test_import_sims_loads_no_physics_engine():
-    code = ("import sys, jointbench.sims as sims, jointbench.benchmarks.runner, jointbench.benchmarks.cli; "
+    code = ("import sys, jointbench.sims as sims, jointbench.benchmarks.runner, jointbench.cli.studies; "
             "assert 'mujoco' in sims.BACKENDS; "
             "print(sorted(m for m in ('mujoco', 'dm_control') if m in sys.modules))")
     out = subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True, text=True, check=True)

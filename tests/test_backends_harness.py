@@ -8,12 +8,13 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from jointbench.benchmarks import backends, cli
+from jointbench import cli
+from jointbench.benchmarks import backends
 from jointbench.benchmarks.config import load_study
 from jointbench.benchmarks.harness.cache import case_key
 from jointbench.benchmarks.runner import expand
 from jointbench.benchmarks.study import run_study
-from jointbench.errors import ConfigError
+from jointbench.core.errors import ConfigError
 from tests.golden import check_golden
 from tests.test_harness import write_study
 from tests.harness_studies import study_copy

@@ -11,9 +11,9 @@ import pandas as pd
 import pytest
 
 from jointbench import estimators
-from jointbench.errors import InputError
+from jointbench.core.errors import InputError
 from jointbench.estimators._band import input_band
-from jointbench.types import Trial
+from jointbench.core.types import Trial
 from tests.estimate_data import one_blas_thread, run, save  # noqa: F401 (autouse fixture)
 
 TRUTH = {"I": 0.02, "B": 0.6, "K": 120.0}

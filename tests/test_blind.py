@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 
 from jointbench import estimators
-from jointbench.ensemble import Ensemble
+from jointbench.core.ensemble import Ensemble
 from jointbench.estimators import Estimator, register
-from jointbench.types import HiddenTruth, Trial, Truth, TruthHidden
+from jointbench.core.types import HiddenTruth, Trial, Truth, TruthHidden
 
 from .harness_studies import tiny_study
 

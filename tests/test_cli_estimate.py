@@ -1,4 +1,4 @@
-"""End-to-end tests of ``jointbench estimate`` (benchmarks.recordings.cli) on synthetic and real records."""
+"""End-to-end tests of ``jointbench estimate`` (jointbench.cli.estimate) on synthetic and real records."""
 import argparse
 import dataclasses
 import re
@@ -12,13 +12,13 @@ from scipy import signal as sps
 
 from jointbench import estimators
 from tests.multisine_data import multisine_impedance_trial
-from jointbench.benchmarks.recordings import cli as cli_estimate
+from jointbench.cli import estimate as cli_estimate
 from jointbench.estimators import Estimator
-from jointbench.ensemble import Ensemble
-from jointbench.errors import JointBenchError
-from jointbench.estimate import FRFEstimate, IRFEstimate, ParametricEstimate
-from jointbench.schema import param
-from jointbench.types import Trial
+from jointbench.core.ensemble import Ensemble
+from jointbench.core.errors import JointBenchError
+from jointbench.core.estimate import FRFEstimate, IRFEstimate, ParametricEstimate
+from jointbench.core.schema import param
+from jointbench.core.types import Trial
 
 I0, B0, K0 = 0.015, 1.0, 100.0  # synthetic joint: kg m^2, N m s/rad, N m/rad
 REKLAB = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "reklab-ankle" / "ankle_stationary.npz"

@@ -4,10 +4,10 @@ import pandas as pd
 import pytest
 from scipy import io as sio
 
-from jointbench.benchmarks.recordings import io_ensemble as io
-from jointbench.ensemble import Ensemble
-from jointbench.errors import InputError
-from jointbench.estimate_tv import TVIRFEstimate
+from jointbench.fitting import read_ensemble
+from jointbench.core.ensemble import Ensemble
+from jointbench.core.errors import InputError
+from jointbench.core.estimate_tv import TVIRFEstimate
 from tests.test_cli_estimate import cli
 
 FS = 100.0
@@ -82,12 +82,13 @@ def test_read_records_kinds(tmp_path):
     U, Y, _ = ensemble_arrays(n=300, R=3)
     np.savez(tmp_path / "ens.npz", angle=U, torque=Y, fs=FS)
     np.savez(tmp_path / "one.npz", angle=U[:, 0], torque=Y[:, 0], fs=FS)
-    assert io.is_ensemble_file(tmp_path / "ens.npz") and not io.is_ensemble_file(tmp_path / "one.npz")
-    ens = io.read_records([tmp_path / "ens.npz"])
+    assert read_ensemble.is_ensemble_file(tmp_path / "ens.npz")
+    assert not read_ensemble.is_ensemble_file(tmp_path / "one.npz")
+    ens = read_ensemble.read_records([tmp_path / "ens.npz"])
     assert isinstance(ens, Ensemble) and ens.size == 3 and ens.fs == FS
-    trials = io.read_records([tmp_path / "one.npz", tmp_path / "one.npz"])
+    trials = read_ensemble.read_records([tmp_path / "one.npz", tmp_path / "one.npz"])
     assert isinstance(trials, list) and len(trials) == 2
-    assert io.read_records([tmp_path / "one.npz", tmp_path / "one.npz"], ensemble=True).size == 2
+    assert read_ensemble.read_records([tmp_path / "one.npz", tmp_path / "one.npz"], ensemble=True).size == 2
 
 
 @pytest.mark.parametrize("make,argv,parts", [
@@ -130,4 +131,4 @@ def test_read_ensemble_nan_names_the_realization(tmp_path):
     Y[10, 2] = np.nan
     np.savez(tmp_path / "e.npz", angle=U, torque=Y, fs=FS)
     with pytest.raises(InputError, match=r"e.npz: .*realization|e.npz\[2\]"):
-        io.read_ensemble(tmp_path / "e.npz")
+        read_ensemble.read_ensemble(tmp_path / "e.npz")

@@ -1,4 +1,4 @@
-"""``jointbench estimate --schedule`` (benchmarks/recordings/schedule.py): a parameter-varying fit of a recording,
+"""``jointbench estimate --schedule`` (jointbench/fitting/schedule.py): a parameter-varying fit of a recording,
 K printed at chosen values of the scheduling variable with intervals."""
 from __future__ import annotations
 

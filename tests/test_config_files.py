@@ -11,7 +11,7 @@ import pytest
 import yaml
 
 from jointbench.benchmarks.config import MAX_YAML_DEPTH, load_study
-from jointbench.errors import ConfigError
+from jointbench.core.errors import ConfigError
 from tests.harness_studies import cli_here as cli, tiny_study
 
 

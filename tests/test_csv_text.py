@@ -1,4 +1,4 @@
-"""jointbench.csv_text writes the bytes pandas writes: random tables of every kind of value, the layouts
+"""jointbench.core.csv_text writes the bytes pandas writes: random tables of every kind of value, the layouts
 where Arrow's float text differs from Python's, and the tables it leaves to pandas."""
 import gzip
 
@@ -6,8 +6,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from jointbench import csv_text
-from jointbench.csv_text import csv_bytes, write_csv
+from jointbench.core import csv_text
+from jointbench.core.csv_text import csv_bytes, write_csv
 
 #: floats whose text Arrow lays out otherwise than ``repr`` (the whole numbers, the small and the large),
 #: the bounds of the range where it agrees, and the values without digits

@@ -221,7 +221,7 @@ def test_an_unreachable_scheduler_is_one_line_before_anything_runs(tmp_path):
     ("inproc://x", "inproc:// address"), ("tcp://:8786", "not an address")])
 def test_malformed_scheduler_addresses_are_one_line(address, words):
     from jointbench.benchmarks.harness.dask_executor import parse_scheduler
-    from jointbench.errors import ConfigError
+    from jointbench.core.errors import ConfigError
 
     with pytest.raises(ConfigError, match=re.escape(words)) as err:
         parse_scheduler(address)
@@ -240,7 +240,7 @@ def test_a_server_that_is_not_dask_is_refused_without_reading_it_as_frames(reply
     greeting is checked first, and a silent server is given a few seconds (HANDSHAKE_TIMEOUT_S; here half a
     second, which the message names: the shipped 5 s held a test worker idle for 5 s)."""
     from jointbench.benchmarks.harness import dask_executor
-    from jointbench.errors import ConfigError
+    from jointbench.core.errors import ConfigError
 
     monkeypatch.setattr(dask_executor, "HANDSHAKE_TIMEOUT_S", 0.5)
 

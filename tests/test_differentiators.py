@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from jointbench import differentiators as d
+from jointbench.core import differentiators as d
 
 
 @pytest.mark.parametrize("N", [16, 256, 1000])

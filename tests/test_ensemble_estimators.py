@@ -6,11 +6,11 @@ from jointbench import estimators
 from jointbench.estimators import ensemble_irf
 from jointbench.estimators._tvirf import mdl_solve
 from jointbench.estimators.guarin import GuarinEstimate, time_basis
-from jointbench.ensemble import Ensemble, data_kind, valid_mask
-from jointbench.errors import InputError
-from jointbench.estimate import IRFEstimate
-from jointbench.estimate_tv import TVIRFEstimate
-from jointbench.types import Trial, Truth
+from jointbench.core.ensemble import Ensemble, data_kind, valid_mask
+from jointbench.core.errors import InputError
+from jointbench.core.estimate import IRFEstimate
+from jointbench.core.estimate_tv import TVIRFEstimate
+from jointbench.core.types import Trial, Truth
 from tests.multisine_data import multisine_impedance_trial
 
 FS = 100.0

@@ -5,9 +5,9 @@ import pandas as pd
 import pytest
 
 from jointbench import estimators
-from jointbench.ensemble import Ensemble, valid_mask
-from jointbench.errors import ConfigError, InputError
-from jointbench.types import Trial
+from jointbench.core.ensemble import Ensemble, valid_mask
+from jointbench.core.errors import ConfigError, InputError
+from jointbench.core.types import Trial
 
 FS, DUR = 100.0, 20.0
 I0, B0 = 0.05, 1.0          # N.m.s^2/rad, N.m.s/rad: an elbow-like joint whose K(t) varies

@@ -196,7 +196,7 @@ def save_mat73(path: Path, **variables) -> Path:
 
 
 def test_matlab_v73_file(tmp_path, ankle):
-    from jointbench.benchmarks.recordings import io as bio
+    from jointbench.fitting import read as bio
 
     p = save_mat73(tmp_path / "r.mat", time=ankle.time, angle=ankle.angle, torque=ankle.torque)
     t = bio.read_trial(p)
@@ -210,7 +210,7 @@ def test_matlab_v73_file(tmp_path, ankle):
 
 # ------------------------------------------------------------------------------------ quick start
 def test_list_imports_no_heavy_library():
-    code = ("import sys; from benchmarks.cli import main; main(['estimate', '--list']); "
+    code = ("import sys; from jointbench.cli import main; main(['estimate', '--list']); "
             "heavy = [m for m in ('scipy', 'pandas', 'matplotlib', 'jointbench.estimators.kbr') if m in sys.modules]; "
             "print('HEAVY', heavy)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=REPO, check=True).stdout

@@ -8,12 +8,12 @@ from scipy import signal as sps
 
 from jointbench import estimators
 from jointbench.estimators import REGISTRY
-from jointbench.differentiators import impedance_irf
-from jointbench.ensemble import Ensemble
-from jointbench.errors import ConfigError, InputError
-from jointbench.estimate import FRFEstimate, IRFEstimate, ParametricEstimate
-from jointbench.estimate_tv import TVIRFEstimate
-from jointbench.types import Trial
+from jointbench.core.differentiators import impedance_irf
+from jointbench.core.ensemble import Ensemble
+from jointbench.core.errors import ConfigError, InputError
+from jointbench.core.estimate import FRFEstimate, IRFEstimate, ParametricEstimate
+from jointbench.core.estimate_tv import TVIRFEstimate
+from jointbench.core.types import Trial
 from tests.multisine_data import LINES, multisine_impedance_trial
 
 FS = 500.0

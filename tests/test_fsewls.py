@@ -18,8 +18,8 @@ from jointbench.benchmarks.metrics import vafv
 from jointbench.estimators.fsewls import (FSEWLS, FSEWLSEstimate, _IU, _ewls_riccati_rk4, _forcing, _solve_spd3,
                                          _unpack, ewls, highpass, highpass_time_constant, rk4_coefficients, svf,
                                          svf_pole)
-from jointbench.errors import ConfigError, InputError
-from jointbench.types import Trial
+from jointbench.core.errors import ConfigError, InputError
+from jointbench.core.types import Trial
 
 FS, I0, ZETA = 1000.0, 0.06, 0.3
 

@@ -9,7 +9,7 @@ import pytest
 
 from jointbench.benchmarks.config import load_study
 from jointbench.benchmarks.runner import expand_study
-from jointbench.errors import ConfigError
+from jointbench.core.errors import ConfigError
 from tests.harness_studies import cli_here as cli, tiny_grid_part, tiny_study
 
 

@@ -13,7 +13,7 @@ from jointbench.benchmarks.config import CONFIGS, Check, load_study
 from jointbench.benchmarks.runner import Cache, expand, run_cases
 from jointbench.benchmarks.study import run_study
 from jointbench.benchmarks.tables import compare
-from jointbench.errors import ConfigError
+from jointbench.core.errors import ConfigError
 from tests.harness_studies import study_copy
 
 STUDY = CONFIGS / "studies" / "westwick2012.yaml"
@@ -217,7 +217,7 @@ def test_bad_report_section(tmp_path):
 # ---------------------------------------------------------------- issue 11: one clear line, exit 2
 def one_line_error(capsys, argv: list[str]) -> str:
     """Run the CLI in-process; it must exit 2 with exactly one line on stderr (no traceback)."""
-    from jointbench.benchmarks.cli import main
+    from jointbench.cli import main
 
     try:
         code = main([str(a) for a in argv])

@@ -95,7 +95,7 @@ def test_put_never_deletes_other_entries(tmp_path, monkeypatch):
 
 def test_code_hash_covers_what_computes_a_case_and_nothing_else():
     shared = {p.relative_to(REPO).as_posix() for p in fingerprint.case_modules()}
-    assert {"benchmarks/harness/case.py", "sims/backend_ltv.py", "jointbench/schema.py",
+    assert {"benchmarks/harness/case.py", "sims/backend_ltv.py", "jointbench/core/schema.py",
             "estimators/__init__.py", "benchmarks/protocols/__init__.py"} <= shared
     # protocols and estimators are registered lazily: each case's key adds only its own
     assert not {f for f in shared if f.startswith(("benchmarks/protocols/", "estimators/"))
@@ -106,8 +106,9 @@ def test_code_hash_covers_what_computes_a_case_and_nothing_else():
                      "estimators/_kbr_solve.py", "estimators/fsewls.py"} <= files   # xu1998 imports fsewls
     assert not files & {"estimators/skirt.py", "estimators/sds.py", "benchmarks/protocols/westwick2012.py"}
     assert not {f for f in files if f.startswith(("benchmarks/figures/", "benchmarks/harness/nightly"))}
-    assert not files & {"benchmarks/report.py", "benchmarks/tables.py", "benchmarks/cli.py", "benchmarks/config.py",
-                        "benchmarks/study.py", "benchmarks/runner.py", "benchmarks/harness/cache.py"}
+    assert not files & {"benchmarks/report.py", "benchmarks/tables.py", "jointbench/cli/studies.py",
+                        "benchmarks/config.py", "benchmarks/study.py", "benchmarks/runner.py",
+                        "benchmarks/harness/cache.py"}
 
 
 def test_a_case_names_its_protocol_and_estimator_modules(tmp_path):
@@ -177,7 +178,7 @@ def _two_estimator_study(folder: Path) -> list:
 def test_a_comment_or_docstring_edit_computes_no_case(tmp_path, code_copy, capsys):
     """A run after comment, docstring and layout edits of shared, protocol and estimator modules, and
     code edits of a figure and the report, serves every case from the cache (and says so)."""
-    from jointbench.benchmarks.cli import main
+    from jointbench.cli import main
 
     study = tiny_study(tmp_path / "cfg", seeds=2, extra_parts={
         "grid": tiny_grid_part(["ibk_spectral", "sds"], realizations=2)})
@@ -274,7 +275,7 @@ def test_history_records_runs_and_a_crash_mid_write_leaves_no_half_run(tmp_path)
 
 
 def test_history_and_diff_commands(tmp_path, capsys, monkeypatch):
-    from jointbench.benchmarks.cli import main
+    from jointbench.cli import main
 
     study = tiny_study(tmp_path / "cfg", seeds=2)
     out = tmp_path / "out"
@@ -301,7 +302,7 @@ def test_history_and_diff_commands(tmp_path, capsys, monkeypatch):
 
 
 def test_cache_prune_keeps_what_recent_runs_used(tmp_path, capsys, monkeypatch):
-    from jointbench.benchmarks.cli import main
+    from jointbench.cli import main
 
     study = tiny_study(tmp_path / "cfg", seeds=2)
     out = tmp_path / "out"
@@ -317,7 +318,7 @@ def test_cache_prune_keeps_what_recent_runs_used(tmp_path, capsys, monkeypatch):
 
 
 def test_unknown_history_is_one_line(tmp_path, capsys):
-    from jointbench.benchmarks.cli import main
+    from jointbench.cli import main
 
     assert main(["history", "--out", str(tmp_path)]) == 2
     assert "no run history yet" in capsys.readouterr().err

@@ -13,7 +13,7 @@ from jointbench.benchmarks.harness import fingerprint, history as history_mod
 from jointbench.benchmarks.harness.cache import Cache, case_key, prune
 from jointbench.benchmarks.harness.history import History
 from jointbench.benchmarks.study import run_study
-from jointbench.errors import ConfigError, OutputError
+from jointbench.core.errors import ConfigError, OutputError
 from tests.harness_studies import cli_here as cli, tiny_study
 
 

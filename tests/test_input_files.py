@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 import yaml
 
-from jointbench.benchmarks.recordings import io, io_limits
+from jointbench.fitting import read, read_limits
 from jointbench.benchmarks.study import run_study
-from jointbench.errors import ConfigError, InputError
+from jointbench.core.errors import ConfigError, InputError
 from tests.harness_studies import tiny_study
 
 
@@ -89,7 +89,7 @@ def test_a_recording_that_is_a_device_or_fifo_is_never_opened(tmp_path, suffix, 
     p = tmp_path / f"rec{suffix}"
     os.symlink("/dev/zero", p) if kind == "/dev/zero" else os.mkfifo(p)
     with pytest.raises(InputError, match="not a regular file"):
-        io.read_trial(p)
+        read.read_trial(p)
 
 
 def test_a_zip_bomb_is_refused_from_its_headers(tmp_path, monkeypatch):
@@ -97,7 +97,7 @@ def test_a_zip_bomb_is_refused_from_its_headers(tmp_path, monkeypatch):
     (the limit is lowered here so that the bomb is small; the real one is 2 GiB of zeros per member)."""
     from numpy.lib import format as npf
 
-    monkeypatch.setattr(io_limits, "MAX_VALUES", 10_000)
+    monkeypatch.setattr(read_limits, "MAX_VALUES", 10_000)
     p = tmp_path / "bomb.npz"
     n = 200_000
     with zipfile.ZipFile(p, "w", compression=zipfile.ZIP_DEFLATED) as zf:
@@ -108,22 +108,22 @@ def test_a_zip_bomb_is_refused_from_its_headers(tmp_path, monkeypatch):
     assert p.stat().st_size < 10_000                    # a few kB on disk
     with pytest.raises(InputError, match=r"bomb\.npz: member '(angle|torque)' is 200000, more than the 5000000 "
                                          r"samples per channel \(10000 values\)"):
-        io.read_trial(p)
+        read.read_trial(p)
 
 
 def test_a_csv_of_too_many_rows_is_refused_before_pandas_reads_it(tmp_path, monkeypatch):
-    monkeypatch.setattr(io_limits, "MAX_SAMPLES", 1000)
+    monkeypatch.setattr(read_limits, "MAX_SAMPLES", 1000)
     p = tmp_path / "big.csv"
     p.write_text("time,angle,torque\n" + "".join(f"{i / 1000},0.01,0.5\n" for i in range(5000)))
     with pytest.raises(InputError, match=r"big\.csv: more than 1000 lines"):
-        io.read_trial(p)
+        read.read_trial(p)
 
 
 def test_a_csv_that_is_not_utf8_is_one_line(tmp_path):
     p = tmp_path / "rec.csv"
     p.write_bytes("time,angle,torque\n0,0,0\n0.002,0.1,1\n".encode("utf-16"))
     with pytest.raises(InputError, match=r"rec\.csv: the file is UTF-16 text"):
-        io.read_trial(p)
+        read.read_trial(p)
 
 
 @pytest.mark.parametrize("body", [b"\x89HDF\r\n\x1a\n" + bytes(range(256)) * 12, bytes(range(256)) * 16])
@@ -132,15 +132,15 @@ def test_a_corrupt_hdf5_mat_file_is_one_line(tmp_path, body):
     header = b"MATLAB 7.3 MAT-file, Platform: GLNXA64, Created on: Mon Jan  1 00:00:00 2024 HDF5 schema 1.00 ."
     p.write_bytes(header.ljust(512, b" ") + body)
     with pytest.raises(InputError) as exc:
-        io.read_trial(p)
+        read.read_trial(p)
     assert str(p) in str(exc.value) and "\n" not in str(exc.value)
 
 
 def test_an_npz_member_larger_than_the_limit_in_an_ensemble_file(tmp_path, monkeypatch):
-    monkeypatch.setattr(io_limits, "MAX_SAMPLES", 100)
+    monkeypatch.setattr(read_limits, "MAX_SAMPLES", 100)
     p = tmp_path / "ens.npz"
     np.savez(p, angle=np.zeros((500, 3)), torque=np.zeros((500, 3)), fs=500.0)
-    from jointbench.benchmarks.recordings.io_ensemble import read_ensemble
+    from jointbench.fitting.read_ensemble import read_ensemble
 
     with pytest.raises(InputError, match=r"ens\.npz: member '(angle|torque)' is 500x3"):
         read_ensemble(p)

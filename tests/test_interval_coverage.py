@@ -24,7 +24,7 @@ import pytest
 from scipy import stats
 
 from jointbench import estimators
-from jointbench.types import Trial
+from jointbench.core.types import Trial
 from tests.estimate_data import one_blas_thread  # noqa: F401 (autouse fixture)
 from tests.test_band_checks import TRUTH, narrow_band
 from tests.test_ensemble_estimators import LAGS, ensemble_of, true_irf

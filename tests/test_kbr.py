@@ -13,8 +13,8 @@ import pytest
 from jointbench import estimators
 from jointbench.estimators import _kbr_predict as kpred, _kbr_solve as ks
 from jointbench.estimators.kbr import KBR, KBREstimate
-from jointbench.errors import ConfigError, InputError
-from jointbench.types import Trial
+from jointbench.core.errors import ConfigError, InputError
+from jointbench.core.types import Trial
 
 I, B, BC, KC = 0.003, 0.035, 10.0, 100.0
 FS, T, PERIOD = 44.0, 40.0, 10.0

@@ -15,7 +15,7 @@ import pytest
 from scipy import signal as sps
 
 from jointbench import estimators
-from jointbench.ensemble import Ensemble
+from jointbench.core.ensemble import Ensemble
 from jointbench.estimators.guarin import reflex_signal
 from tests.estimate_data import one_blas_thread  # noqa: F401 (autouse fixture)
 

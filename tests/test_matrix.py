@@ -176,7 +176,7 @@ def test_only_rules_and_scenario_realizations_shape_the_grid(tmp_path):
     ("tuning", {"nosuch": {"window": ["1 s"]}}, "tuning: unknown estimator 'nosuch'"),
 ])
 def test_bad_tuning_and_only_are_config_errors(tmp_path, key, value, message):
-    from jointbench.errors import ConfigError
+    from jointbench.core.errors import ConfigError
 
     part = tiny_grid_part(["sds"], tuning=["paper", "tuned"])
     part[key] = value

@@ -5,8 +5,8 @@ import pytest
 
 from jointbench import estimators
 from jointbench.estimators._multisine_lines import MAX_LEAKAGE, excited_bins, multisine_bins
-from jointbench.errors import InputError
-from jointbench.types import Trial
+from jointbench.core.errors import InputError
+from jointbench.core.types import Trial
 from tests.test_skirt import FS, LINES, N, T, lti_trial
 
 

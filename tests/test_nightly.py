@@ -16,7 +16,7 @@ import yaml
 from jointbench.benchmarks.config import CONFIGS
 from jointbench.benchmarks.harness.nightly import load_config
 from jointbench.benchmarks.nightly import run_nightly
-from jointbench.errors import ConfigError
+from jointbench.core.errors import ConfigError
 from tests.harness_studies import REPO, tiny_study
 
 
@@ -31,7 +31,7 @@ def nightly_config(folder: Path, **edit) -> Path:
 
 
 def test_nightly_flags_exactly_the_perturbed_metrics_and_exits_nonzero(tmp_path, capsys):
-    from jointbench.benchmarks.cli import main
+    from jointbench.cli import main
 
     cfg, out = nightly_config(tmp_path), tmp_path / "results"
     args = ["nightly", "--config", str(cfg), "--out", str(out), "--serial", "--quiet"]
@@ -156,7 +156,7 @@ def test_make_nightly_page_renders_tables_and_images_in_chromium(tmp_path, chrom
         r = subprocess.run(["make", "-s", "nightly", f"NIGHTLY_ARGS={nightly_args}"], cwd=REPO,
                            capture_output=True, text=True, timeout=600)
     else:                             # a test run outside the project's venv: the same command directly
-        r = subprocess.run([sys.executable, "-m", "jointbench.benchmarks", "nightly", *nightly_args.split()], cwd=REPO,
+        r = subprocess.run([sys.executable, "-m", "jointbench", "nightly", *nightly_args.split()], cwd=REPO,
                            capture_output=True, text=True, timeout=600)
     assert r.returncode == 0, r.stdout + r.stderr
     index = out / "nightly" / "index.html"

@@ -56,7 +56,7 @@ def test_wall_clock_metrics_are_listed_in_the_shipped_config():
 def test_an_unknown_study_in_the_nightly_config_is_a_config_error(tmp_path):
     import pytest
 
-    from jointbench.errors import ConfigError
+    from jointbench.core.errors import ConfigError
 
     with pytest.raises(ConfigError, match=r"key 'studies': no study 'nope' \(.*nope\.yaml not found\); known: "):
         load_config(_config(tmp_path, studies=["nope"]))

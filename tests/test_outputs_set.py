@@ -12,9 +12,9 @@ from pathlib import Path
 import pytest
 import yaml
 
-from jointbench.benchmarks.cli import main
+from jointbench.cli import main
 from jointbench.benchmarks.harness.history import History
-from jointbench.errors import OutputError
+from jointbench.core.errors import OutputError
 from tests.harness_studies import REPO, cli_env, cli_here as cli, tiny_study
 
 
@@ -99,7 +99,7 @@ def test_a_nearly_full_disk_gives_the_old_set_or_a_whole_new_one(tmp_path):
         pytest.skip("no mount namespaces here (unshare -m) for a small disk")
     assert cli("run", first, "--out", out, "--quiet").returncode == 0
     good = _snapshot(out / "tiny")
-    p = subprocess.run([*prefix, sys.executable, "-m", "jointbench.benchmarks", "run", str(second), "--out", str(mnt),
+    p = subprocess.run([*prefix, sys.executable, "-m", "jointbench", "run", str(second), "--out", str(mnt),
                         "--quiet"], cwd=REPO, capture_output=True, text=True, env=cli_env(), timeout=600)
     now = _snapshot(after / "tiny")
     if p.returncode == 0:
@@ -135,7 +135,7 @@ def test_estimate_outputs_are_one_set(tmp_path, monkeypatch):
     assert main(args) == 0
     good = _snapshot(tmp_path / "o")
     assert len(good) >= 3
-    from jointbench import csv_text
+    from jointbench.core import csv_text
 
     real = csv_text.write_csv
 

@@ -10,7 +10,7 @@ import yaml
 import jointbench
 from jointbench.benchmarks import locate
 from jointbench.benchmarks.config import check_backend, load_study
-from jointbench.errors import ConfigError
+from jointbench.core.errors import ConfigError
 from tests.harness_studies import tiny_study
 
 REPO = Path(__file__).resolve().parents[1]

@@ -9,8 +9,8 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from jointbench import plugins
-from jointbench.errors import ConfigError
+from jointbench.core import plugins
+from jointbench.core.errors import ConfigError
 from tests.harness_studies import cli_env
 
 REPO = Path(__file__).resolve().parents[1]
@@ -40,7 +40,7 @@ def plugin(tmp_path_factory):
 
 
 def _jb(env, *args, cwd, timeout=600):
-    r = subprocess.run([sys.executable, "-m", "jointbench.benchmarks", *map(str, args)], cwd=cwd, env=env,
+    r = subprocess.run([sys.executable, "-m", "jointbench", *map(str, args)], cwd=cwd, env=env,
                        capture_output=True, text=True, timeout=timeout)
     assert r.returncode == 0, r.stdout + r.stderr
     return r
@@ -74,7 +74,7 @@ def test_the_plugin_runs_everywhere_and_an_edit_recomputes_its_cases(plugin, tmp
     assert (first["status"] == "ok").all()
     keys = _cases(out)["cache_key"]
     # not installed: the study's plugins: finds the package folder beside it, and the workers of a local Dask
-    # cluster import it from that folder (jointbench.plugins.ensure): every row identical to the pool's
+    # cluster import it from that folder (jointbench.core.plugins.ensure): every row identical to the pool's
     bare = {k: v for k, v in env.items() if k != "PYTHONPATH"}
     beside = tmp_path / "beside"
     _jb(bare, "run", study, "--out", beside, "--executor", "dask", "--workers", "2", "--quiet", cwd=tmp_path)

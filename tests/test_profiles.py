@@ -5,7 +5,7 @@ import hashlib
 import numpy as np
 import pytest
 
-from jointbench.errors import ConfigError
+from jointbench.core.errors import ConfigError
 from jointbench.sims import PROFILES, Experiment, simulate
 from jointbench.sims.joint_time_varying import TimeVaryingJoint
 from jointbench.sims.profile import parse_profile

@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from jointbench import estimators, sims
-from jointbench.ensemble import Ensemble
-from jointbench.errors import InputError
-from jointbench.types import Trial
+from jointbench.core.ensemble import Ensemble
+from jointbench.core.errors import InputError
+from jointbench.core.types import Trial
 
 PRALDS = {"kind": "pralds", "rms": 0.02, "min_hold": "20 ms", "max_hold": "200 ms", "smoothing": "20 Hz"}
 ACQ = {"detrend": True, "fs": "100 Hz", "trim": "1 s"}

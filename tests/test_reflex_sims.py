@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from jointbench import sims
-from jointbench.errors import ConfigError
+from jointbench.core.errors import ConfigError
 from jointbench.sims import Experiment, simulate
 from jointbench.sims.apparatus import PositionServo, TorqueDrive
 from jointbench.sims.backend_stepping import SteppingBackend

@@ -219,7 +219,7 @@ def test_the_noise_levels_of_a_figure_are_the_distinct_values_of_its_rows():
 
 @pytest.mark.parametrize("dtype", ["str", pd.StringDtype("python", na_value=NAN), object])
 def test_text_columns_are_written_as_pandas_writes_them(dtype):
-    from jointbench.csv_text import csv_bytes
+    from jointbench.core.csv_text import csv_bytes
 
     text = ["plain", NAN, 'a "quoted" one', "comma, inside", "new\nline", "", "é ω"] * 3
     frame = pd.DataFrame({"t": pd.Series(text, dtype=dtype), "x": np.arange(len(text), dtype=float) / 7})

@@ -173,14 +173,14 @@ def test_read_only_results_folder_is_one_line_and_exit_2(tmp_path):
 def test_sigkill_during_a_write_leaves_no_stale_temporary(tmp_path):
     """atomic_write: a process killed mid-write leaves its temporary and the old file intact; the next
     writer's sweep removes that temporary (a live writer's is kept), and a run sweeps its folders."""
-    from jointbench.files import sweep_stale_temps
+    from jointbench.core.files import sweep_stale_temps
 
     target = tmp_path / "report.md"
     target.write_text("old")
     code = textwrap.dedent(f"""
         import time
         from pathlib import Path
-        from jointbench.files import atomic_write
+        from jointbench.core.files import atomic_write
         def slow(p):
             Path(p).write_text("half")
             print("writing", flush=True)
@@ -206,7 +206,7 @@ def test_sigkill_during_a_write_leaves_no_stale_temporary(tmp_path):
 
 
 def test_interrupt_during_a_write_removes_the_temporary(tmp_path):
-    from jointbench.files import atomic_write
+    from jointbench.core.files import atomic_write
 
     def interrupted(p):
         Path(p).write_text("half")

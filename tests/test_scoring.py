@@ -19,9 +19,9 @@ from jointbench.benchmarks.config import CONFIGS, EVIDENCE, Check, load_checks, 
 from jointbench.benchmarks.protocols import Context
 from jointbench.benchmarks.tables import (DIRTY_BANNER, compare, evidence_counts, headline, method_specific, stamp,
                                swap_estimators, swap_survival)
-from jointbench.errors import ConfigError
-from jointbench.signal import decimate_fft
-from jointbench.types import Trial
+from jointbench.core.errors import ConfigError
+from jointbench.core.signal import decimate_fft
+from jointbench.core.types import Trial
 from tests.harness_studies import REPO
 
 STUDIES = ("westwick2012", "xu1998", "vanderuit2018_table1")
@@ -191,7 +191,7 @@ def test_report_from_a_dirty_tree_says_so_loudly():
 
 
 def test_cli_summary_line_is_the_headline(tmp_path, capsys, monkeypatch):
-    from jointbench.benchmarks import cli
+    from jointbench import cli
     import jointbench.benchmarks.study as study_mod
 
     orig = study_mod.run_study
@@ -425,7 +425,7 @@ def test_vaf_optim_is_against_the_noise_free_torque():
     """In the van de Ruit protocol, VAF_optim compares the prediction with the noise-free output, VAF_self
     with the noisy one: a model predicting the noise-free torque exactly has VAF_optim 100 %."""
     from jointbench.benchmarks.protocols.vanderuit2018 import Table1Params, table1
-    from jointbench.schema import parse
+    from jointbench.core.schema import parse
     from jointbench import sims
 
     s = load_study("vanderuit2018_table1")
@@ -515,7 +515,7 @@ def test_exact_derivative_control_leaves_only_the_ewls():
     """Fed the exact perturbed response, the EWLS's regression is exact and slow variations are tracked."""
     from jointbench import sims
     from jointbench.benchmarks.protocols import xu1998 as X
-    from jointbench.schema import parse
+    from jointbench.core.schema import parse
 
     part = load_study("xu1998").parts["fig2"]
     exp0 = sims.Experiment.from_mapping({**part.experiment, "duration": "14 s"}, "test")

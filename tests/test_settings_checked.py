@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from jointbench import estimators
-from jointbench.errors import ConfigError
+from jointbench.core.errors import ConfigError
 
 
 def _bounded_fields():
@@ -52,7 +52,7 @@ def test_the_issue_example_and_replace_are_checked():
 
 
 def test_a_subclass_outside_the_repository_is_checked_too():
-    from jointbench.schema import param
+    from jointbench.core.schema import param
 
     class Outside(estimators.Estimator):
         @dataclasses.dataclass(frozen=True)

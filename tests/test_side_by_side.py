@@ -81,7 +81,7 @@ def side_by_side(tmp_path_factory):
     readme = folder / "README.md"
     readme.write_text(f"# x\n{status.BEGIN}\nstale\n{status.END}\ntail\n")
     out = folder / "both"
-    r = subprocess.run([sys.executable, "-m", "jointbench.benchmarks", "run", str(a), str(b), "--jobs", "2",
+    r = subprocess.run([sys.executable, "-m", "jointbench", "run", str(a), str(b), "--jobs", "2",
                         "--serial", "--quiet", "--write-readme", "--out", str(out)],
                        cwd=folder, capture_output=True, text=True, timeout=300, env=cli_env())
     return SimpleNamespace(a=a, b=b, out=out, readme=readme, r=r, block=status.block(out) if out.is_dir() else None,
@@ -219,7 +219,7 @@ def test_a_study_waits_for_the_compile_aside_then_goes_on():
     has closed its end of the pipe (by exiting: here a thread closes it after 0.3 s), once."""
     import threading
 
-    from jointbench import compiled
+    from jointbench.core import compiled
 
     t0 = time.monotonic()
     compiled.wait_aside()

@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 from scipy import signal as sps
 
-from jointbench.errors import ConfigError
-from jointbench.types import Trial
+from jointbench.core.errors import ConfigError
+from jointbench.core.types import Trial
 from jointbench.sims import BACKENDS, JOINTS, PERTURBATIONS, Experiment, simulate
 from jointbench.sims.apparatus import PositionServo, TorqueDrive
 from jointbench.sims.backend_lti import LTIBackend

@@ -4,8 +4,8 @@ import dataclasses
 import numpy as np
 import pytest
 
-from jointbench.errors import ConfigError
-from jointbench.schema import parse
+from jointbench.core.errors import ConfigError
+from jointbench.core.schema import parse
 from jointbench.sims import Experiment, simulate
 from jointbench.sims.perturbation_pralds import PRALDS
 from jointbench.sims.subjects import (SubjectDesign, draw_subjects, draw_trials, simulate_trial, stiffness,

@@ -5,8 +5,8 @@ import pytest
 from scipy import signal as sps
 from scipy.integrate import solve_ivp
 
-from jointbench.errors import ConfigError
-from jointbench.signal import decimate_fft
+from jointbench.core.errors import ConfigError
+from jointbench.core.signal import decimate_fft
 from jointbench.sims import JOINTS, PERTURBATIONS, PROFILES, Experiment, simulate
 from jointbench.sims.apparatus import Handle, PositionServo, TorqueDrive
 from jointbench.sims.backend_lti import LTIBackend
@@ -493,7 +493,7 @@ def test_voluntary_position_is_the_movement_without_derivatives():
 
 
 def test_decimate_of_columns_is_decimate_of_each_column():
-    from jointbench.signal import decimate
+    from jointbench.core.signal import decimate
     x = np.random.default_rng(2).standard_normal((5001, 3))
     for q in (2, 5):
         y = decimate(x, q)

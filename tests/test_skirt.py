@@ -12,8 +12,8 @@ from scipy import signal as sps
 
 from jointbench import estimators
 from jointbench.estimators.skirt import SkirtEstimate, basis
-from jointbench.errors import ConfigError, InputError
-from jointbench.types import Trial
+from jointbench.core.errors import ConfigError, InputError
+from jointbench.core.types import Trial
 
 FS, T = 44.0, 40.0
 N = int(FS * T)

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from jointbench import estimators
-from jointbench.ensemble import Ensemble
-from jointbench.estimate_tv import TVIRFEstimate
+from jointbench.core.ensemble import Ensemble
+from jointbench.core.estimate_tv import TVIRFEstimate
 from jointbench.estimators import _small_eigh, ensemble_irf, sds
 from jointbench.estimators._small_eigh import eigh_descending, lagged_gram
 from jointbench.estimators._tvirf import gram_stack, lagged, mdl_solve

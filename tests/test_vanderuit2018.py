@@ -15,8 +15,8 @@ from jointbench.benchmarks.protocols.vanderuit2018 import (Table1Params, _case_e
                                                            step_times, variation_labels)
 from jointbench.benchmarks.runner import expand
 from jointbench.benchmarks.study import run_study
-from jointbench.errors import ConfigError
-from jointbench.schema import parse
+from jointbench.core.errors import ConfigError
+from jointbench.core.schema import parse
 from tests.golden import check_golden
 from tests.harness_studies import study_copy
 

@@ -11,9 +11,9 @@ from jointbench.benchmarks.protocols.vanderuit2018_table2 import (Table2Params, 
                                                        remove_low_frequency, to_rate)
 from jointbench.benchmarks.runner import expand
 from jointbench.benchmarks.study import run_study
-from jointbench.errors import ConfigError
-from jointbench.schema import parse
-from jointbench.types import Trial
+from jointbench.core.errors import ConfigError
+from jointbench.core.schema import parse
+from jointbench.core.types import Trial
 from tests.golden import check_golden
 from tests.harness_studies import study_copy
 

@@ -14,10 +14,10 @@ from jointbench.benchmarks.config import CONFIGS, load_study
 from jointbench.benchmarks.metrics import rmse, vafm, vafv
 from jointbench.benchmarks.protocols import xu1998 as X
 from jointbench.benchmarks.study import run_study
-from jointbench.ensemble import valid_mask
-from jointbench.errors import ConfigError
-from jointbench.schema import parse
-from jointbench.types import Truth
+from jointbench.core.ensemble import valid_mask
+from jointbench.core.errors import ConfigError
+from jointbench.core.schema import parse
+from jointbench.core.types import Truth
 from tests.golden import check_golden
 from tests.harness_studies import study_copy
 

@@ -13,7 +13,7 @@ from typing import Callable
 
 import pandas as pd
 
-from jointbench.registry import Registry, import_submodules, scan_registrations
+from jointbench.core.registry import Registry, import_submodules, scan_registrations
 
 
 @dataclasses.dataclass

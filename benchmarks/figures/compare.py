@@ -29,7 +29,7 @@ from jointbench.benchmarks.figures import compare_pairs as pairs_
 from jointbench.benchmarks.figures import compare_plots as plots
 from jointbench.benchmarks.figures import compare_tables as ct
 from jointbench.benchmarks.figures.compare_tables import METRICS, labelled  # noqa: F401  (the public names)
-from jointbench.files import write_text
+from jointbench.core.files import write_text
 
 #: paired wins written out in the text per tuning column (the win tables have them all)
 WIN_SENTENCES = 5

@@ -19,7 +19,7 @@ from typing import Iterable
 
 from jointbench.benchmarks.harness import fingerprint
 from jointbench.benchmarks.harness.case import Case, CaseResult
-from jointbench.files import atomic_write, sweep_stale_temps
+from jointbench.core.files import atomic_write, sweep_stale_temps
 
 FORMAT = 1
 
@@ -153,7 +153,7 @@ def entries(folder: Path) -> Iterable[Path]:
 
 def prune(folder: Path, keep: set[str], dry_run: bool = False) -> list[Path]:
     """Delete the entries whose key is not in ``keep`` (and stale temporaries); returns them."""
-    from jointbench.errors import OutputError
+    from jointbench.core.errors import OutputError
 
     sweep_stale_temps(folder, recursive=True)
     gone = [p for p in entries(folder) if p.stem not in keep]

@@ -19,7 +19,7 @@ from typing import Any, Mapping
 from jointbench import estimators
 from jointbench import sims
 from jointbench.benchmarks import protocols
-from jointbench.schema import parse
+from jointbench.core.schema import parse
 from jointbench.sims import reuse
 from jointbench.sims.backend import record_simulations
 

@@ -37,7 +37,7 @@ import struct
 import threading
 
 from jointbench.benchmarks.harness.pool import ExecutorLost, WorkerMismatch, identity_problem, worker_identity
-from jointbench.errors import ConfigError
+from jointbench.core.errors import ConfigError
 
 #: seconds to wait for a remote scheduler before giving up with a one-line error
 CONNECT_TIMEOUT_S = 20

@@ -67,7 +67,7 @@ def source_checkout() -> Path | None:
 REPO = source_checkout()
 CASE_ENTRY = "jointbench.benchmarks.harness.case"
 #: libraries whose version is part of every cache key (numba and llvmlite compile the loops of
-#: jointbench.compiled's users, the eigensolver and the integrator: another compiler may round otherwise)
+#: jointbench.core.compiled's users, the eigensolver and the integrator: another compiler may round otherwise)
 KEY_LIBRARIES = ("numpy", "scipy", "numba", "llvmlite", "mujoco")
 #: libraries recorded with each run (history), besides the key libraries
 RECORDED_LIBRARIES = ("pandas", "matplotlib", "pyyaml", "jinja2", "threadpoolctl", "dm-control", "tqdm")
@@ -132,7 +132,7 @@ def _save_memo(keep: int = 4000) -> None:
     _MEMO_STATE["dirty"] = False
     items = list(_MEMO.items())[-keep:]
     try:
-        from jointbench.files import atomic_write
+        from jointbench.core.files import atomic_write
 
         text = json.dumps(dict(items), separators=(",", ":"))
         atomic_write(_memo_file(), lambda t: Path(t).write_text(text))
@@ -307,7 +307,7 @@ def repo_path(path: Path) -> str:
 # --- outside estimators (plugins): their source enters the key of the cases that use them ---------------
 def plugin_hash(estimator_names) -> dict[str, str]:
     """``{estimator: "<distribution>==<version> <source hash>"}`` for the estimators of ``estimator_names``
-    whose code lives outside jointbench (plugins, :mod:`jointbench.plugins`): the hash of every source file
+    whose code lives outside jointbench (plugins, :mod:`jointbench.core.plugins`): the hash of every source file
     of the plugin's top-level package, so an edited plugin recomputes its cases. Built-in estimators are
     covered by :func:`code_hash` and give nothing here."""
     from jointbench import estimators
@@ -322,7 +322,7 @@ def plugin_hash(estimator_names) -> dict[str, str]:
 
 @functools.lru_cache(maxsize=None)
 def _plugin_text(module: str) -> str:
-    from jointbench import plugins
+    from jointbench.core import plugins
 
     dist, version = plugins.distribution_of(module)
     return f"{dist or module.split('.')[0]}=={version or '-'} {plugins.source_hash(module)}"
@@ -330,7 +330,8 @@ def _plugin_text(module: str) -> str:
 
 def plugin_requirements(estimator_names) -> dict[str, str]:
     """What a worker must import to run these estimators: ``{top-level module: folder}`` of the plugins."""
-    from jointbench import estimators, plugins
+    from jointbench import estimators
+    from jointbench.core import plugins
 
     mods = {estimators.REGISTRY.get(n).__module__ for n in estimator_names}
     return dict(plugins.requirement(m) for m in sorted(mods) if m.split(".")[0] != "jointbench")
@@ -361,7 +362,7 @@ def environment() -> dict:
                 "release": platform.release(), "host": socket.gethostname(), "cpus": os.cpu_count(),
                 "executable": sys.executable})
     env["packages"] = {lib: v for lib in KEY_LIBRARIES + RECORDED_LIBRARIES if (v := _version(lib))}
-    from jointbench import plugins
+    from jointbench.core import plugins
 
     loaded = plugins.loaded()
     if loaded:          # outside estimators in this run's process (their hashes are in the case keys)

@@ -31,8 +31,8 @@ import pandas as pd
 
 from jointbench.benchmarks.harness import fingerprint
 from jointbench.benchmarks.harness.case import CaseResult
-from jointbench.errors import ConfigError, OutputError
-from jointbench.files import pid_alive
+from jointbench.core.errors import ConfigError, OutputError
+from jointbench.core.files import pid_alive
 
 SCHEMA_VERSION = 2             # 2: checks.evidence (a version-1 history gains the column, NULL for old runs)
 SCHEMA = """
@@ -140,7 +140,7 @@ class History:
     process waits a second quietly, then says so and waits up to :data:`LOCK_WAIT_S` (:meth:`_tx`)."""
 
     def __init__(self, path: Path, create: bool = True):
-        from jointbench.files import file_problem
+        from jointbench.core.files import file_problem
 
         self.path = Path(path)
         self.reader = not create

@@ -24,7 +24,7 @@ from pathlib import Path
 from jointbench.benchmarks.config import CONFIGS, _check_keys, _load_yaml
 from jointbench.benchmarks.harness import fingerprint
 from jointbench.benchmarks.harness.compare import Rules, RunDiff, Threshold
-from jointbench.errors import ConfigError
+from jointbench.core.errors import ConfigError
 
 DEFAULT_CONFIG = CONFIGS / "nightly.yaml"
 _KEYS = {"studies": True, "exclude": False, "use_cache": False, "thresholds": True, "timing": False,

@@ -17,7 +17,7 @@ from jointbench.benchmarks.harness.compare import by_evidence
 from jointbench.benchmarks.harness.pages import (Figure, Items, Page, Paragraph, Section, Table, figure_png, table,
                                                  to_html, to_markdown)
 from jointbench.benchmarks.tables import headline
-from jointbench.files import write_text
+from jointbench.core.files import write_text
 
 VERDICT_TEXT = {
     "regression": "REGRESSION",

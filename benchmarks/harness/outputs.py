@@ -19,7 +19,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from jointbench.errors import ConfigError, OutputError
+from jointbench.core.errors import ConfigError, OutputError
 
 STUDY_ID = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,99}")
 #: names in the results folder that belong to the harness (the case cache, the nightly pages, the run

@@ -29,7 +29,7 @@ import threading
 import time
 
 from jointbench.benchmarks.harness.case import one_blas_thread, run_group
-from jointbench.errors import ConfigError, JointBenchError
+from jointbench.core.errors import ConfigError, JointBenchError
 
 #: the executors :func:`make_executor` builds (``jointbench run --executor``)
 EXECUTORS = ("process", "serial", "dask")
@@ -142,7 +142,7 @@ def identity_problem(run: dict, worker: dict, who: str) -> str | None:
 def _import_plugins(plugins: dict, who: str) -> None:
     """Import the outside modules the cases' estimators come from (a Dask worker has not imported them) and
     refuse when their source differs from the parent's (``{module: [folder, {estimator: hash}]}``)."""
-    from jointbench import plugins as _plugins
+    from jointbench.core import plugins as _plugins
     from jointbench.benchmarks.harness.fingerprint import plugin_hash
 
     _plugins.ensure({m: folder for m, (folder, _) in plugins.items()})

@@ -59,7 +59,7 @@ def _compile_aside() -> int | None:
     """A forked child that compiles the estimators' loops (the ensemble solver's,
     :func:`jointbench.estimators._small_eigh.warm`, and FSEWLS's, :func:`jointbench.estimators._ewls_loops.warm`)
     into numba's disk cache and exits, silently (its pid; None when no process can be forked). A study
-    that first imports those loops waits for it (:func:`jointbench.compiled.wait_aside`: the pipe it holds
+    that first imports those loops waits for it (:func:`jointbench.core.compiled.wait_aside`: the pipe it holds
     closes when it exits) and loads them from the cache, so they are compiled once; when numba has no
     writable cache folder it exits at once (its work could not be shared). :func:`run_forked` reaps it
     with the studies (a pid that is not a study's)."""
@@ -82,7 +82,7 @@ def _compile_aside() -> int | None:
             quiet = os.open(os.devnull, os.O_WRONLY)    # warnings are the studies' to print
             os.dup2(quiet, 1)
             os.dup2(quiet, 2)
-            from jointbench import compiled
+            from jointbench.core import compiled
             from jointbench.estimators import _ewls_loops, _small_eigh
 
             if not compiled.uncached():
@@ -94,7 +94,7 @@ def _compile_aside() -> int | None:
         finally:
             os._exit(code)
     os.close(done_w)
-    from jointbench import compiled
+    from jointbench.core import compiled
 
     compiled.compiling_aside(done_r)              # the studies forked from here wait for it (wait_aside)
     return pid

@@ -12,7 +12,7 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 
-from jointbench.registry import Registry, import_submodules, scan_registrations
+from jointbench.core.registry import Registry, import_submodules, scan_registrations
 
 
 @dataclasses.dataclass(frozen=True)

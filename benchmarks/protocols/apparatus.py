@@ -28,8 +28,8 @@ from jointbench import sims
 from jointbench.benchmarks.protocols import Context, register
 from jointbench.benchmarks.protocols.xu1998 import scored_window
 from jointbench.estimators.ibk_spectral import weighted_ibk_fit
-from jointbench.ensemble import valid_mask
-from jointbench.schema import param
+from jointbench.core.ensemble import valid_mask
+from jointbench.core.schema import param
 from jointbench.sims.voluntary import Voluntary
 
 INPUTS = ("measured", "command")

@@ -35,7 +35,7 @@ is the VAF of the torque predicted from the angle. The simulated stiffness is th
 true frozen impedance at every sample:
 ``K(t)`` for a joint on its own, ``k(t)`` in series with the hand contact for the wrist (about
 ``k - k^2/k_c``), the gain every estimator's ``stiffness(t)`` estimates. The scored samples lie
-``discard`` seconds from both ends, where the estimate is valid (:func:`jointbench.ensemble.valid_mask`),
+``discard`` seconds from both ends, where the estimate is valid (:func:`jointbench.core.ensemble.valid_mask`),
 in every realization.
 
 References
@@ -57,9 +57,9 @@ from jointbench.benchmarks import metrics
 from jointbench.benchmarks.identifiability import FIGURES, trial_identifiability, without_torque_noise
 from jointbench.benchmarks.protocols import Context, register
 from jointbench.benchmarks.scoring import fit_timed, frozen_stiffness, scored_samples
-from jointbench.ensemble import Ensemble, valid_mask
-from jointbench.errors import InputError
-from jointbench.schema import param
+from jointbench.core.ensemble import Ensemble, valid_mask
+from jointbench.core.errors import InputError
+from jointbench.core.schema import param
 
 
 TUNE_OFFSET = 100_000

@@ -8,8 +8,8 @@ import numpy as np
 from jointbench import sims
 from jointbench.benchmarks.metrics import relative_error, vaf
 from jointbench.benchmarks.protocols import Context, register
-from jointbench.estimate import FRFEstimate, IRFEstimate, ParametricEstimate
-from jointbench.schema import param
+from jointbench.core.estimate import FRFEstimate, IRFEstimate, ParametricEstimate
+from jointbench.core.schema import param
 
 
 @dataclasses.dataclass(frozen=True)

@@ -38,10 +38,10 @@ from jointbench.benchmarks import metrics
 from jointbench.benchmarks.protocols import Context, register
 from jointbench.benchmarks.protocols.compare import impedance
 from jointbench.benchmarks.scoring import fit_timed, scored_samples
-from jointbench.ensemble import valid_mask
-from jointbench.errors import InputError
+from jointbench.core.ensemble import valid_mask
+from jointbench.core.errors import InputError
 from jointbench.estimators.pv_irf import slow_part
-from jointbench.schema import param
+from jointbench.core.schema import param
 from jointbench.sims.profile import parse_profile
 
 

@@ -41,9 +41,9 @@ from jointbench.benchmarks import metrics
 from jointbench.benchmarks.protocols import Context, register
 from jointbench.benchmarks.protocols.compare import impedance
 from jointbench.benchmarks.scoring import fit_timed, frozen_stiffness, scored_samples
-from jointbench.ensemble import Ensemble, valid_mask
-from jointbench.errors import InputError
-from jointbench.schema import param
+from jointbench.core.ensemble import Ensemble, valid_mask
+from jointbench.core.errors import InputError
+from jointbench.core.schema import param
 from jointbench.sims.profile import parse_profile
 
 

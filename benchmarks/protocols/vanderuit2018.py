@@ -25,8 +25,8 @@ from jointbench.benchmarks.metrics import rmse, vaf
 from jointbench.benchmarks.protocols import Context, register
 from jointbench.benchmarks.scoring import basis_bound, frozen_stiffness
 from jointbench.estimators.skirt import basis as skirt_basis
-from jointbench.errors import ConfigError
-from jointbench.schema import param
+from jointbench.core.errors import ConfigError
+from jointbench.core.schema import param
 from jointbench.sims.profile import parse_profile
 
 #: metric names of Table I (eqs. 17-18)

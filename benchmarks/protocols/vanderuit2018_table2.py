@@ -31,12 +31,12 @@ import numpy as np
 from jointbench.benchmarks.metrics import vaf
 from jointbench.benchmarks.protocols import Context, register
 from jointbench.benchmarks.scoring import frozen_stiffness
-from jointbench.ensemble import Ensemble, valid_mask
-from jointbench.errors import InputError
-from jointbench.estimate_tv import TVIRFEstimate
-from jointbench.schema import param, parse
-from jointbench.signal import decimate_fft
-from jointbench.types import Trial
+from jointbench.core.ensemble import Ensemble, valid_mask
+from jointbench.core.errors import InputError
+from jointbench.core.estimate_tv import TVIRFEstimate
+from jointbench.core.schema import param, parse
+from jointbench.core.signal import decimate_fft
+from jointbench.core.types import Trial
 from jointbench.sims.subjects import SubjectDesign, draw_subjects, draw_trials, simulate_trial
 
 MODES = ("single", "ensemble")

@@ -16,9 +16,9 @@ from scipy import signal as sps
 from jointbench import sims
 from jointbench.benchmarks.metrics import vaf
 from jointbench.benchmarks.protocols import Context, register
-from jointbench import differentiators as d
-from jointbench.schema import param
-from jointbench.signal import bandlimit_fb, resample_trial
+from jointbench.core import differentiators as d
+from jointbench.core.schema import param
+from jointbench.core.signal import bandlimit_fb, resample_trial
 
 
 @dataclasses.dataclass(frozen=True)
@@ -32,7 +32,7 @@ class Joint:
 
 
 def _joint(mapping) -> Joint:
-    from jointbench.schema import parse
+    from jointbench.core.schema import parse
 
     return parse(Joint, mapping, "params.joint")
 

@@ -28,8 +28,8 @@ import numpy as np
 from jointbench import sims
 from jointbench.benchmarks.metrics import rmse, vaf, vafm, vafv
 from jointbench.benchmarks.protocols import Context, register
-from jointbench.ensemble import valid_mask
-from jointbench.schema import param, parse
+from jointbench.core.ensemble import valid_mask
+from jointbench.core.schema import param, parse
 from jointbench.sims.apparatus import TorqueDrive
 from jointbench.sims.profile import Sine, Square
 
@@ -318,7 +318,7 @@ def _scores(fit, truth, keep: np.ndarray, dt: float) -> dict[str, float]:
 
 def scored_window(n: int, fs: float, discard: float, valid: np.ndarray | None = None) -> np.ndarray:
     """Mask of the samples at least ``discard`` s from both ends where the estimate is ``valid``
-    (:func:`jointbench.ensemble.valid_mask`: past the estimator's own transients)."""
+    (:func:`jointbench.core.ensemble.valid_mask`: past the estimator's own transients)."""
     m = int(round(discard * fs))
     keep = np.zeros(n, bool)
     keep[m:n - m] = True

@@ -22,8 +22,8 @@ from numpy.lib.stride_tricks import sliding_window_view
 
 from jointbench import estimators
 from jointbench.estimators.guarin import time_basis
-from jointbench.ensemble import Ensemble
-from jointbench.estimate_tv import TVIRFEstimate
+from jointbench.core.ensemble import Ensemble
+from jointbench.core.estimate_tv import TVIRFEstimate
 
 FS = 100.0
 LAGS = np.arange(-4, 5)

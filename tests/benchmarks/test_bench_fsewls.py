@@ -20,7 +20,7 @@ from jointbench import estimators
 import jointbench.estimators.fsewls as fsewls_module
 from jointbench.estimators.fsewls import (FSEWLS, _IU, _ewls_riccati_rk4, _forcing, _unpack, ewls, highpass,
                                rk4_coefficients, svf)
-from jointbench.types import Trial
+from jointbench.core.types import Trial
 
 FS, DURATION, BASELINE = 1000.0, 45.0, 3.0
 I0, K0 = 0.06, 40.0

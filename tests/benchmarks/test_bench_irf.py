@@ -7,8 +7,8 @@ import pytest
 from numpy.lib.stride_tricks import sliding_window_view
 
 from jointbench import estimators
-from jointbench.estimate import IRFEstimate
-from jointbench.types import Trial
+from jointbench.core.estimate import IRFEstimate
+from jointbench.core.types import Trial
 
 FS, DURATION, M = 500.0, 30.0, 50
 SETTINGS = {"lag_before": M / FS, "lag_after": M / FS, "remove_mean": False, "pseudo_inverse": "off"}  # plain LS

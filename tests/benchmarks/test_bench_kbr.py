@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from jointbench import estimators
-from jointbench.types import Trial
+from jointbench.core.types import Trial
 from tests.test_kbr import FS, dense_solve, filtered_noise, ltv_record, multisine, sine_k, wrist_frf
 
 ONE_SOLVE = {"relax_iterations": 1, "refine": False}

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from jointbench import estimators
-from jointbench.types import Trial
+from jointbench.core.types import Trial
 
 FS, T, NP, D = 44.0, 40.0, 7, 16
 N = int(FS * T)

@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 
 REPO = Path(__file__).resolve().parents[2]
-LIST = "from jointbench.benchmarks.cli import main; main(['estimate', '--list'])"
+LIST = "from jointbench.cli import main; main(['estimate', '--list'])"
 
 
 def python(code: str) -> None:
@@ -29,7 +29,7 @@ def test_bench_estimate_list(benchmark):
 @pytest.mark.benchmark(group="estimate-list-startup")
 def test_bench_jointbench_list(benchmark):
     """``jointbench list``: studies, estimators and protocols, none of them imported."""
-    benchmark(python, "from jointbench.benchmarks.cli import main; main(['list'])")
+    benchmark(python, "from jointbench.cli import main; main(['list'])")
 
 
 @pytest.mark.benchmark(group="estimate-list-startup")

@@ -79,7 +79,7 @@ def case(kind: str, name: str, **kw) -> Case:
 
 
 class Workspace:
-    """A fresh folder for one case and the jointbench command under test (``python -m jointbench.benchmarks``)."""
+    """A fresh folder for one case and the jointbench command under test (``python -m jointbench``)."""
 
     def __init__(self, root: Path, python: str):
         self.dir = Path(root)
@@ -98,7 +98,7 @@ class Workspace:
         return env
 
     def command(self, args, prefix=None) -> list[str]:
-        return [*(prefix or []), self.python, "-m", "jointbench.benchmarks", *map(str, args)]
+        return [*(prefix or []), self.python, "-m", "jointbench", *map(str, args)]
 
     def jb(self, *args, timeout: float = 300, prefix=None, env: dict | None = None, check: bool = False) -> Outcome:
         """Run jointbench to completion (setup steps and simple cases)."""

@@ -14,10 +14,10 @@ import dataclasses
 import numpy as np
 import scipy.signal as sps
 
-from jointbench.errors import InputError
-from jointbench.estimate import ParametricEstimate, Prediction
+from jointbench.core.errors import InputError
+from jointbench.core.estimate import ParametricEstimate, Prediction
 from jointbench.estimators import Estimator, register
-from jointbench.schema import param
+from jointbench.core.schema import param
 
 __version__ = "0.1.0"
 

@@ -18,7 +18,7 @@ import tempfile
 from pathlib import Path
 from typing import Callable
 
-from jointbench.errors import OutputError
+from jointbench.core.errors import OutputError
 
 TMP_SUFFIX = ".tmp"
 

@@ -27,7 +27,7 @@ import numpy as np
 if TYPE_CHECKING:  # pragma: no cover
     import pandas as pd
 
-from jointbench.errors import InputError
+from jointbench.core.errors import InputError
 
 _EMPTY: Mapping = types.MappingProxyType({})
 

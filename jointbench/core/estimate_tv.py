@@ -1,6 +1,6 @@
 """The time-varying two-sided impulse response: :class:`TVIRFEstimate` (lags x time, valid samples).
 
-Returned by the ensemble estimators (``ensemble_irf``, ``sds``, ``guarin``); see :mod:`jointbench.estimate`
+Returned by the ensemble estimators (``ensemble_irf``, ``sds``, ``guarin``); see :mod:`jointbench.core.estimate`
 for the common interface.
 """
 from __future__ import annotations
@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from jointbench.estimate import Estimate, Prediction
+from jointbench.core.estimate import Estimate, Prediction
 
 if TYPE_CHECKING:  # pragma: no cover
     import pandas as pd
@@ -41,7 +41,7 @@ class TVIRFEstimate(Estimate):
     valid : ndarray of bool, shape (N,)
         Samples where the IRF was estimated from data; elsewhere (record ends that the lags or a
         window do not reach) it is held from the nearest valid sample. See
-        :func:`jointbench.ensemble.valid_mask`.
+        :func:`jointbench.core.ensemble.valid_mask`.
     estimator : str
         Name of the estimator.
     info : dict

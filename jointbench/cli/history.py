@@ -4,7 +4,8 @@ from __future__ import annotations
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from jointbench.errors import ConfigError
+from jointbench.cli.common import positive_int
+from jointbench.core.errors import ConfigError
 
 if TYPE_CHECKING:  # pragma: no cover - pandas is imported where a table is made (`jointbench estimate
     import pandas as pd  # --list` builds this parser and must start fast)
@@ -138,7 +139,7 @@ def _cache(args) -> int:
     return 0
 
 
-def add_parsers(sub, positive_int) -> None:
+def add_parsers(sub) -> None:
     out = dict(metavar="DIR", help="results folder (default: ./results)")
     p = sub.add_parser("history", help="list recorded runs, or show one (results/history.sqlite)")
     p.add_argument("run", nargs="?", type=int, help="a run id: show it in full")

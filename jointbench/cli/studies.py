@@ -1,64 +1,12 @@
-"""Command line: ``jointbench run STUDY [STUDY ...]``, ``status``, ``history``, ``diff``, ``nightly``, ``cache``,
-``estimate``, ``list``.
-
-Errors caused by the user (config, data, options, an unwritable results folder) print one line and exit
-with status 2. Ctrl-C (and SIGTERM) stop a run within about a second, keeping every finished case: exit
-status 130 (143 for SIGTERM); run again to resume. A run in which a case failed exits 1 (unless its study
-says ``expected_failures: true``); a lost Dask scheduler stops the run with one line and exit status 75,
-keeping every finished case (run again to resume).
-"""
+"""``jointbench run STUDY [STUDY ...]``, ``status``, ``nightly`` and ``list``: the studies of the harness."""
 from __future__ import annotations
 
-import argparse
-import os
 import shlex
-import signal
 import sys
 from pathlib import Path
 
-from jointbench.errors import JointBenchError
-
-#: one BLAS thread per process for the command (cases already run in parallel, and results do not depend
-#: on the thread count); set by :func:`main` on the real command line only, before numpy is imported:
-#: importing this module (or jointbench.api) changes nothing for the caller
-BLAS_THREAD_VARIABLES = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
-
-
-class Terminated(KeyboardInterrupt):
-    """SIGTERM, turned into an exception so that every cleanup runs (temporaries, workers, history)."""
-
-    reason = "terminated (SIGTERM)"
-
-
-def _on_sigterm(signum, frame):
-    raise Terminated()
-
-
-class OneLineParser(argparse.ArgumentParser):
-    """Usage errors are one line (and exit status 2), like every other user error."""
-
-    def error(self, message: str):
-        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
-
-
-def positive_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {value}")
-    return value
-
-
-def budget_minutes(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected minutes > 0, got {text!r}") from None
-    if not value > 0:              # NaN as well: it would compare false with every estimate
-        raise argparse.ArgumentTypeError(f"expected minutes > 0, got {text!r}")
-    return value
+from jointbench.cli.common import budget_minutes, guarded, positive_int
+from jointbench.core.errors import JointBenchError
 
 
 def _command() -> str:
@@ -72,8 +20,8 @@ def _root(args) -> Path:
 
 
 def _plugins(args) -> None:
-    """Import the ``--plugin`` modules (outside estimators, :mod:`jointbench.plugins`)."""
-    from jointbench import plugins
+    """Import the ``--plugin`` modules (outside estimators, :mod:`jointbench.core.plugins`)."""
+    from jointbench.core import plugins
 
     for ref in getattr(args, "plugin", None) or ():
         plugins.load(ref, "--plugin")
@@ -113,7 +61,7 @@ def _run(args) -> int:
 
         side_by_side.preload()
         code = max(side_by_side.run_forked(studies, args.jobs,
-                                           lambda study: _guarded(lambda: _run_one(args, study, backend))))
+                                           lambda study: guarded(lambda: _run_one(args, study, backend))))
     if args.write_readme and code == 0:       # what `jointbench status --write-readme` does, without its start-up
         from jointbench.benchmarks import status
 
@@ -206,11 +154,8 @@ def _nightly(args) -> int:
     return 1 if res.verdict == "regression" else 0
 
 
-def build_parser() -> argparse.ArgumentParser:
-    from jointbench.benchmarks import cli_history
-
-    parser = OneLineParser(prog="jointbench", description=__doc__.splitlines()[0])
-    sub = parser.add_subparsers(dest="command", required=True, parser_class=OneLineParser)
+def add_parsers(sub) -> None:
+    """Add ``run``, ``status``, ``nightly`` and ``list`` to an :mod:`argparse` subparsers object."""
     p = sub.add_parser("run", help="run a study: results/<study>/{comparison.csv,cases.csv,report.md}")
     p.add_argument("study", nargs="+", help="a shipped study's id (jointbench list) or the path of a study file; "
                                             "several: one after another, or side by side with --jobs")
@@ -260,67 +205,6 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.add_argument("--out", metavar="DIR", help="results folder (default: ./results)")
     p.set_defaults(func=_nightly)
-    cli_history.add_parsers(sub, positive_int)
     p = sub.add_parser("list", help="list studies, estimators and protocols")
     p.add_argument("--plugin", action="append", metavar="MODULE", help="import an outside estimator first")
     p.set_defaults(func=_list)
-    from jointbench.benchmarks.recordings.cli import add_parser as add_estimate_parser
-
-    add_estimate_parser(sub)
-    return parser
-
-
-def main(argv: list[str] | None = None) -> int:
-    if argv is None:                       # the real command line: its own process, numpy not loaded yet
-        for v in BLAS_THREAD_VARIABLES:
-            os.environ.setdefault(v, "1")
-    parser = build_parser()
-    args = parser.parse_args(argv)
-    previous = None
-    if argv is None:                       # the real command line (not a call from a test)
-        previous = signal.signal(signal.SIGTERM, _on_sigterm)
-    try:
-        return _guarded(lambda: args.func(args), real=argv is None)
-    finally:
-        if previous is not None:
-            signal.signal(signal.SIGTERM, previous)
-
-
-def _guarded(call, real: bool = False) -> int:
-    """``call()``'s exit status, with the command's errors and interruptions turned into one line on stderr
-    and their statuses (module docstring). ``real``: this process is the command line's own, which then
-    leaves at once after an interruption (no interpreter teardown)."""
-    try:
-        return int(call() or 0)
-    except JointBenchError as exc:
-        print(f"jointbench: error: {exc}", file=sys.stderr)
-        return 2
-    except BrokenPipeError:   # output piped into e.g. `head`
-        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
-        return 1
-    except KeyboardInterrupt as exc:
-        if getattr(exc, "exit_code", None):        # lost infrastructure (a Dask scheduler): not Ctrl-C
-            run = f" (history run {exc.run_id})" if getattr(exc, "run_id", None) else ""
-            print(f"jointbench: error: {exc.reason}{run}", file=sys.stderr)
-            if real:
-                sys.stdout.flush()
-                sys.stderr.flush()
-                os._exit(exc.exit_code)
-            return exc.exit_code
-        sigterm = isinstance(exc, Terminated) or isinstance(exc.__context__, Terminated) or \
-            "SIGTERM" in str(getattr(exc, "reason", ""))
-        what = "terminated" if sigterm else "interrupted"
-        finished, total = getattr(exc, "finished", None), getattr(exc, "total", None)
-        kept = (f": {len(finished)} of {total} cases finished and kept" if finished is not None else "")
-        run = f" (history run {exc.run_id})" if getattr(exc, "run_id", None) else ""
-        print(f"jointbench: {what}{kept}{run}; run again to resume", file=sys.stderr)
-        code = 143 if sigterm else 130
-        if real:                # the real command line: everything is stored and the workers are gone;
-            sys.stdout.flush()  # skip the interpreter's teardown of numpy, scipy, pandas, matplotlib
-            sys.stderr.flush()  # (0.5-1 s on a busy machine) so that Ctrl-C returns at once
-            os._exit(code)
-        return code
-
-
-if __name__ == "__main__":
-    sys.exit(main())

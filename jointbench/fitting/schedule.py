@@ -2,7 +2,7 @@
 
 ``--schedule angle_slow`` (or ``angle``) derives the scheduling variable from the angle; any other name is a
 column of a CSV input or an array of an NPZ/.mat input, read beside the angle and torque and carried through
-the decimation and cropping as a channel of the record (:attr:`jointbench.types.Trial.channels`). The
+the decimation and cropping as a channel of the record (:attr:`jointbench.core.types.Trial.channels`). The
 estimator must take a ``schedule`` setting (``pv_irf``). After the fit, K at the ``--at`` values (default:
 five over the range the schedule visited) is printed with its band.
 """
@@ -12,7 +12,7 @@ from typing import Sequence
 
 import numpy as np
 
-from jointbench.errors import ConfigError, InputError
+from jointbench.core.errors import ConfigError, InputError
 
 #: scheduling variables derived from the angle (anything else is read from the input)
 DERIVED = ("angle_slow", "angle")
@@ -57,7 +57,7 @@ def _flag(names=None) -> str:
 
 
 def _variables(path):
-    from jointbench.benchmarks.recordings import io
+    from jointbench.fitting import read
 
     suffix = path.suffix.lower()
     if suffix == ".csv":          # every column (the record reader keeps time, angle and torque only)
@@ -73,14 +73,14 @@ def _variables(path):
             out[str(c).strip()] = values
         return out
     if suffix == ".npz":
-        return io._read_npz(path)
-    return io._read_mat(path)
+        return read._read_npz(path)
+    return read._read_mat(path)
 
 
 def attach(records, sources, name: str, names=None):
     """The records with the scheduling channel ``name`` read from each source (derived names: unchanged);
     errors name the argument as ``names`` does (default: the CLI's ``--schedule``)."""
-    from jointbench.ensemble import Ensemble
+    from jointbench.core.ensemble import Ensemble
 
     if name in DERIVED:
         return records

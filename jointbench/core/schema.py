@@ -1,7 +1,7 @@
 """Strict parsing of mappings (YAML, ``--set key=value``) into typed, validated dataclasses.
 
 An unknown key, a value of the wrong type or unit, or an impossible value raises
-:class:`~jointbench.errors.ConfigError` naming where it came from, the key and what is allowed.
+:class:`~jointbench.core.errors.ConfigError` naming where it came from, the key and what is allowed.
 
 Numeric fields may declare a unit with :func:`param`. Such a field accepts a bare number (read in the
 declared unit) or a string ``"<number> <unit>"`` in any unit of the same dimension, e.g. ``"5 kHz"``
@@ -19,7 +19,7 @@ import types
 import typing
 from typing import Any, Literal, Mapping
 
-from jointbench.errors import ConfigError
+from jointbench.core.errors import ConfigError
 
 # normalised unit spelling -> (dimension, factor to the dimension's SI unit)
 _UNITS: dict[str, tuple[str, float]] = {

@@ -12,8 +12,8 @@ from pathlib import Path
 
 import numpy as np
 
-from jointbench.errors import InputError
-from jointbench.files import decode_text, file_problem
+from jointbench.core.errors import InputError
+from jointbench.core.files import decode_text, file_problem
 
 #: most samples per channel a record may have: 5 million is 33 minutes at 2.5 kHz, far beyond the records
 #: the estimators are built for (the papers' longest is 60 s); longer recordings are fitted in windows

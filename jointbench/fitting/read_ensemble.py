@@ -2,9 +2,9 @@
 
 Two layouts (see ``docs/estimate.md``, *Ensembles*): one NPZ/.mat file whose ``angle`` and ``torque``
 are 2-D, samples × realizations, with a scalar ``fs`` or a 1-D ``time``; or several records of equal
-length and rate (read by :func:`benchmarks.recordings.io.read_trials`) taken as realizations. Every
-problem raises :class:`~jointbench.errors.InputError` with a message naming the file. Kept beside
-:mod:`benchmarks.recordings.io` (whose readers and checks it reuses) so that the single-record reader
+length and rate (read by :func:`jointbench.fitting.read.read_trials`) taken as realizations. Every
+problem raises :class:`~jointbench.core.errors.InputError` with a message naming the file. Kept beside
+:mod:`jointbench.fitting.read` (whose readers and checks it reuses) so that the single-record reader
 stays small.
 """
 from __future__ import annotations
@@ -14,10 +14,10 @@ from typing import Sequence
 
 import numpy as np
 
-from jointbench.benchmarks.recordings.io import (Source, _file_fs, _numeric, _read_mat, _read_npz, _shape, _time_base,
+from jointbench.fitting.read import (Source, _file_fs, _numeric, _read_mat, _read_npz, _shape, _time_base,
                                       _what_is_there, read_trials)
-from jointbench.ensemble import Ensemble
-from jointbench.errors import InputError
+from jointbench.core.ensemble import Ensemble
+from jointbench.core.errors import InputError
 
 def is_ensemble_file(source: Source | str | Path) -> bool:
     """True for an NPZ/.mat file (column layout) whose ``angle`` and ``torque`` are 2-D (samples × realizations)."""
@@ -40,7 +40,7 @@ def read_ensemble(path: str | Path, *, fs: float | None = None, name: str | None
 
     Returns
     -------
-    jointbench.ensemble.Ensemble
+    jointbench.core.ensemble.Ensemble
         Realizations named ``FILE[r]`` (r from 0), ``imposed="angle"``.
 
     Raises
@@ -111,7 +111,7 @@ def read_records(sources: Sequence[Source | str | Path], *, fs: float | None = N
     """The ``--input`` records: a list of trials, or an ensemble.
 
     An ensemble file (:func:`is_ensemble_file`) must be the only input and gives an
-    :class:`~jointbench.ensemble.Ensemble`; with ``ensemble=True`` several records of equal length and
+    :class:`~jointbench.core.ensemble.Ensemble`; with ``ensemble=True`` several records of equal length and
     rate become the realizations of one (their order is the realizations' order).
     """
     srcs = [s if isinstance(s, Source) else Source(Path(s)) for s in sources]

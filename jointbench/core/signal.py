@@ -2,14 +2,14 @@
 from __future__ import annotations
 
 import numpy as np
-from jointbench.lazy import scipy_signal as sps   # imported on first use: 0.6 CPU-s with scipy.stats
+from jointbench.core.lazy import scipy_signal as sps   # imported on first use: 0.6 CPU-s with scipy.stats
 
 import dataclasses
 import functools
 from typing import Callable
 
-from jointbench.errors import InputError
-from jointbench.types import Trial, Truth
+from jointbench.core.errors import InputError
+from jointbench.core.types import Trial, Truth
 
 
 def _map_truth(truth: Truth | None, on_signal: Callable[[np.ndarray], np.ndarray],

@@ -6,13 +6,13 @@
                         [--set key=value ...] [--decimate Q] [--window START:END] [--array NAME]
                         [--fs HZ] [--torque-sign {1,-1}] [--plot FIG.png] [--list]
 
-Reads the records (:mod:`benchmarks.recordings.io`) and fits them with :func:`jointbench.api.fit` (the
-checked pipeline, :mod:`benchmarks.recordings.fitting`: torque sign, decimation, crop, checks, fit), the
+Reads the records (:mod:`jointbench.fitting.read`) and fits them with :func:`jointbench.api.fit` (the
+checked pipeline, :mod:`jointbench.fitting.pipeline`: torque sign, decimation, crop, checks, fit), the
 errors naming this command's flags; only then, when every step that can fail has passed, it
-writes ``OUT.csv`` (:meth:`~jointbench.estimate.Estimate.to_frame`), ``OUT_irf.csv`` or
+writes ``OUT.csv`` (:meth:`~jointbench.core.estimate.Estimate.to_frame`), ``OUT_irf.csv`` or
 ``OUT_frf.csv`` (the response, when the estimate has one), ``OUT_prediction.csv`` (what each VAF is
 computed on) and the figure, and prints a summary. User errors raise
-:class:`~jointbench.errors.JointBenchError`; the top-level CLI prints them on one line and exits with
+:class:`~jointbench.core.errors.JointBenchError`; the top-level CLI prints them on one line and exits with
 status 2. See ``docs/estimate.md``.
 
 Heavy modules (numpy's friends, the estimators, matplotlib) are imported inside the functions that need
@@ -26,16 +26,16 @@ import os
 from pathlib import Path
 from typing import TYPE_CHECKING, Sequence
 
-from jointbench.benchmarks.recordings import schedule
-from jointbench.benchmarks.recordings.checks import CLI, decimate_trial, parse_window  # noqa: F401 - public
-from jointbench.benchmarks.recordings.fitting import Fit as Outcome
-from jointbench.benchmarks.recordings.fitting import compute as _compute
-from jointbench.benchmarks.recordings.fitting import estimator_from, fit, prediction_of, prediction_vaf  # noqa: F401
-from jointbench.errors import ConfigError
-from jointbench.files import atomic_write_set
+from jointbench.fitting import schedule
+from jointbench.fitting.checks import CLI, decimate_trial, parse_window  # noqa: F401 - public
+from jointbench.fitting.pipeline import Fit as Outcome
+from jointbench.fitting.pipeline import compute as _compute
+from jointbench.fitting.pipeline import estimator_from, fit, prediction_of, prediction_vaf  # noqa: F401
+from jointbench.core.errors import ConfigError
+from jointbench.core.files import atomic_write_set
 
 if TYPE_CHECKING:  # pragma: no cover
-    from jointbench.benchmarks.recordings.io import Source
+    from jointbench.fitting.read import Source
 
 PLOT_SUFFIXES = (".png", ".pdf", ".svg")
 UNITS = {"I": "kg m^2", "B": "N m s/rad", "K": "N m/rad", "stiffness": "N m/rad"}
@@ -101,9 +101,9 @@ def add_parser(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Execute ``estimate``; returns 0 or raises :class:`~jointbench.errors.JointBenchError`."""
+    """Execute ``estimate``; returns 0 or raises :class:`~jointbench.core.errors.JointBenchError`."""
     if getattr(args, "plugin", None):
-        from jointbench import plugins
+        from jointbench.core import plugins
 
         for ref in args.plugin:
             plugins.load(ref, "--plugin")
@@ -125,18 +125,18 @@ def run(args: argparse.Namespace) -> int:
     estimator = (schedule.make_scheduled(args.estimator, args.settings, args.schedule, make_estimator)
                  if getattr(args, "schedule", None) else make_estimator(args.estimator, args.settings))
 
-    from jointbench.benchmarks.recordings import io
+    from jointbench.fitting import read
 
-    sources = [io.parse_source(s, args.array) for s in args.input]
+    sources = [read.parse_source(s, args.array) for s in args.input]
     out = Path(args.output)
     plot = Path(args.plot) if args.plot else None
     _check_outputs(out, plot, sources)
-    from jointbench.benchmarks.recordings import io_ensemble
-    from jointbench.ensemble import Ensemble
+    from jointbench.fitting import read_ensemble
+    from jointbench.core.ensemble import Ensemble
 
     ensemble = args.ensemble or (len(sources) > 1 and "ensemble" in estimator.accepts
                                  and not {"trial", "pooled"} & estimator.accepts)
-    records = io_ensemble.read_records(sources, fs=args.fs, ensemble=ensemble)
+    records = read_ensemble.read_records(sources, fs=args.fs, ensemble=ensemble)
     if getattr(args, "schedule", None):
         records = schedule.attach(records, sources, args.schedule)
     from jointbench import api
@@ -154,9 +154,9 @@ def run(args: argparse.Namespace) -> int:
 # --- the steps (public so that tests and other commands can use them) ------------------------------
 
 def make_estimator(name: str, assignments: Sequence[str]):
-    """The estimator with its ``--set`` settings (:func:`~benchmarks.recordings.fitting.estimator_from`:
+    """The estimator with its ``--set`` settings (:func:`~jointbench.fitting.pipeline.estimator_from`:
     ``auto=true`` sets each of its :attr:`AUTO` keys to 'auto')."""
-    from jointbench.schema import parse_assignments
+    from jointbench.core.schema import parse_assignments
 
     return estimator_from(name, parse_assignments(list(assignments), where="--set"), CLI)
 
@@ -164,7 +164,7 @@ def make_estimator(name: str, assignments: Sequence[str]):
 def compute(estimator, raw: list, *, torque_sign: int = 1, decimate: int = 1,
             window: tuple[float | None, float | None] | None = None, plot: Path | None = None,
             ensemble: str | None = None) -> Outcome:
-    """:func:`benchmarks.recordings.fitting.compute` with the errors naming this command's flags."""
+    """:func:`jointbench.fitting.pipeline.compute` with the errors naming this command's flags."""
     return _compute(estimator, raw, torque_sign=torque_sign, decimate=decimate, window=window, plot=plot,
                     ensemble=ensemble, names=CLI)
 
@@ -175,7 +175,7 @@ def response_kind(est) -> str | None:
     For a :class:`ParametricEstimate` the kind of its ``basis``; otherwise the estimate's type, and
     for other types the frame's columns (``lag`` or ``freq_hz``).
     """
-    from jointbench.estimate import FRFEstimate, IRFEstimate, ParametricEstimate
+    from jointbench.core.estimate import FRFEstimate, IRFEstimate, ParametricEstimate
 
     base = est.basis if isinstance(est, ParametricEstimate) else est
     if isinstance(base, IRFEstimate):
@@ -215,9 +215,9 @@ def prediction_frame(trials: list, predictions: list):
 
 
 def write_outputs(out: Path, plot: Path | None, o: Outcome) -> list[tuple[Path, int | None, list[str] | None]]:
-    """Write every output as one set (:func:`jointbench.files.atomic_write_set`); nothing is written before
+    """Write every output as one set (:func:`jointbench.core.files.atomic_write_set`); nothing is written before
     :func:`compute` has succeeded."""
-    from jointbench.csv_text import write_csv      # pandas' bytes, faster (imports pandas: not for --list)
+    from jointbench.core.csv_text import write_csv      # pandas' bytes, faster (imports pandas: not for --list)
 
     written = [(out, len(o.frame), list(o.frame.columns))]
     tables = [(out, o.frame)]
@@ -248,7 +248,7 @@ def list_text(name: str | None = None) -> str:
     if not names:
         lines.append("  (none registered)")
     if name:
-        from jointbench.schema import describe
+        from jointbench.core.schema import describe
 
         cls = estimators.REGISTRY.get(name)
         rows = describe(cls.Settings)

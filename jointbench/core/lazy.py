@@ -33,6 +33,6 @@ class LazyModule:
         return f"<lazy module {self._name!r}{'' if self._module is None else ' (imported)'}>"
 
 
-#: ``scipy.signal`` (``from jointbench.lazy import scipy_signal as sps``) and ``scipy.linalg``
+#: ``scipy.signal`` (``from jointbench.core.lazy import scipy_signal as sps``) and ``scipy.linalg``
 scipy_signal = LazyModule("scipy.signal")
 scipy_linalg = LazyModule("scipy.linalg")

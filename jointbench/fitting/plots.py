@@ -2,15 +2,15 @@
 
 :func:`plot_estimate` picks the layout from the estimate:
 
-* :class:`~jointbench.estimate.IRFEstimate`: the impulse response ``h`` against lag (s).
-* :class:`~jointbench.estimate.FRFEstimate`: gain, phase and squared coherence against frequency.
-* :class:`~jointbench.estimate.ParametricEstimate` with constant I, B, K: its basis (IRF or FRF, when
+* :class:`~jointbench.core.estimate.IRFEstimate`: the impulse response ``h`` against lag (s).
+* :class:`~jointbench.core.estimate.FRFEstimate`: gain, phase and squared coherence against frequency.
+* :class:`~jointbench.core.estimate.ParametricEstimate` with constant I, B, K: its basis (IRF or FRF, when
   kept; an IRF is drawn against lag and as a frequency response) overlaid with the I-B-K model's
   frequency response ``K + j w B - I w^2``; I, B, K in the title.
 * time-varying parameters: I(t), B(t), K(t).
 * anything else: the stiffness over time.
 
-Confidence intervals (:attr:`~jointbench.estimate.Estimate.intervals`) are drawn as shaded bands
+Confidence intervals (:attr:`~jointbench.core.estimate.Estimate.intervals`) are drawn as shaded bands
 (95 %): the IRF's pointwise band, the FRF's gain and phase band from the coherence, the pointwise
 bands of I(t), B(t), K(t) or of the stiffness; the I-B-K title gives the parameters' intervals.
 """
@@ -22,8 +22,8 @@ from typing import Sequence
 import numpy as np
 from matplotlib.figure import Figure
 
-from jointbench.estimate import Estimate, FRFEstimate, IRFEstimate, ParametricEstimate
-from jointbench.types import Trial
+from jointbench.core.estimate import Estimate, FRFEstimate, IRFEstimate, ParametricEstimate
+from jointbench.core.types import Trial
 
 _LABELS = {"I": "I (kg m²)", "B": "B (N m s/rad)", "K": "K (N m/rad)"}
 _BAND = {"alpha": 0.25, "lw": 0}

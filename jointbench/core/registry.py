@@ -10,7 +10,7 @@ import textwrap
 from pathlib import Path
 from typing import Callable, Generic, Iterable, TypeVar
 
-from jointbench.errors import ConfigError
+from jointbench.core.errors import ConfigError
 
 T = TypeVar("T")
 
@@ -24,7 +24,7 @@ class Registry(Generic[T]):
         What the registry holds ("estimator", "joint model", ...), used in error messages.
     entry_points : str, optional
         An entry-point group whose installed plugins are imported before a name is first looked up or
-        listed (:func:`jointbench.plugins.load_entry_points`).
+        listed (:func:`jointbench.core.plugins.load_entry_points`).
     """
 
     def __init__(self, kind: str, entry_points: str | None = None):
@@ -37,7 +37,7 @@ class Registry(Generic[T]):
 
     def _plugins(self) -> None:
         if self._entry_points is not None:
-            from jointbench.plugins import load_entry_points
+            from jointbench.core.plugins import load_entry_points
 
             load_entry_points(self._entry_points)
 

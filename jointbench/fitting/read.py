@@ -15,13 +15,13 @@ Two layouts are understood:
     in the file or from ``fs=``; time starts at 0.
 
 The angle is taken as the imposed signal (``Trial.imposed == "angle"``). Every problem raises
-:class:`~jointbench.errors.InputError` with a message naming the file.
+:class:`~jointbench.core.errors.InputError` with a message naming the file.
 
 MATLAB files of versions 4 to 7.2 are read with :func:`scipy.io.loadmat`, version 7.3 (HDF5) with
 ``h5py`` (an extra: ``pip install 'jointbench[hdf5]'``). An NPZ member is loaded only after its header's
 claimed size has been checked against the bytes stored and the memory available.
 Limits (a regular file, samples per channel) are checked before anything is loaded:
-:mod:`benchmarks.recordings.io_limits`.
+:mod:`jointbench.fitting.read_limits`.
 """
 from __future__ import annotations
 
@@ -33,9 +33,9 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from jointbench.benchmarks.recordings import io_limits as limits
-from jointbench.errors import InputError
-from jointbench.types import Trial
+from jointbench.fitting import read_limits as limits
+from jointbench.core.errors import InputError
+from jointbench.core.types import Trial
 
 #: File extensions understood by :func:`read_trial`.
 SUFFIXES = (".csv", ".npz", ".mat")

@@ -7,7 +7,7 @@ from typing import Literal, Mapping
 
 import numpy as np
 
-from jointbench.errors import InputError, JointBenchError
+from jointbench.core.errors import InputError, JointBenchError
 
 Imposed = Literal["angle", "torque"]
 

@@ -28,7 +28,7 @@ import importlib.metadata
 import sys
 from pathlib import Path
 
-from jointbench.errors import ConfigError
+from jointbench.core.errors import ConfigError
 
 #: the entry-point group of outside estimators
 ESTIMATORS_GROUP = "jointbench.estimators"

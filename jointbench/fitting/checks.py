@@ -2,7 +2,7 @@
 gated multisine, and the checks that turn hopeless inputs into one-line errors (magnitudes outside
 double precision's comfortable range, constant signals, a fit that would not fit in memory).
 
-Every function raises :class:`~jointbench.errors.InputError` or :class:`~jointbench.errors.ConfigError`
+Every function raises :class:`~jointbench.core.errors.InputError` or :class:`~jointbench.core.errors.ConfigError`
 with a message naming the record or the argument; nothing here writes files. The arguments are named as
 the caller knows them (:class:`Names`): the Python API's keywords (``window=``, ``decimate=``) by default,
 the command line's flags (``--window``, ``--decimate``) for ``jointbench estimate``. numpy and the
@@ -13,7 +13,7 @@ from __future__ import annotations
 import dataclasses
 import re
 
-from jointbench.errors import ConfigError, InputError
+from jointbench.core.errors import ConfigError, InputError
 
 #: data whose largest magnitude lies outside this range cannot be squared, multiplied and inverted safely
 #: in double precision (variances of 1e-160 underflow, of 1e300 overflow); such values mean wrong units
@@ -75,7 +75,7 @@ def parse_window(text: str, names: Names = CLI) -> tuple[float | None, float | N
 
 
 def _slice(trial, i0: int, i1: int):
-    from jointbench.types import Trial
+    from jointbench.core.types import Trial
 
     return Trial(time=trial.time[i0:i1], angle=trial.angle[i0:i1], torque=trial.torque[i0:i1], fs=trial.fs,
                  imposed=trial.imposed, name=trial.name,
@@ -127,7 +127,7 @@ def crop_gated(estimator, trials: list, names: Names = PYTHON) -> tuple[list, li
 
     if "multisine" not in estimators.REGISTRY.tags(estimator.name):
         return trials, []
-    from jointbench.signal import find_gate
+    from jointbench.core.signal import find_gate
 
     out, notes = [], []
     for t in trials:
@@ -152,7 +152,7 @@ def crop_gated(estimator, trials: list, names: Names = PYTHON) -> tuple[list, li
 def gate_hint(estimator, trials: list, names: Names = PYTHON) -> str:
     """``"; ... gated ..."`` when a record's perturbation is on for part of it only (for error messages)."""
     try:
-        from jointbench.signal import find_gate
+        from jointbench.core.signal import find_gate
 
         for t in trials:
             g = find_gate(t.input, t.fs)
@@ -207,7 +207,7 @@ def check_memory(estimator, trials: list, names: Names = PYTHON) -> None:
     if plan is None:
         return
     need = plan(trials)
-    from jointbench.benchmarks.recordings.io import available_memory
+    from jointbench.fitting.read import available_memory
 
     budget = MEMORY_FRACTION * available_memory()
     if need <= budget:
@@ -245,10 +245,10 @@ class _Shape:
 
 
 def decimate_trial(trial, q: int, names: Names = PYTHON):
-    """Decimate ``trial`` by the whole factor ``q`` with :func:`jointbench.signal.resample_trial`."""
+    """Decimate ``trial`` by the whole factor ``q`` with :func:`jointbench.core.signal.resample_trial`."""
     if q == 1:
         return trial
-    from jointbench.signal import resample_trial
+    from jointbench.core.signal import resample_trial
 
     try:
         return resample_trial(trial, trial.fs / q)

@@ -24,8 +24,8 @@ from typing import Iterator, Literal, Sequence
 
 import numpy as np
 
-from jointbench.errors import InputError
-from jointbench.types import HiddenTruth, Trial, Truth
+from jointbench.core.errors import InputError
+from jointbench.core.types import HiddenTruth, Trial, Truth
 
 DataKind = Literal["trial", "pooled", "ensemble"]
 #: the kinds of data an estimator may accept (``Estimator.accepts``)
@@ -46,7 +46,7 @@ class Ensemble:
     Raises
     ------
     InputError
-        No realization, an element that is not a :class:`~jointbench.types.Trial`, or realizations
+        No realization, an element that is not a :class:`~jointbench.core.types.Trial`, or realizations
         that differ in sampling rate, length or imposed signal (one line naming both realizations).
     """
 
@@ -75,7 +75,7 @@ class Ensemble:
         object.__setattr__(self, "realizations", reals)
 
     def blind(self, estimator: str = "?") -> "Ensemble":
-        """The ensemble as an estimator may see it: every realization :meth:`~jointbench.types.Trial.blind`."""
+        """The ensemble as an estimator may see it: every realization :meth:`~jointbench.core.types.Trial.blind`."""
         reals = tuple(t.blind(estimator) for t in self.realizations)
         if all(a is b for a, b in zip(reals, self.realizations)):
             return self

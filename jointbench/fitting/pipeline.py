@@ -6,7 +6,7 @@ Steps (:func:`compute`): check the data's magnitudes, negate the torque, decimat
 the perturbed part of a gated multisine for the multisine methods), check the records carry information,
 check the memory the estimator plans to use, fit (numerical failures turned into one-line errors), check
 the estimate is finite, compute each record's prediction and VAF (and, when asked, the figure). Errors
-name the arguments as the caller knows them (:class:`~benchmarks.recordings.checks.Names`).
+name the arguments as the caller knows them (:class:`~jointbench.fitting.checks.Names`).
 """
 from __future__ import annotations
 
@@ -15,13 +15,13 @@ import io as _io
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Mapping
 
-from jointbench.benchmarks.recordings.checks import (PYTHON, Names, check_information, check_magnitudes,
+from jointbench.fitting.checks import (PYTHON, Names, check_information, check_magnitudes,
                                                      check_memory, crop_gated, crop_window, decimate_trial,
                                                      gate_hint)
-from jointbench.errors import ConfigError, InputError
+from jointbench.core.errors import ConfigError, InputError
 
 if TYPE_CHECKING:  # pragma: no cover
-    from jointbench.estimate import Estimate
+    from jointbench.core.estimate import Estimate
 
 
 @dataclasses.dataclass
@@ -31,7 +31,7 @@ class Fit:
     Attributes
     ----------
     estimate : Estimate
-        The fitted model (:class:`jointbench.estimate.Estimate`: ``stiffness(t)``, ``to_frame()``, ...).
+        The fitted model (:class:`jointbench.core.estimate.Estimate`: ``stiffness(t)``, ``to_frame()``, ...).
     raw, trials : list of Trial
         The records as given, and as fitted (torque sign, decimation and crop applied).
     notes : list of str
@@ -73,7 +73,7 @@ class Fit:
 
     def plot(self, path: str | Path | None = None, fmt: str = "png") -> bytes:
         """Draw the estimate (with the fitted records) and return the image; written to ``path`` when given."""
-        from jointbench.benchmarks.recordings.plots import plot_estimate
+        from jointbench.fitting.plots import plot_estimate
 
         fmt = Path(path).suffix[1:].lower() if path else fmt
         buf = _io.BytesIO()
@@ -112,7 +112,7 @@ def compute(estimator, raw: list, *, torque_sign: int = 1, decimate: int = 1,
     """Every step that can fail, in order, without writing anything (the module docstring).
 
     With ``ensemble`` (its name), the records are the realizations of one time-varying condition and are
-    fitted as an :class:`~jointbench.ensemble.Ensemble` (after the same checks and cropping).
+    fitted as an :class:`~jointbench.core.ensemble.Ensemble` (after the same checks and cropping).
     """
     import numpy as np
 
@@ -133,7 +133,7 @@ def compute(estimator, raw: list, *, torque_sign: int = 1, decimate: int = 1,
     check_information(trials)
     check_memory(estimator, trials, names)
     if ensemble is not None:
-        from jointbench.ensemble import Ensemble
+        from jointbench.core.ensemble import Ensemble
 
         est = fit(estimator, Ensemble(tuple(trials), name=ensemble), names)
     else:

@@ -1,5 +1,0 @@
-import sys
-
-from jointbench.benchmarks.cli import main
-
-sys.exit(main())

@@ -1,0 +1,5 @@
+import sys
+
+from jointbench.cli import main
+
+sys.exit(main())
