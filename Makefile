@@ -146,7 +146,7 @@ vanderuit2018-table1: $(STAMP)
 vanderuit2018-table2: $(STAMP)
 	$(RUN) vanderuit2018_table2
 
-# The comparison matrix (configs/studies/matrix.yaml): every estimator on every scenario of the three papers.
+# The comparison matrix (benchmarks/studies/matrix/study.yaml): every estimator on every scenario of the three papers.
 matrix: $(STAMP)
 	$(RUN) matrix
 

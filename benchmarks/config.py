@@ -1,10 +1,10 @@
 """Study configs: YAML -> typed, validated objects.
 
-A study config (``configs/studies/<id>.yaml``) names its parts (one per figure or table of the
+A study config (``benchmarks/studies/<id>.yaml``) names its parts (one per figure or table of the
 paper), and for each part the protocol that computes it, its parameters, the simulated experiment
 (joint model, apparatus, perturbation, sensors, noise, sampling), the estimators with their settings,
 the seeds and any parameter sweep. Published values with tolerances and their source live in
-``configs/published/<id>.yaml`` (a comparison study may have none). Joint models may be given inline or
+``published.yaml`` beside ``study.yaml`` (a comparison study may have none). Joint models may be given inline or
 by the name of a file in ``configs/models/``. Every error names the file, the key and what is allowed.
 
 The shipped configs are package data (``jointbench.configs``, the checkout's ``configs/`` folder): a
@@ -22,7 +22,7 @@ from pathlib import Path
 from typing import Any, Mapping, Sequence
 
 from jointbench.benchmarks import overrides as _overrides
-from jointbench.benchmarks.locate import (CONFIGS, find_file, find_model, load_plugins, model_dirs, search_roots,
+from jointbench.benchmarks.locate import (find_file, find_model, load_plugins, model_dirs, search_roots,
                                           study_path)
 # the one YAML reader of configs: strict and within limits (benchmarks/config_yaml.py)
 from jointbench.benchmarks.config_yaml import MAX_YAML_DEPTH, StrictLoader, load_yaml as _load_yaml  # noqa: F401
@@ -131,7 +131,7 @@ class Part:
     report_section: str = "results"
     backend: str = "analytic"
     figure: str = ""               # its figure maker (benchmarks.figures); '' = the one named like the protocol
-    grid: Any = None               # a comparison grid (benchmarks.grid.Grid): cases come from its axes
+    grid: Any = None               # a comparison grid (benchmarks.compare.grid.Grid): cases come from its axes
 
     def grid_combinations(self) -> list[dict[str, Any]]:
         """Every combination of the sweep (one empty dict without a sweep)."""
@@ -158,7 +158,7 @@ _PART_KEYS = {"protocol": True, "description": True, "params": False, "experimen
               "estimators": False, "seeds": False, "sweep": False, "report_section": False, "backend": False,
               "figure": False, "grid": False, "scenarios": False, "variations": False, "perturbations": False,
               "budget": False, "tuning": False, "only": False}
-#: keys only a part with a comparison grid takes (benchmarks/grid.py)
+#: keys only a part with a comparison grid takes (benchmarks/compare/grid.py)
 GRID_KEYS = ("scenarios", "variations", "perturbations", "budget", "tuning", "only")
 REPORT_SECTIONS = ("results", "interpretation")
 _STUDY_KEYS = {"study": True, "title": True, "paper": True, "published": False, "readings": False,
@@ -283,7 +283,7 @@ def load_part(name: str, data: Mapping, where: str, models_dir: Path | Sequence[
     protocol = str(data["protocol"])
     grid = None
     if "grid" in data:
-        from jointbench.benchmarks import grid as _grid
+        from jointbench.benchmarks.compare import grid as _grid
 
         if sweep:
             raise ConfigError(f"{where}: key 'sweep': a part with a 'grid' takes its values from the grid's axes")
@@ -434,7 +434,7 @@ def _method_swap(value: Any, where: str, parts: Mapping[str, Part]) -> MethodSwa
     return MethodSwap(str(value["part"]), (est[0], est[1]))
 
 
-def load_study(path: str | Path | Mapping, configs_dir: Path = CONFIGS, overrides=()) -> Study:
+def load_study(path: str | Path | Mapping, overrides=()) -> Study:
     """Load a shipped study (by id), a study file (by path) or a study mapping with its checks, strictly.
 
     Relative paths and model names in the file are looked up beside it first, then in the package
@@ -445,13 +445,13 @@ def load_study(path: str | Path | Mapping, configs_dir: Path = CONFIGS, override
     if isinstance(path, Mapping):    # a study as a mapping (jointbench.api.run): names resolve from the current folder
         data, path = dict(path), Path.cwd() / f"{path.get('study', 'study')}.yaml"
     else:
-        path = study_path(path, configs_dir)
+        path = study_path(path)
         data = _load_yaml(path)
     _check_keys(data, _STUDY_KEYS, str(path))
     parts_data = data["parts"]
     if not isinstance(parts_data, Mapping) or not parts_data:
         raise ConfigError(f"{path}: key 'parts': expected a non-empty mapping")
-    roots = search_roots(path, configs_dir)
+    roots = search_roots(path)
     plugin_specs = load_plugins(data.get("plugins"), str(path), roots)
     models_dir = model_dirs(roots)
     per_part = _overrides.for_parts(overrides, list(parts_data), str(path))
@@ -465,7 +465,7 @@ def load_study(path: str | Path | Mapping, configs_dir: Path = CONFIGS, override
     published = data.get("published")
     if "published" in data and (not isinstance(published, str) or not published.strip()):
         raise ConfigError(f"{path}: key 'published': expected the path of the published values (e.g. "
-                          f"configs/published/<study>.yaml) or no key at all, got {published!r}")
+                          f"published.yaml beside the study) or no key at all, got {published!r}")
     pub = find_file(published, roots, str(path), "published") if published else None
     checks = load_checks(pub, parts) if pub is not None else ()
     known = {r.id for r in readings}

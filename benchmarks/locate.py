@@ -1,11 +1,13 @@
-"""Where a study's files are: the shipped configs (package data), and what a study file names.
+"""Where a study's files are: the shipped studies and configs (package data), and what a study file names.
 
-The shipped study configs, joint models, published values and the nightly config are package data,
-``jointbench.configs`` (the checkout's ``configs/`` folder, installed inside the wheel), so a study runs
-the same from an installed wheel in any folder as from the checkout. A study file of one's own (``jointbench
-run path/to/my_study.yaml``) finds the joint models, published values and plugins it names beside it first
-(and in the config folder it is part of), then in the package. Nothing here is ever written: results go
-to ``./results`` or ``--out`` (:func:`benchmarks.study.results_root`).
+A shipped study is a folder, ``benchmarks/studies/<id>/`` (package ``jointbench.benchmarks.studies.<id>``):
+its ``study.yaml``, its ``published.yaml`` and the code that is its own (``protocol.py``, ``figures.py``).
+The joint models several studies share and the nightly config are package data too, ``jointbench.configs``
+(the checkout's ``configs/``). Both are installed inside the wheel, so a study runs the same from an
+installed wheel in any folder as from the checkout. A study of one's own (``jointbench run
+path/to/my_study.yaml``, or a folder holding a ``study.yaml``) finds the joint models, published values and
+plugins it names beside it first (and in the config folder it is part of), then in the package. Nothing
+here is ever written: results go to ``./results`` or ``--out`` (:func:`benchmarks.study.results_root`).
 """
 from __future__ import annotations
 
@@ -15,39 +17,47 @@ from typing import Any, Sequence
 from jointbench.core.errors import ConfigError
 
 
-def _package_configs() -> Path:
-    """The folder of package ``jointbench.configs`` (in a checkout, its ``configs/``)."""
+def _package_folder(package: str) -> Path:
+    """The folder of package ``package`` (in a checkout, its folder: ``configs/``, ``benchmarks/studies/``)."""
     from importlib.resources import files
 
-    return Path(str(files("jointbench.configs")))
+    return Path(str(files(package)))
 
 
-#: the shipped configs (read-only)
-CONFIGS = _package_configs()
+#: the shipped configs shared by the studies: joint models (``models/``) and ``nightly.yaml`` (read-only)
+CONFIGS = _package_folder("jointbench.configs")
+#: the shipped studies, one folder each (read-only)
+STUDIES = _package_folder("jointbench.benchmarks.studies")
+#: the file that makes a folder a study
+STUDY_FILE = "study.yaml"
 
 
-def study_ids(configs_dir: Path = CONFIGS) -> list[str]:
-    """The shipped studies (``jointbench list``)."""
-    return sorted(p.stem for p in (Path(configs_dir) / "studies").glob("*.yaml"))
+def study_ids(studies_dir: Path = STUDIES) -> list[str]:
+    """The shipped studies (``jointbench list``): the folders holding a ``study.yaml``."""
+    return sorted(p.parent.name for p in Path(studies_dir).glob(f"*/{STUDY_FILE}"))
 
 
-def study_path(ref: str | Path, configs_dir: Path = CONFIGS) -> Path:
-    """The file of study ``ref``: a path to a YAML file, or the id of a shipped study."""
+def study_path(ref: str | Path, studies_dir: Path = STUDIES) -> Path:
+    """The file of study ``ref``: a path to a YAML file, a folder holding a ``study.yaml``, or the id of a
+    shipped study."""
     path = Path(ref)
+    if path.is_dir() and (path / STUDY_FILE).is_file():
+        return path / STUDY_FILE
     if path.suffix:
         return path
-    shipped = Path(configs_dir) / "studies" / f"{path}.yaml"
+    shipped = Path(studies_dir) / str(path) / STUDY_FILE
     if not shipped.is_file() and not path.is_file():
-        raise ConfigError(f"unknown study {str(ref)!r}; shipped studies: {', '.join(study_ids(configs_dir))} "
-                          f"(or give the path of a study file, e.g. my_study.yaml)")
+        raise ConfigError(f"unknown study {str(ref)!r}; shipped studies: {', '.join(study_ids(studies_dir))} "
+                          f"(or give the path of a study file, e.g. my_study.yaml, or of a folder holding a "
+                          f"{STUDY_FILE})")
     return shipped if shipped.is_file() else path
 
 
 def search_roots(study_file: Path | None, configs_dir: Path = CONFIGS) -> list[Path]:
     """Where the names and relative paths of a study file are looked up, in order: the study's folder, the
-    config folder it is part of (the parent of a ``studies/`` folder), then the package's configs and
-    their parent (so that ``published: configs/published/x.yaml``, written relative to a checkout, resolves
-    from a wheel too)."""
+    config folder it is part of (the parent of a ``studies/`` folder), then the package's configs (joint
+    models: ``models/``) and their parent (so that ``configs/models/x.yaml``, written relative to a checkout,
+    resolves from a wheel too)."""
     roots = []
     if study_file is not None:
         here = Path(study_file).resolve().parent

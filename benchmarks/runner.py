@@ -69,9 +69,9 @@ def _check_estimators(part: Part, experiment, ests: dict) -> None:
 def expand_study(study: Study, parts: Iterable[str] | None = None,
                  backend: str | None = None) -> tuple[list[Case], list[dict]]:
     """All cases of the selected parts, validated up front (config errors surface before any run), and
-    the combinations of comparison grids that are skipped, with their reasons (:mod:`benchmarks.grid`).
+    the combinations of comparison grids that are skipped, with their reasons (:mod:`benchmarks.compare.grid`).
     ``backend`` (e.g. ``jointbench run --backend mujoco``) replaces every part's own backend."""
-    from jointbench.benchmarks.grid import expand_grid
+    from jointbench.benchmarks.compare.grid import expand_grid
 
     names = list(study.parts) if parts is None else list(dict.fromkeys(parts))
     unknown = [p for p in names if p not in study.parts]

@@ -123,7 +123,7 @@ def check_budget(study: Study, cases: list, skipped: list, cache: Cache, workers
                  budget_minutes: float | None, confirm: bool) -> None:
     """Refuse, before running, a comparison grid estimated over its budget (the part's ``budget``, or
     ``budget_minutes``), saying the case count and the estimate; ``confirm`` (``--yes``) goes on."""
-    from jointbench.benchmarks.grid import estimate_seconds
+    from jointbench.benchmarks.compare.grid import estimate_seconds
 
     for name in dict.fromkeys(c.part for c in cases):
         part = study.parts[name]
@@ -187,7 +187,8 @@ def run_study(ref: str | Path, parts: list[str] | None = None, out_root: Path | 
               progress: bool = True, command: str = "", kind: str = "run", nightly_id: int | None = None,
               read_cache: bool = True, executor=None, backend: str | None = None,
               overrides=(), budget_minutes: float | None = None, confirm: bool = False) -> StudyRun:
-    """Run study ``ref`` (an id under ``configs/studies`` or a path), write its outputs, record the run.
+    """Run study ``ref`` (a shipped study's id, a study file or a folder holding one), write its outputs,
+    record the run.
 
     With ``parts``, only those parts are run; the outputs still cover every other part whose cases
     are all in the cache for the current code (so ``make westwick2012-fig4`` after ``make
@@ -273,7 +274,7 @@ def run_study(ref: str | Path, parts: list[str] | None = None, out_root: Path | 
     commit = fingerprint.git_commit()
     rows = cases_frame(results, commit)
     if skipped:
-        from jointbench.benchmarks.grid import skipped_rows
+        from jointbench.benchmarks.compare.grid import skipped_rows
 
         rows = pd.concat([rows, pd.DataFrame(skipped_rows(study.id, skipped)).assign(git_commit=commit)],
                          ignore_index=True)

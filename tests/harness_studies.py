@@ -44,11 +44,11 @@ def tiny_study(folder: Path, study: str = "tiny", seeds: int = 4, duration: str 
 
 
 def study_copy(folder: Path, study: str, edit=None, name: str | None = None) -> Path:
-    """A copy of the shipped config ``configs/studies/<study>.yaml`` in ``folder`` (as ``name``, default
+    """A copy of the shipped study ``benchmarks/studies/<study>/study.yaml`` in ``folder`` (as ``name``, default
     ``<study>.yaml``), its published-values path made absolute, edited in place by ``edit(dict)``."""
-    configs = REPO / "configs"
-    data = yaml.safe_load((configs / "studies" / f"{study}.yaml").read_text())
-    data["published"] = str(configs / "published" / Path(data["published"]).name)
+    shipped = REPO / "benchmarks" / "studies" / study
+    data = yaml.safe_load((shipped / "study.yaml").read_text())
+    data["published"] = str(shipped / data["published"])
     if edit is not None:
         edit(data)
     folder.mkdir(parents=True, exist_ok=True)

@@ -191,7 +191,8 @@ def test_importing_the_study_module_loads_no_protocol_or_figure():
     scipy.stats import (each was 0.5-0.7 CPU-s of every CLI process)."""
     code = ("import sys, jointbench.benchmarks.study, jointbench.cli as c; c.main(['list']); "
             "print(sorted(m for m in sys.modules if m.startswith(('jointbench.benchmarks.protocols.', "
-            "'jointbench.benchmarks.figures.', 'scipy.stats'))))")
+            "'jointbench.benchmarks.figures.', 'jointbench.benchmarks.compare.', 'scipy.stats')) "
+            "or m.startswith('jointbench.benchmarks.studies.') and m.endswith(('.protocol', '.figures'))))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
     assert out.returncode == 0, out.stderr
     assert out.stdout.strip().splitlines()[-1] == "[]"

@@ -10,7 +10,7 @@ import types
 import pandas as pd
 import pytest
 
-from jointbench.benchmarks.figures import compare
+from jointbench.benchmarks.compare import figures as compare
 from tests.test_comparison_report import synthetic_rows
 from tests.test_nightly import _browser, chromium  # noqa: F401  (the project's Chromium fixture)
 

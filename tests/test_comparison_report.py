@@ -12,9 +12,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from jointbench.benchmarks import comparison_stats as cs
-from jointbench.benchmarks.figures import compare
-from jointbench.benchmarks.figures import compare_tables as ct
+from jointbench.benchmarks.compare import stats as cs
+from jointbench.benchmarks.compare import figures as compare
+from jointbench.benchmarks.compare import tables as ct
 
 REPO = Path(__file__).resolve().parents[1]
 COMMITTED = REPO / "results" / "matrix"

@@ -136,8 +136,8 @@ def test_the_fast_reader_gives_the_reference_reader_s_documents():
 
     if cy.FastStrictLoader is cy.StrictLoader:
         pytest.skip("PyYAML without libyaml: only the reference reader")
-    root = Path(__file__).resolve().parents[1] / "configs"
-    paths = sorted(root.rglob("*.yaml"))
+    repo = Path(__file__).resolve().parents[1]
+    paths = sorted([*(repo / "configs").rglob("*.yaml"), *(repo / "benchmarks" / "studies").rglob("*.yaml")])
     assert len(paths) > 10
     for p in paths:
         text = p.read_text(encoding="utf-8-sig")

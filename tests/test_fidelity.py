@@ -7,6 +7,7 @@ import pandas as pd
 import pytest
 
 from jointbench.benchmarks.config import load_study
+from jointbench.benchmarks.locate import STUDIES
 from jointbench.benchmarks.tables import difference_counts, evidence_counts, headline
 
 
@@ -44,8 +45,7 @@ def test_table1_gap_checks_are_method_differences_and_cells_are_not(table1_check
     # the near-copies of their sign checks are gone (inner edge of the band below a quarter of the gap)
     import importlib.util
 
-    from jointbench.benchmarks.config import CONFIGS
-    spec = importlib.util.spec_from_file_location("gen", CONFIGS / "published" / "vanderuit2018_table1_generate.py")
+    spec = importlib.util.spec_from_file_location("gen", STUDIES / "vanderuit2018_table1" / "generate_checks.py")
     gen = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(gen)
     gone = 0
@@ -118,7 +118,7 @@ def test_skirt_checks_are_conditional_on_the_basis_reading(table1_checks):
 
 # ------------------------------------------------------------------------------ R1 tried as a derivation
 def test_prefilter_noise_ratio_and_the_ratio_a_published_row_implies():
-    from jointbench.benchmarks.protocols.vanderuit2018 import inferred_noise_ratio, prefilter_noise_ratio
+    from jointbench.benchmarks.studies.vanderuit2018_table1.protocol import inferred_noise_ratio, prefilter_noise_ratio
 
     # the equivalent noise bandwidth of an n-th order Butterworth is pi f_c / (2 n sin(pi / 2n))
     enbw = np.pi * 15.0 / (4 * np.sin(np.pi / 4))

@@ -6,7 +6,7 @@ import pandas as pd
 import pytest
 
 from jointbench.benchmarks.config import load_study
-from jointbench.benchmarks.grid import stiffness_profile, Stiffness
+from jointbench.benchmarks.compare.grid import stiffness_profile, Stiffness
 from jointbench.benchmarks.runner import expand_study
 from jointbench.benchmarks.study import OverBudget, run_study
 from jointbench.core.errors import ConfigError

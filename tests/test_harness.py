@@ -9,14 +9,15 @@ import pytest
 import yaml
 
 from jointbench.benchmarks import protocols
-from jointbench.benchmarks.config import CONFIGS, Check, load_study
+from jointbench.benchmarks.config import Check, load_study
+from jointbench.benchmarks.locate import STUDIES
 from jointbench.benchmarks.runner import Cache, expand, run_cases
 from jointbench.benchmarks.study import run_study
 from jointbench.benchmarks.tables import compare
 from jointbench.core.errors import ConfigError
 from tests.harness_studies import study_copy
 
-STUDY = CONFIGS / "studies" / "westwick2012.yaml"
+STUDY = STUDIES / "westwick2012" / "study.yaml"
 
 
 def write_study(tmp_path: Path, edit) -> Path:

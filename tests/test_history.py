@@ -98,14 +98,15 @@ def test_code_hash_covers_what_computes_a_case_and_nothing_else():
     assert {"benchmarks/harness/case.py", "sims/backend_ltv.py", "jointbench/core/schema.py",
             "estimators/__init__.py", "benchmarks/protocols/__init__.py"} <= shared
     # protocols and estimators are registered lazily: each case's key adds only its own
-    assert not {f for f in shared if f.startswith(("benchmarks/protocols/", "estimators/"))
-                and not f.endswith("__init__.py")}
+    assert not {f for f in shared if f.startswith(("benchmarks/protocols/", "benchmarks/studies/", "estimators/",
+                                                   "benchmarks/compare/")) and not f.endswith("__init__.py")}
     files = {p.relative_to(REPO).as_posix() for p in fingerprint.case_modules(
-        "jointbench.benchmarks.protocols.xu1998", "jointbench.estimators.kbr")}
-    assert shared | {"benchmarks/metrics.py", "benchmarks/protocols/xu1998.py", "estimators/kbr.py",
+        "jointbench.benchmarks.studies.xu1998.protocol", "jointbench.estimators.kbr")}
+    assert shared | {"benchmarks/metrics.py", "benchmarks/studies/xu1998/protocol.py", "estimators/kbr.py",
                      "estimators/_kbr_solve.py", "estimators/fsewls.py"} <= files   # xu1998 imports fsewls
-    assert not files & {"estimators/skirt.py", "estimators/sds.py", "benchmarks/protocols/westwick2012.py"}
-    assert not {f for f in files if f.startswith(("benchmarks/figures/", "benchmarks/harness/nightly"))}
+    assert not files & {"estimators/skirt.py", "estimators/sds.py", "benchmarks/studies/westwick2012/protocol.py"}
+    assert not {f for f in files if f.startswith(("benchmarks/figures/", "benchmarks/harness/nightly"))
+                or f.endswith("/figures.py")}
     assert not files & {"benchmarks/report.py", "benchmarks/tables.py", "jointbench/cli/studies.py",
                         "benchmarks/config.py", "benchmarks/study.py", "benchmarks/runner.py",
                         "benchmarks/harness/cache.py"}
@@ -114,7 +115,7 @@ def test_code_hash_covers_what_computes_a_case_and_nothing_else():
 def test_a_case_names_its_protocol_and_estimator_modules(tmp_path):
     cases = expand(load_study(tiny_study(tmp_path, seeds=1, extra_parts={"grid": tiny_grid_part(["sds"])})))
     assert cases[0].code_modules() == ("jointbench.benchmarks.protocols.generic", "jointbench.estimators.ibk_spectral")
-    assert cases[-1].code_modules() == ("jointbench.benchmarks.protocols.compare", "jointbench.estimators.sds")
+    assert cases[-1].code_modules() == ("jointbench.benchmarks.compare.protocol", "jointbench.estimators.sds")
     named = dataclasses.replace(cases[0], params={"estimators_without_noise": {"kbr": {}}})
     assert "jointbench.estimators.kbr" in named.code_modules()        # made by name in a protocol
 
@@ -191,10 +192,10 @@ def test_a_comment_or_docstring_edit_computes_no_case(tmp_path, code_copy, capsy
           "\n# a new comment\n\nMAX_GROUPS = 20  # groups")
     _edit(code_copy / "estimators/sds.py", '"""', '"""A rewritten first line.\n\n')
     _edit(code_copy / "sims/experiment.py", "\ndef ", "\n# shared code, comment only\ndef ")
-    _edit(code_copy / "benchmarks/protocols/compare.py", "\ndef ", "\n\n\n# a protocol's comment\ndef ")
+    _edit(code_copy / "benchmarks/compare/protocol.py", "\ndef ", "\n\n\n# a protocol's comment\ndef ")
     _edit(code_copy / "benchmarks/harness/case.py", "    def code_modules(self)",
           "    # a comment in the case module\n    def code_modules(self)")
-    for never in ("benchmarks/figures/westwick2012.py", "benchmarks/report.py"):    # code, but never in a key
+    for never in ("benchmarks/studies/westwick2012/figures.py", "benchmarks/report.py"):    # code, but never in a key
         _edit(code_copy / never, "\ndef ", "\n_CHANGED = 1\n\n\ndef ")
     assert [case_key(c) for c in cases] == keys
     assert main(run) == 0

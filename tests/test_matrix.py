@@ -13,9 +13,9 @@ import pytest
 from jointbench import sims
 from jointbench.benchmarks.config import load_study
 from jointbench.benchmarks.harness.case import run_case
-from jointbench.benchmarks.identifiability import identifiability
-from jointbench.benchmarks.protocols import compare as compare_mod
-from jointbench.benchmarks.protocols.compare import TUNE_OFFSET, percentile_interval
+from jointbench.benchmarks.compare.identifiability import identifiability
+from jointbench.benchmarks.compare import protocol as compare_mod
+from jointbench.benchmarks.compare.protocol import TUNE_OFFSET, percentile_interval
 from jointbench.benchmarks.runner import expand_study
 from jointbench.benchmarks.study import run_study
 from tests.harness_studies import tiny_grid_part, tiny_study
@@ -200,7 +200,7 @@ def test_committed_matrix_rows_have_intervals_that_contain_their_values():
 
 
 def test_a_tuned_case_is_estimated_to_cost_more_than_its_paper_case(tmp_path):
-    from jointbench.benchmarks.grid import estimate_seconds
+    from jointbench.benchmarks.compare.grid import estimate_seconds
 
     cases, _ = expand_study(load_study(_tuned_study(tmp_path)), ["grid"])
     cost = {c.sweep.get("tuning", "identifiability"): estimate_seconds([c], [[0]]) for c in cases}

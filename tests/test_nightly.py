@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from jointbench.benchmarks.config import CONFIGS
+from jointbench.benchmarks.locate import CONFIGS, study_ids
 from jointbench.benchmarks.harness.nightly import load_config
 from jointbench.benchmarks.nightly import run_nightly
 from jointbench.core.errors import ConfigError
@@ -118,7 +118,7 @@ def test_nightly_config_is_strict(tmp_path, edit, message):
 
 def test_shipped_nightly_config_runs_every_paper_study():
     cfg = load_config()
-    shipped = {p.stem for p in (CONFIGS / "studies").glob("*.yaml")}
+    shipped = set(study_ids())
     assert set(cfg.studies) == shipped - {"matrix"} and "matrix" in shipped   # the comparison grid is left out
     # every study `make reproduce` runs (the paper studies) is in the nightly
     makefile = (REPO / "Makefile").read_text()

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import yaml
 
-from jointbench.benchmarks.config import CONFIGS
+from jointbench.benchmarks.locate import CONFIGS
 from jointbench.benchmarks.harness.compare import Rules
 from jointbench.benchmarks.harness.nightly import load_config
 from jointbench.benchmarks.nightly import run_nightly
@@ -58,5 +58,5 @@ def test_an_unknown_study_in_the_nightly_config_is_a_config_error(tmp_path):
 
     from jointbench.core.errors import ConfigError
 
-    with pytest.raises(ConfigError, match=r"key 'studies': no study 'nope' \(.*nope\.yaml not found\); known: "):
+    with pytest.raises(ConfigError, match=r"key 'studies': no study 'nope' \(.*nope.*not found\); known: "):
         load_config(_config(tmp_path, studies=["nope"]))

@@ -1,4 +1,4 @@
-"""Smoke runs of the reflex and lpv studies (configs/studies/reflex.yaml, lpv.yaml): one small case of each part
+"""Smoke runs of the reflex and lpv studies (benchmarks/studies/reflex/, lpv/): one small case of each part
 through the whole harness, its report with the tables and figures (`make reflex` and `make lpv` run them in full)."""
 from __future__ import annotations
 

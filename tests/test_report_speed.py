@@ -208,7 +208,7 @@ def test_a_run_freezes_what_lives_through_it_and_unfreezes_it_whatever_happens()
 
 
 def test_the_noise_levels_of_a_figure_are_the_distinct_values_of_its_rows():
-    from jointbench.benchmarks.figures.vanderuit2018 import _floats, _snr_order
+    from jointbench.benchmarks.studies.vanderuit2018_table1.figures import _floats, _snr_order
 
     levels = pd.Series([5.0, float("inf"), 10.0, 5.0, 10.0] * 100)
     assert _floats(levels) == {5.0, 10.0, float("inf")} and _snr_order(levels) == [5.0, 10.0, float("inf")]

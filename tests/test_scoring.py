@@ -15,7 +15,8 @@ import yaml
 
 from jointbench import estimators
 from jointbench.benchmarks import report, status
-from jointbench.benchmarks.config import CONFIGS, EVIDENCE, Check, load_checks, load_study
+from jointbench.benchmarks.config import EVIDENCE, Check, load_checks, load_study
+from jointbench.benchmarks import locate
 from jointbench.benchmarks.protocols import Context
 from jointbench.benchmarks.tables import (DIRTY_BANNER, compare, evidence_counts, headline, method_specific, stamp,
                                swap_estimators, swap_survival)
@@ -28,7 +29,7 @@ STUDIES = ("westwick2012", "xu1998", "vanderuit2018_table1")
 
 
 def _load_generator():
-    path = CONFIGS / "published" / "vanderuit2018_table1_generate.py"
+    path = locate.STUDIES / "vanderuit2018_table1" / "generate_checks.py"
     spec = importlib.util.spec_from_file_location("vdr_generate", path)
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
@@ -72,8 +73,8 @@ def test_checks_parse_strictly(tmp_path, over, message):
 
 
 def test_conditional_reading_must_exist_in_the_study(tmp_path):
-    data = yaml.safe_load((CONFIGS / "studies" / "westwick2012.yaml").read_text())
-    pub = yaml.safe_load((CONFIGS / "published" / "westwick2012.yaml").read_text())
+    data = yaml.safe_load((locate.STUDIES / "westwick2012" / "study.yaml").read_text())
+    pub = yaml.safe_load((locate.STUDIES / "westwick2012" / "published.yaml").read_text())
     pub["checks"][0] = {**pub["checks"][0], "evidence": "conditional", "reading": "R1, R99"}
     (tmp_path / "pub.yaml").write_text(yaml.safe_dump(pub))
     data["published"] = str(tmp_path / "pub.yaml")
@@ -105,8 +106,8 @@ def test_every_study_states_evidence_reasons_and_what_is_not_reproduced():
 def test_no_hand_typed_claim_about_the_standard_snr_table():
     """The false R1 claim ('keeps all 32 VAF_optim/RMSE_k cells in tolerance') is gone: such counts are
     derived in the report, not typed into configs."""
-    for path in (CONFIGS / "studies" / "vanderuit2018_table1.yaml",
-                 CONFIGS / "published" / "vanderuit2018_table1.yaml"):
+    for path in (locate.STUDIES / "vanderuit2018_table1" / "study.yaml",
+                 locate.STUDIES / "vanderuit2018_table1" / "published.yaml"):
         text = path.read_text()
         for claim in ("32 of 32", "0 of 32", "29 of 32", "every VAF_optim and RMSE_k cell inside its band"):
             assert claim not in text, (path.name, claim)
@@ -424,7 +425,7 @@ def test_fsewls_settings_reach_the_ewls_and_its_start():
 def test_vaf_optim_is_against_the_noise_free_torque():
     """In the van de Ruit protocol, VAF_optim compares the prediction with the noise-free output, VAF_self
     with the noisy one: a model predicting the noise-free torque exactly has VAF_optim 100 %."""
-    from jointbench.benchmarks.protocols.vanderuit2018 import Table1Params, table1
+    from jointbench.benchmarks.studies.vanderuit2018_table1.protocol import Table1Params, table1
     from jointbench.core.schema import parse
     from jointbench import sims
 
@@ -481,7 +482,7 @@ def test_golden_pin_fails_on_a_flip_and_updates_only_with_a_reason(tmp_path, mon
 
 # ------------------------------------------------------------------------------------ new metrics
 def test_rule_of_thumb_is_one_decade_with_the_pass_band_snr():
-    from jointbench.benchmarks.protocols.westwick2012 import rule_of_thumb_decades
+    from jointbench.benchmarks.studies.westwick2012.protocol import rule_of_thumb_decades
 
     assert rule_of_thumb_decades(5.0, 2, 40.0) == pytest.approx(np.log10((1e4 - 1) ** 0.25), rel=1e-12)
     assert rule_of_thumb_decades(5.0, 1, 40.0) == pytest.approx(2.0, abs=1e-4)      # -20 dB/decade: 2 decades
@@ -490,7 +491,7 @@ def test_rule_of_thumb_is_one_decade_with_the_pass_band_snr():
 
 
 def test_shape_difference_is_scale_free_and_sees_shape():
-    from jointbench.benchmarks.protocols.westwick2012 import shape_difference
+    from jointbench.benchmarks.studies.westwick2012.protocol import shape_difference
 
     lags = np.arange(-50, 51)
     h = np.exp(-(lags / 10.0) ** 2) * np.cos(lags / 4.0)
@@ -514,7 +515,7 @@ def test_coherence_band_is_the_contiguous_band_around_the_maximum():
 def test_exact_derivative_control_leaves_only_the_ewls():
     """Fed the exact perturbed response, the EWLS's regression is exact and slow variations are tracked."""
     from jointbench import sims
-    from jointbench.benchmarks.protocols import xu1998 as X
+    from jointbench.benchmarks.studies.xu1998 import protocol as X
     from jointbench.core.schema import parse
 
     part = load_study("xu1998").parts["fig2"]

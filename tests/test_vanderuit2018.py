@@ -8,11 +8,12 @@ import pandas as pd
 import pytest
 
 from jointbench import sims
-from jointbench.benchmarks.config import CONFIGS, load_study
+from jointbench.benchmarks.config import load_study
+from jointbench.benchmarks.locate import STUDIES
 from jointbench.benchmarks.protocols import Context
-from jointbench.benchmarks.protocols.vanderuit2018 import (Table1Params, _case_estimators, _case_experiment,
-                                                           noise_ratio, scored_mask, step_captured, step_ramp_time,
-                                                           step_times, variation_labels)
+from jointbench.benchmarks.studies.vanderuit2018_table1.protocol import (
+    Table1Params, _case_estimators, _case_experiment, noise_ratio, scored_mask, step_captured, step_ramp_time,
+    step_times, variation_labels)
 from jointbench.benchmarks.runner import expand
 from jointbench.benchmarks.study import run_study
 from jointbench.core.errors import ConfigError
@@ -20,7 +21,7 @@ from jointbench.core.schema import parse
 from tests.golden import check_golden
 from tests.harness_studies import study_copy
 
-STUDY = CONFIGS / "studies" / "vanderuit2018_table1.yaml"
+STUDY = STUDIES / "vanderuit2018_table1" / "study.yaml"
 
 # Table I as printed (studies.md, section B): variation, method, SNR -> VAF_self, VAF_optim, VAF_val, RMSE_k
 TABLE1 = {

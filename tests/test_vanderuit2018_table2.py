@@ -6,8 +6,9 @@ import pandas as pd
 import pytest
 import yaml
 
-from jointbench.benchmarks.config import CONFIGS, load_study
-from jointbench.benchmarks.protocols.vanderuit2018_table2 import (Table2Params, band, low_frequency_basis,
+from jointbench.benchmarks.config import load_study
+from jointbench.benchmarks.locate import STUDIES
+from jointbench.benchmarks.studies.vanderuit2018_table2.protocol import (Table2Params, band, low_frequency_basis,
                                                        remove_low_frequency, to_rate)
 from jointbench.benchmarks.runner import expand
 from jointbench.benchmarks.study import run_study
@@ -17,7 +18,7 @@ from jointbench.core.types import Trial
 from tests.golden import check_golden
 from tests.harness_studies import study_copy
 
-STUDY = CONFIGS / "studies" / "vanderuit2018_table2.yaml"
+STUDY = STUDIES / "vanderuit2018_table2" / "study.yaml"
 
 
 def test_config_parses_with_readings_and_checks_that_say_what_they_are():
@@ -41,7 +42,7 @@ def test_config_parses_with_readings_and_checks_that_say_what_they_are():
 
 
 def test_bad_evidence_and_params_are_config_errors(tmp_path):
-    pub = yaml.safe_load((CONFIGS / "published" / "vanderuit2018_table2.yaml").read_text())
+    pub = yaml.safe_load((STUDIES / "vanderuit2018_table2" / "published.yaml").read_text())
     pub["checks"][0]["evidence"] = "vibes"
     study = yaml.safe_load(STUDY.read_text())
     (tmp_path / "pub.yaml").write_text(yaml.safe_dump(pub))

@@ -69,7 +69,9 @@ def test_site_packages_holds_jointbench_alone(venv):
     python, _, site = venv
     top = {p.name for p in site.iterdir() if not p.name.endswith((".dist-info", ".pth")) and p.name != "__pycache__"}
     assert top == {"jointbench"}, top
-    assert (site / "jointbench" / "configs" / "studies" / "westwick2012.yaml").is_file()
+    assert (site / "jointbench" / "benchmarks" / "studies" / "westwick2012" / "study.yaml").is_file()
+    assert (site / "jointbench" / "benchmarks" / "studies" / "westwick2012" / "published.yaml").is_file()
+    assert (site / "jointbench" / "configs" / "models" / "elbow_xu1998.yaml").is_file()
     assert (site / "jointbench" / "benchmarks" / "harness" / "templates").is_dir()
     where = _run([python, "-c", "import jointbench.sims, jointbench.benchmarks.locate as l; "
                   "print(jointbench.sims.__file__); print(l.CONFIGS)"], cwd=site.parent)

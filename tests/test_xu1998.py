@@ -10,9 +10,10 @@ import pytest
 
 from jointbench import estimators
 from jointbench import sims
-from jointbench.benchmarks.config import CONFIGS, load_study
+from jointbench.benchmarks.config import load_study
+from jointbench.benchmarks.locate import STUDIES
 from jointbench.benchmarks.metrics import rmse, vafm, vafv
-from jointbench.benchmarks.protocols import xu1998 as X
+from jointbench.benchmarks.studies.xu1998 import protocol as X
 from jointbench.benchmarks.study import run_study
 from jointbench.core.ensemble import valid_mask
 from jointbench.core.errors import ConfigError
@@ -21,7 +22,7 @@ from jointbench.core.types import Truth
 from tests.golden import check_golden
 from tests.harness_studies import study_copy
 
-STUDY = CONFIGS / "studies" / "xu1998.yaml"
+STUDY = STUDIES / "xu1998" / "study.yaml"
 
 
 def _params(**kw) -> X.TrackParams:

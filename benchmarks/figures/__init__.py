@@ -9,11 +9,12 @@ the published-values file: never copied into a maker) and writes PNG files into 
 from __future__ import annotations
 
 import dataclasses
+from pathlib import Path
 from typing import Callable
 
 import pandas as pd
 
-from jointbench.core.registry import Registry, import_submodules, scan_registrations
+from jointbench.core.registry import Registry, package_modules, scan_modules
 
 
 @dataclasses.dataclass
@@ -57,10 +58,36 @@ def save(fig, folder, name: str, dpi: int = 110) -> str:
     return name
 
 
+def first_seed(curves: pd.DataFrame) -> pd.DataFrame:
+    """The curves of the first seed (a figure shows one realization; the tables, every seed)."""
+    return curves[curves["seed"] == curves["seed"].min()] if len(curves) else curves
+
+
+def summary_over_seeds(rows: pd.DataFrame, part: str, by: list[str]) -> pd.DataFrame:
+    """Each metric of ``part`` by ``by`` as one text cell, its median and range over seeds
+    (:func:`benchmarks.tables.median_range`)."""
+    from jointbench.benchmarks.tables import median_range, summarize
+
+    s = summarize(rows, part, by)
+    s["value"] = [median_range(m, lo, hi, n) for m, lo, hi, n in zip(s["median"], s["min"], s["max"], s["n"])]
+    return s.drop(columns=["median", "min", "max"])
+
+
+def _modules() -> list[tuple[str, Path]]:
+    """Every figures module: this package's own (the generic one), the comparison grid's and each study's."""
+    from jointbench.benchmarks import studies
+
+    compare = ("jointbench.benchmarks.compare.figures", Path(__path__[0]).parent / "compare" / "figures.py")
+    return [*package_modules(__name__, __path__), compare, *studies.modules("figures")]
+
+
 # Names come from the modules' source; a maker's module is imported when a report first uses it.
-REGISTRY.defer(scan_registrations(__name__, __path__))
+REGISTRY.defer(scan_modules(_modules()))
 
 
 def import_all() -> None:
-    """Import every figure module (registering everything now rather than on first use)."""
-    import_submodules(__name__, __path__)
+    """Import every figures module (registering everything now rather than on first use)."""
+    import importlib
+
+    for module, _ in _modules():
+        importlib.import_module(module)

@@ -235,7 +235,9 @@ def _closure_of(entry: str) -> tuple[tuple[str, Path], ...]:
         if path is None:
             continue
         seen[name] = path
-        todo.extend(_imports(name, path) - set(seen))
+        for module in _imports(name, path):      # an imported module, and the packages it runs first
+            bits = module.split(".")
+            todo.extend(p for p in (".".join(bits[:i]) for i in range(1, len(bits) + 1)) if p not in seen)
     return tuple(sorted(seen.items()))
 
 

@@ -21,7 +21,8 @@ import dataclasses
 import math
 from pathlib import Path
 
-from jointbench.benchmarks.config import CONFIGS, _check_keys, _load_yaml
+from jointbench.benchmarks.config import _check_keys, _load_yaml
+from jointbench.benchmarks.locate import CONFIGS, STUDIES, STUDY_FILE, study_ids
 from jointbench.benchmarks.harness import fingerprint
 from jointbench.benchmarks.harness.compare import Rules, RunDiff, Threshold
 from jointbench.core.errors import ConfigError
@@ -49,7 +50,7 @@ def _number(v, where: str, key: str, low: float = 0.0) -> float:
     return float(v)
 
 
-def load_config(path: Path = DEFAULT_CONFIG, configs_dir: Path = CONFIGS) -> NightlyConfig:
+def load_config(path: Path = DEFAULT_CONFIG) -> NightlyConfig:
     """Parse the nightly config strictly (every error names the file and key)."""
     path = Path(path)
     data = _load_yaml(path)
@@ -59,7 +60,7 @@ def load_config(path: Path = DEFAULT_CONFIG, configs_dir: Path = CONFIGS) -> Nig
     if not isinstance(exclude, list) or not all(isinstance(s, str) for s in exclude):
         raise ConfigError(f"{path}: key 'exclude': expected a list of study ids (left out of 'all')")
     if studies == "all":
-        studies = sorted(p.stem for p in (configs_dir / "studies").glob("*.yaml") if p.stem not in exclude)
+        studies = [s for s in study_ids() if s not in exclude]
     if not isinstance(studies, list) or not studies or not all(isinstance(s, str) and s for s in studies):
         raise ConfigError(f"{path}: key 'studies': expected 'all' or a non-empty list of study ids or paths")
     if len(set(studies)) != len(studies):
@@ -68,9 +69,9 @@ def load_config(path: Path = DEFAULT_CONFIG, configs_dir: Path = CONFIGS) -> Nig
     for s in studies:          # a relative path is relative to the nightly config
         p = Path(s)
         resolved.append(str(p if p.is_absolute() or not p.suffix else (path.parent / p).resolve()))
-        where = Path(resolved[-1]) if p.suffix else configs_dir / "studies" / f"{s}.yaml"
+        where = Path(resolved[-1]) if p.suffix else STUDIES / s / STUDY_FILE
         if not where.is_file():    # a config error before anything runs, not a study that 'could not run'
-            known = ", ".join(sorted(q.stem for q in (configs_dir / "studies").glob("*.yaml")))
+            known = ", ".join(study_ids())
             raise ConfigError(f"{path}: key 'studies': no study {s!r} ({where} not found); known: {known}")
     use_cache = data.get("use_cache", False)
     if not isinstance(use_cache, bool):

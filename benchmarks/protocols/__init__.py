@@ -8,11 +8,12 @@ figures) through ``ctx.metric`` and ``ctx.curve``. Protocols are pure functions 
 from __future__ import annotations
 
 import dataclasses
+from pathlib import Path
 from typing import Any, Callable, Mapping
 
 import numpy as np
 
-from jointbench.core.registry import Registry, import_submodules, scan_registrations
+from jointbench.core.registry import Registry, package_modules, scan_modules
 
 
 @dataclasses.dataclass(frozen=True)
@@ -77,11 +78,22 @@ class Context:
         self.curves.append({"curve": name, "series": series, "x": x.tolist(), "y": y.tolist(), **labels})
 
 
+def _modules() -> list[tuple[str, Path]]:
+    """Every protocol module: this package's own (the generic one), the comparison grid's and each study's."""
+    from jointbench.benchmarks import studies
+
+    compare = ("jointbench.benchmarks.compare.protocol", Path(__path__[0]).parent / "compare" / "protocol.py")
+    return [*package_modules(__name__, __path__), compare, *studies.modules("protocol")]
+
+
 # Names and tags come from the modules' source; a protocol's module is imported when a case first uses it
 # (``jointbench list`` and the study module start without importing scipy.signal or any protocol).
-REGISTRY.defer(scan_registrations(__name__, __path__))
+REGISTRY.defer(scan_modules(_modules()))
 
 
 def import_all() -> None:
     """Import every protocol module (registering everything now rather than on first use)."""
-    import_submodules(__name__, __path__)
+    import importlib
+
+    for module, _ in _modules():
+        importlib.import_module(module)

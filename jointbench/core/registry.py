@@ -131,7 +131,23 @@ class Registration:
 
 def scan_registrations(package_name: str, package_path: Iterable[str],
                        decorator: str = "register") -> list[Registration]:
-    """Registrations in the non-private modules of a package, read from their source (nothing imported).
+    """Registrations in the non-private modules of a package, read from their source (nothing imported):
+    :func:`scan_modules` of the package's modules."""
+    return scan_modules(package_modules(package_name, package_path), decorator)
+
+
+def package_modules(package_name: str, package_path: Iterable[str]) -> list[tuple[str, Path]]:
+    """``(module name, source file)`` of the non-private modules of a package (nothing imported)."""
+    modules = []
+    for info in pkgutil.iter_modules(list(package_path)):
+        path = Path(info.module_finder.path) / f"{info.name}.py"
+        if not info.name.startswith("_") and path.exists():
+            modules.append((f"{package_name}.{info.name}", path))
+    return modules
+
+
+def scan_modules(modules: Iterable[tuple[str, Path]], decorator: str = "register") -> list[Registration]:
+    """Registrations in the modules ``(module name, source file)``, read from their source (nothing imported).
 
     Finds classes and functions decorated ``@decorator("name", ...)`` or ``@decorator("name", ...,
     tags=(...))`` (name and tags literal strings; other arguments ignored), with the first line of their
@@ -139,13 +155,8 @@ def scan_registrations(package_name: str, package_path: Iterable[str],
     registers, for the estimators, protocols and figure makers.
     """
     out = []
-    for info in pkgutil.iter_modules(list(package_path)):
-        if info.name.startswith("_"):
-            continue
-        path = Path(info.module_finder.path) / f"{info.name}.py"
-        if not path.exists():
-            continue
-        text = path.read_text(encoding="utf-8")
+    for module, path in modules:
+        text = Path(path).read_text(encoding="utf-8")
         for node in _decorated_nodes(text, decorator, str(path)):
             for dec in node.decorator_list:
                 if not (isinstance(dec, ast.Call) and getattr(dec.func, "id", getattr(dec.func, "attr", None))
@@ -157,8 +168,7 @@ def scan_registrations(package_name: str, package_path: Iterable[str],
                     if kw.arg == "tags" and isinstance(kw.value, (ast.Tuple, ast.List)):
                         tags = frozenset(e.value for e in kw.value.elts if isinstance(e, ast.Constant))
                 doc = (ast.get_docstring(node) or "").strip().splitlines()
-                out.append(Registration(dec.args[0].value, f"{package_name}.{info.name}", tags,
-                                        doc[0] if doc else ""))
+                out.append(Registration(dec.args[0].value, module, tags, doc[0] if doc else ""))
     return out
 
 

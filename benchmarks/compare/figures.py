@@ -1,0 +1,254 @@
+"""The report of a comparison grid (protocol ``compare``): every method x scenario x metric with an
+interval that contains its value and its rank, the scenarios' identifiability (infeasible ones shown and
+left out of the rankings), paired comparisons between methods over the same realizations and their win
+counts, the backends' agreement in one line per scenario, the settings of every method in both tuning
+columns, the figures (heat map, rise-time / random-error trade-off, k_hat(t) against the truth; PNG and
+SVG) and the interactive page ``<part>_comparison.html``. Every heading, count and reading is derived
+from the tidy rows.
+
+The tables are :mod:`jointbench.benchmarks.compare.tables` and :mod:`jointbench.benchmarks.compare.pairs`, the figures
+:mod:`jointbench.benchmarks.compare.plots`, the page :mod:`jointbench.benchmarks.compare.page`, the statistics
+:mod:`jointbench.benchmarks.compare.stats`.
+
+References
+----------
+van de Ruit, Mugge, Cavallo, Lataire, Ludvig & Schouten, "Quantitative comparison of time-varying system
+identification methods to describe human joint impedance" (the metrics).
+"""
+from __future__ import annotations
+
+import re
+
+import numpy as np
+import pandas as pd
+
+from jointbench.benchmarks.compare import stats as cs
+from jointbench.benchmarks.figures import PartReport, register
+from jointbench.benchmarks.compare import page as cp
+from jointbench.benchmarks.compare import pairs as pairs_
+from jointbench.benchmarks.compare import plots
+from jointbench.benchmarks.compare import tables as ct
+from jointbench.benchmarks.compare.tables import METRICS, labelled  # noqa: F401  (the public names)
+from jointbench.core.files import write_text
+
+#: paired wins written out in the text per tuning column (the win tables have them all)
+WIN_SENTENCES = 5
+DEFINITIONS = (
+    "Definitions (van de Ruit et al.'s comparison framework): VAF of k = 100 (1 - sum (k_hat - k)^2 / "
+    "sum (k - mean k)^2) per realization (a constant at the true mean scores 0 %); RMS error of k per "
+    "realization = RMS over t of k_hat - k; bias(t) = mean over realizations of k_hat(t) - k(t), its RMS over t; "
+    "random error = RMS over t of the SD over realizations; total error = RMS over t and realizations of "
+    "k_hat - k (total^2 = bias^2 + random^2 (R-1)/R); rise time = 10-90 % of the mean estimate at each step of a "
+    "square wave, averaged over the steps (infinite when a step is never followed). k is the static gain of "
+    "the true frozen impedance, scored between the discarded ends of the record where the estimate is valid "
+    "in every realization.")
+
+
+def _join(items: list[str]) -> str:
+    items = [str(i) for i in items]
+    return items[0] if len(items) == 1 else ", ".join(items[:-1]) + " and " + items[-1] if items else ""
+
+
+#: how the text names the values of a cell axis
+AXIS_NAMES = {"scenario": "base scenario", "joint": "joint", "variation": "stiffness variation",
+              "perturbation": "perturbation", "noise": "noise level", "fs": "rate"}
+
+
+def _axes_text(rows: pd.DataFrame) -> str:
+    """What the scenarios are made of, from the rows: each varying axis and its values."""
+    parts = []
+    for a in ct.CELL_AXES:
+        if a not in rows.columns:
+            continue
+        vals = [v for v in dict.fromkeys(rows.loc[rows["estimator"] != ct.SCENARIO_ROWS, a].dropna())]
+        if a == "scenario" or len(vals) > 1:
+            shown = ", ".join(f"{v:g}" if isinstance(v, float) else str(v) for v in vals)
+            parts.append(f"{len(vals)} {AXIS_NAMES[a]}{'s' if len(vals) != 1 else ''} ({shown})")
+    return " x ".join(parts)
+
+
+def _r_text(rows: pd.DataFrame) -> str:
+    rs = ct.realizations(rows)
+    if not rs:
+        return "no per-realization rows"
+    return "R = " + _join([str(r) for r in rs]) + " realizations per case"
+
+
+def _paired_text(pairs: pd.DataFrame, rows: pd.DataFrame) -> str:
+    text = ("Paired comparisons: for every feasible scenario (primary backend), tuning column and metric scored per "
+            "realization, every pair of methods is compared over the realizations both were scored on (the same "
+            "data: realization r is the same simulation for every method) by the two-sided Wilcoxon signed-rank "
+            f"test (exact distribution), with Holm's correction over the pairs of that scenario, column and metric "
+            f"(family-wise error {ct.ALPHA:g}); the median paired difference carries its paired percentile bootstrap "
+            "90 % interval. 'A beats B' counts the scenarios where the adjusted p-value is below "
+            f"{ct.ALPHA:g} and the median difference favours A.")
+    if pairs.empty:
+        return text + " No pair could be compared in this run."
+    fam = pairs.groupby(["cell", "tuning", "metric"]).agg(m=("p", "size"), n=("n", "max"))
+    blind = fam[[cs.min_signed_rank_p(int(n)) >= ct.ALPHA / m for m, n in zip(fam["m"], fam["n"])]]
+    if len(blind):
+        n_min = int(blind["n"].min())
+        text += (f" In {len(blind)} of the {len(fam)} families the test cannot reject at all: with n = {n_min} "
+                 f"realizations the smallest possible p-value is 2/2^{n_min} = {cs.min_signed_rank_p(n_min):.2g}, "
+                 f"above Holm's first threshold {ct.ALPHA:g}/m for m = {int(blind['m'].min())} or more pairs; "
+                 "more realizations are needed for a verdict there (the counts 'ahead' say which way the median "
+                 "paired difference points).")
+    sig = int((pairs["verdict"] != "").sum())
+    text += f" Significant after correction: {sig} of {len(pairs)} pairs."
+    return text
+
+
+def _readings(table: pd.DataFrame, primary: str) -> pd.DataFrame:
+    """Derived readings: who ranks first how often on each ranked metric (primary backend, each tuning)."""
+    out = []
+    t = table[(table["backend"] == primary) & (table["rank"] == 1)]
+    for tuning, g in t.groupby("tuning", sort=False):
+        for metric in [m for m in METRICS if m in set(g["metric"])]:
+            h = g[g["metric"] == metric]
+            n_cells = table[(table["backend"] == primary) & (table["tuning"] == tuning) & (table["metric"] == metric)
+                            & (table["ranked"] > 0)]["cell"].nunique()
+            counts = h.groupby("method")["cell"].nunique().sort_values(ascending=False, kind="stable")
+            out.append({"metric": METRICS[metric][0], "tuning": tuning, "ranked scenarios": n_cells,
+                        "first (scenarios)": "; ".join(f"{m} {n}" for m, n in counts.items())})
+    return pd.DataFrame(out)
+
+
+@register("compare")
+def compare_figures(part, rows, curves, folder, checks) -> PartReport:
+    """Tables, figures and the page of a comparison grid part (module docstring)."""
+    rep = PartReport()
+    rows = labelled(rows)
+    table = ct.full_table(rows, curves)
+    table.to_csv(folder / f"{part.name}_scores.csv", index=False)
+    primary = ct.primary_backend(rows)
+    feas = ct.feasibility(table)
+    methods = sorted(dict.fromkeys(table["method"]))          # methods with a score (skipped ones: reasons)
+    cells = list(dict.fromkeys(table["cell"])) or list(dict.fromkeys(rows["cell"]))
+    tunings = [t for t in dict.fromkeys(table["tuning"]) if t]
+    backends = [b for b in dict.fromkeys(rows["backend"]) if b]
+    ranked = [c for c in cells if feas.get((c, primary), np.nan) > 0]
+    infeasible = [c for c in cells if c not in ranked and (c, primary) in feas]
+    pairs = pairs_.paired(rows, table)
+    if not pairs.empty:
+        pairs.to_csv(folder / f"{part.name}_pairs.csv", index=False)
+    page_name = f"{part.name}_comparison.html"
+
+    text = [f"{len(methods)} methods on {len(cells)} scenarios ({_axes_text(rows)}), {_r_text(rows)}; "
+            f"backend{'s' if len(backends) > 1 else ''} {_join(backends) or 'unnamed'}"
+            + (f" (rankings on {primary}; the others in one agreement line per scenario)" if len(backends) > 1 else "")
+            + f"; tuning column{'s' if len(tunings) > 1 else ''} {_join(tunings)}. Every number is from the tidy "
+            f"rows (`cases.csv`); the full table is `{part.name}_scores.csv`, the paired comparisons "
+            f"`{part.name}_pairs.csv`, and [the interactive comparison page]({page_name}) has the full table sortable "
+            "and filtered by scenario and metric, and k_hat(t) of the best methods of every scenario.",
+            f"**{len(ranked)} of {len(cells)} scenarios are ranked**"
+            + (f"; {len(infeasible)} are infeasible (no method's median VAF of k is above 0 %, i.e. none beats a "
+               f"constant at the true mean) and left out of every ranking and count: {_join(infeasible)}."
+               if infeasible else "; in every scenario some method beats a constant at the true mean."),
+            DEFINITIONS,
+            "Intervals (90 %), each containing its value: per-realization metrics (VAF of k, RMS error, output VAF, "
+            "fit time) show the median over realizations with the percentile bootstrap interval of that median "
+            f"({cs.DRAWS} resamplings of the realizations, seed {cs.SEED}); the others show the study's bootstrap "
+            "interval over realizations when it contains its value (else none is shown, and the table says so). "
+            "Ranks (#) are competition ranks among finite values, per scenario and tuning column, on the "
+            f"{primary} backend; an infinite rise time is not ranked, nor the random error of a constant estimate "
+            "(its spread measures no tracking); a metric without a finite value says 'cannot rank'.",
+            _paired_text(pairs, rows)]
+    n_bad = int(table["interval"].str.contains("excludes").sum())
+    if n_bad:
+        text.append(f"{n_bad} study intervals exclude their own value (rows from before the study re-centred its "
+                    "bootstrap): not shown.")
+    main = "error_rms" if (table["metric"] == "error_rms").any() else "vaf_stiffness"
+    for tuning in tunings:
+        s = pairs_.beats_sentences(pairs, main, tuning, top=WIN_SENTENCES)
+        if s:
+            text.append(f"The most frequent significant paired wins ({tuning} column; all in the win tables): "
+                        + "; ".join(s) + ".")
+    agree = ct.backend_agreement(table, primary)
+    if agree:
+        text.append("Backend agreement, one line per scenario:\n\n" + "\n\n".join(agree))
+    rep.text = "\n\n".join(text)
+    rep.title = (f"{len(methods)} methods on {len(cells)} scenarios ({len(ranked)} ranked), {_r_text(rows)}, "
+                 f"tuning {' and '.join(tunings)}, backend{'s' if len(backends) > 1 else ''} {', '.join(backends)}")
+
+    ident = ct.identifiability(rows, table)
+    if not ident.empty:
+        has = any(h in ident.columns for h in ct.IDENTIFIABILITY.values())
+        rep.tables.append(("Identifiability of every scenario" + ("" if has else
+                           " (the rows carry no identifiability figures: only the best VAF of k)"), ident))
+    readings = _readings(table, primary)
+    if not readings.empty:
+        rep.tables.append(("Who ranks first, counted over the ranked scenarios", readings))
+    st = ct.settings_table(rows)
+    rep.tables.append(("Settings of every method" if not st.empty else
+                       "Settings of every method: the rows carry no settings column (a run before settings "
+                       "were recorded)", st))
+    tt = ct.tuning_table(rows)
+    if not tt.empty:
+        rep.tables.append(("Tuning: candidates tried on the tuning realizations (never scored), chosen by held-out "
+                           "output VAF", tt))
+    te = pairs_.tuning_effect(rows, table)
+    if not te.empty:
+        rep.tables.append(("Tuned against paper settings, per method: paired over the same realizations of each ranked "
+                           "scenario (signed-rank, Holm over the methods of a scenario)", te))
+    for tuning in tunings:
+        for metric in ("vaf_stiffness", "error_rms"):
+            w = pairs_.wins(pairs, metric, tuning)
+            if not w.empty:
+                rep.tables.append((f"Paired wins on {METRICS[metric][0]} ({tuning}): row against column, 'w/a/n' = "
+                                   "significantly better in w, median paired difference ahead in a, of n ranked "
+                                   "scenarios", w))
+    figures = ident.set_index(["scenario", "backend"]) if not ident.empty else None
+    for cell, df, note in ct.scenario_tables(table, primary):
+        status = "ranked"
+        if cell not in ranked:
+            status = "infeasible: not ranked"
+            if figures is not None and (cell, primary) in figures.index:
+                f = figures.loc[(cell, primary)]
+                shown = [f"{h} {f[h]:.3g}" for h in ct.IDENTIFIABILITY.values() if h in f and pd.notna(f[h])]
+                status += ("; " + ", ".join(shown)) if shown else ""
+        n_m = df["method"].nunique()
+        title = f"{cell} ({primary}; {status}; {n_m} methods): value [90 % interval] #rank"
+        rep.tables.append((title + (f". {note}" if note else ""), df))
+    why = ct.reasons(rows)
+    if not why.empty:
+        rep.tables.append(("Combinations skipped or not fitted, and why", why))
+    design = ct.design_skips(rows)
+    if not design.empty:
+        rep.tables.append(("Combinations left out by the grid's design (not failures)", design))
+
+    sets, order = {}, {}
+    for tuning in tunings:
+        sfx = _suffix(tuning, tunings)
+        f = plots.heat_map(table, rows, primary, tuning, feas, folder, f"{part.name}_heatmap{sfx}.png")
+        if f:
+            rep.figures.append((f, f"Methods x scenarios ({tuning} column, {primary}): median VAF of k (%), diverging "
+                                   f"at 0 % (blue: better than a constant at the true mean), colour clipped at "
+                                   f"{plots.VAF_FLOOR:.0f} %, every cell printed; also as PDF"))
+        f, lines = plots.trade_off(table, primary, tuning, folder, f"{part.name}_tradeoff{sfx}.png")
+        if f:
+            rep.figures.append((f, f"Rise time against random error, square-wave scenarios ({tuning} column): bars "
+                                   "are the 90 % intervals; methods with an infinite rise time at the right edge ('>')"
+                                   + (": " + "; ".join(lines) if lines else "") + "; also as PDF"))
+        s = plots.curve_sets(curves, primary, tuning)
+        f = plots.khat_figure(s, table, primary, tuning, folder, f"{part.name}_khat{sfx}.png")
+        if f:
+            rep.figures.append((f, f"k_hat(t) against the truth ({tuning} column, {primary}): mean over realizations "
+                                   f"of the {plots.CURVES_PER_PANEL} methods with the highest median VAF of k per "
+                                   f"scenario (band: 5th-95th percentile over realizations of the best {plots.BANDS}, "
+                                   "where stored; the axis "
+                                   "spans the truth's range with a margin); more methods on the interactive page; "
+                                   "also as PDF"))
+        for cell, d in s.items():
+            sets[(cell, primary, tuning)] = d
+            order[(cell, primary, tuning)] = plots.best_methods(table, cell, primary, tuning, len(d["methods"]))
+    study = str(rows["study"].dropna().iloc[0]) if "study" in rows and rows["study"].notna().any() else ""
+    title = f"Method comparison: {study + ', part ' if study else 'part '}{part.name}"
+    intro = [re.sub(r"\[([^\]]+)\]\([^)]+\)", r"\1", p) for p in text[:2]] + [DEFINITIONS, text[3], text[4]]
+    static = [(t, df) for t, df in rep.tables if not t.startswith(tuple(cells))]
+    write_text(folder / page_name, cp.render(title, intro, cp.page_data(table, sets, order), static))
+    return rep
+
+
+def _suffix(tuning: str, tunings: list[str]) -> str:
+    """File-name suffix of a tuning column's figures (none for the first: the file names of old runs)."""
+    return "" if tuning == tunings[0] else f"_{tuning}"

@@ -1,0 +1,450 @@
+"""Comparison grids: a study part that names estimators x scenarios x ... and lets the harness expand it.
+
+A part with a ``grid`` runs protocol ``compare`` (:mod:`jointbench.benchmarks.compare.protocol`) on every
+combination of its axes, one case per estimator and combination (all R realizations in it)::
+
+    matrix:
+      protocol: compare
+      seeds: 1                       # base seeds; each case simulates params.realizations realizations
+      params: {realizations: 10, ensemble_size: 5}
+      budget: 30                     # minutes: a larger estimate needs --yes
+      grid:                          # axis -> values (every axis but estimator is optional)
+        estimator: [fsewls, kbr, skirt, sds]
+        scenario: [xu1998_elbow, vanderuit2018_wrist]
+        variation: [sine, square]
+        perturbation: [native, pralds]
+        noise: [0.01, 0.1]           # var(noise) / var(torque) on the torque channel
+        fs: [native, 100 Hz]         # acquired rate
+        backend: [analytic, mujoco]
+        data: [trial, ensemble]      # fit single trials or ensembles (default: what the estimator takes)
+        joint: [native, arm_xu1998_calibration]   # a model of configs/models instead of the scenario's
+        tuning: [paper, tuned]       # the settings as given, or chosen on tuning realizations (below)
+      tuning: {sds: {window: [0.5 s, 1 s, 2 s]}}   # the search of 'tuned' (benchmarks/compare/tuning.py)
+      only:                          # run part of the grid; the rest is skipped with the reason
+        - {when: {backend: mujoco}, keep: {tuning: paper, data: trial}, reason: "MuJoCo on a subset"}
+      scenarios:                     # name -> an experiment and how to score it
+        xu1998_elbow:
+          experiment: {...}          # as in any part
+          stiffness: {mean: 40, amplitude: 15, period: 2 s}   # levels and time scale of the variations
+          discard: 4 s               # not scored at each end
+          realizations: 100          # R of this scenario (over params.realizations)
+          estimators: {fsewls: {...}}   # settings for this scenario (over the part's)
+          tuning: {sds: {window: [0.25 s, 0.5 s]}}   # the search for this scenario (over the part's)
+      variations: {sine: {shape: sine}, square: {shape: square}}   # levels from the scenario
+      perturbations: {pralds: {kind: pralds, ...}}
+      estimators: {fsewls: {...}}    # settings of the estimators on the axis
+
+With ``params.identify: true`` every resolved experiment (the axes but estimator, data and tuning) also gets
+one case of protocol ``identifiability`` (rows with estimator ``(scenario)``: how much of the measured torque
+the stiffness and its time variation explain, :mod:`jointbench.benchmarks.compare.identifiability`).
+
+A combination an estimator cannot run is skipped and reported with the reason: a perturbation it cannot
+identify from (:meth:`estimators.Estimator.supports`: skirt and KBR need a multisine), data it does not
+take (its ``accepts``: an ensemble method given single trials), or valid settings that cannot go together
+(:class:`~jointbench.core.errors.Incompatible`: a rate that does not divide the simulation rate, a model on the
+wrong apparatus, a backend that cannot simulate the experiment). Any other error in a combination (a
+typo'd key, a negative duration, zero inertia, a profile file that is missing or makes K negative, an
+unstable MuJoCo step) is a config error naming the combination, before anything runs (exit 2). A name or
+value the grid does not know, or a value listed twice (``[1, 1.0]``, ``[100 Hz, 0.1 kHz]``), is a config
+error naming the axis, the value and what is allowed; so is a grid of more than :data:`MAX_COMBINATIONS`.
+"""
+from __future__ import annotations
+
+import copy
+import dataclasses
+import itertools
+import json
+import math
+from typing import Any, Callable, Mapping
+
+from jointbench import estimators
+from jointbench import sims
+from jointbench.benchmarks.compare.tuning import AXES, _matches, _only, _search, candidates, grid_settings
+from jointbench.core.errors import ConfigError, Incompatible
+from jointbench.core.schema import param, parse
+
+NATIVE = "native"
+DATA = ("trial", "ensemble")
+#: the tuning axis: the paper's settings, or tuned on tuning realizations (protocols.compare)
+TUNING = ("paper", "tuned")
+#: the axes an identifiability case has (one per resolved experiment: no estimator, data or tuning)
+SCENARIO_AXES = AXES[:7]
+#: default budget (minutes) of a grid part without ``budget``
+DEFAULT_BUDGET_MIN = 30.0
+#: most combinations a grid may have: each is built and checked when the study is expanded (about a
+#: millisecond each), before the budget is estimated; the matrix study has 704
+MAX_COMBINATIONS = 20_000
+
+
+@dataclasses.dataclass(frozen=True)
+class Stiffness:
+    """Levels and time scale a scenario gives the time variations (``variations`` are relative)."""
+
+    mean: float = param(unit="N.m/rad", gt=0, doc="mean stiffness")
+    amplitude: float = param(unit="N.m/rad", ge=0, doc="half the range of the variation")
+    period: float = param(unit="s", gt=0, doc="period of the sine and square variations")
+    key: str = param("", doc="the joint model's stiffness key (default: K, or k for the wrist)")
+
+
+@dataclasses.dataclass(frozen=True)
+class _ScenarioSpec:
+    experiment: dict
+    stiffness: Stiffness | None = None
+    discard: float | None = param(None, unit="s", ge=0, doc="seconds not scored at each end")
+    realizations: int | None = param(None, ge=2, doc="R of this scenario (over params.realizations)")
+    estimators: dict = param(default_factory=dict, doc="estimator -> settings for this scenario")
+    tuning: dict = param(default_factory=dict, doc="estimator -> setting -> values searched (over the part's)")
+
+
+@dataclasses.dataclass(frozen=True)
+class Grid:
+    """A parsed comparison grid (see the module docstring)."""
+
+    axes: Mapping[str, tuple]
+    scenarios: Mapping[str, _ScenarioSpec]
+    variations: Mapping[str, dict]
+    perturbations: Mapping[str, dict]
+    joints: Mapping[str, dict]
+    settings: Mapping[str, dict]
+    budget_minutes: float
+    search: Mapping[str, dict] = dataclasses.field(default_factory=dict)
+    only: tuple = ()
+
+    def size(self) -> int:
+        return math.prod(len(v) for v in self.axes.values())
+
+
+def _named(data: Mapping, key: str, where: str) -> dict:
+    value = data.get(key) or {}
+    if not isinstance(value, Mapping) or not all(isinstance(v, Mapping) for v in value.values()):
+        raise ConfigError(f"{where}: key '{key}': expected a mapping name -> settings")
+    return {str(k): dict(v) for k, v in value.items()}
+
+
+def _axis_values(grid: Mapping, where: str) -> dict[str, tuple]:
+    if not isinstance(grid, Mapping) or not grid:
+        raise ConfigError(f"{where}: key 'grid': expected a mapping axis -> list of values; axes: {', '.join(AXES)}")
+    for axis, values in grid.items():
+        if axis not in AXES:
+            raise ConfigError(f"{where}: grid: unknown axis {axis!r}; axes: {', '.join(AXES)}")
+        if not isinstance(values, list) or not values:
+            raise ConfigError(f"{where}: grid.{axis}: expected a non-empty list of values, got {values!r}")
+        if len({json.dumps(v, sort_keys=True, default=str) for v in values}) != len(values):
+            raise ConfigError(f"{where}: grid.{axis}: a value is listed twice in {values}")
+    if "estimator" not in grid:
+        raise ConfigError(f"{where}: grid: missing axis 'estimator' (the estimators compared)")
+    return {a: tuple(grid[a]) for a in AXES if a in grid}
+
+
+def _no_repeats(axis: str, given, values: list, where: str, unit: str = "") -> None:
+    """Two entries of an axis that mean the same value (``[1, 1.0]``, ``[100 Hz, 0.1 kHz]``) would run the
+    same cases twice under two names: refused."""
+    seen: dict = {}
+    for i, v in enumerate(values):
+        if v in seen:
+            raise ConfigError(f"{where}: grid.{axis}[{i}]: {given[i]!r} is the same value as grid.{axis}"
+                              f"[{seen[v]}] {given[seen[v]]!r} ({v:g}{unit}); list each value once")
+        seen[v] = i
+
+
+def _check_names(axis: str, values: tuple, known, where: str, what: str, native: bool = True) -> None:
+    for i, v in enumerate(values):
+        if native and v == NATIVE:
+            continue
+        if not isinstance(v, str) or v not in known:
+            allowed = ", ".join(([NATIVE] if native else []) + list(known)) or "(none defined)"
+            raise ConfigError(f"{where}: grid.{axis}[{i}]: unknown {what} {v!r}; allowed: {allowed}")
+
+
+def parse_grid(data: Mapping, experiment: Mapping | None, part_estimators: Mapping[str, dict], where: str,
+               resolve_joint: Callable[[Any, str], dict]) -> Grid:
+    """The grid of part ``data`` (its ``grid``, ``scenarios``, ``variations``, ``perturbations``,
+    ``budget``), every name and value checked; errors name the part, the axis, the value and what is
+    allowed."""
+    if str(data.get("protocol")) != "compare":
+        raise ConfigError(f"{where}: a part with a 'grid' runs protocol 'compare', not {data.get('protocol')!r}")
+    axes = _axis_values(data["grid"], where)
+    scen_data = _named(data, "scenarios", where)
+    if scen_data and experiment is not None:
+        raise ConfigError(f"{where}: give either 'experiment' (one scenario) or 'scenarios', not both")
+    if not scen_data:
+        if experiment is None:
+            raise ConfigError(f"{where}: a grid needs 'scenarios' (or one 'experiment')")
+        scen_data = {"experiment": {"experiment": dict(experiment)}}
+    scenarios = {}
+    for name, spec in scen_data.items():
+        w = f"{where}: scenarios.{name}"
+        sc = parse(_ScenarioSpec, spec, w)
+        exp = dict(sc.experiment)
+        if isinstance(exp.get("joint"), str):
+            exp["joint"] = resolve_joint(exp["joint"], f"{w}: experiment")
+        for est, settings in sc.estimators.items():
+            if est not in estimators.REGISTRY:
+                raise ConfigError(f"{w}: estimators: unknown estimator {est!r}; known: "
+                                  f"{', '.join(estimators.REGISTRY.names())}")
+        scenarios[name] = dataclasses.replace(sc, experiment=exp)
+    axes.setdefault("scenario", tuple(scenarios))
+    _check_names("scenario", axes["scenario"], scenarios, where, "scenario", native=False)
+    _check_names("estimator", axes["estimator"], estimators.REGISTRY.names(), where, "estimator", native=False)
+    unknown = sorted(set(part_estimators) - set(estimators.REGISTRY.names()))
+    if unknown:       # settings of an estimator not on the axis are kept (an axis shortened by --set)
+        raise ConfigError(f"{where}: estimators: unknown estimator {unknown[0]!r}; known: "
+                          f"{', '.join(estimators.REGISTRY.names())}")
+    settings = {}
+    for est in axes["estimator"]:
+        base = dict(part_estimators.get(est) or {})
+        for sname, sc in scenarios.items():   # every combination of settings parses (errors at load)
+            estimators.make(est, {**base, **(sc.estimators.get(est) or {})},
+                            f"{where}: estimators.{est} (scenario {sname})")
+        settings[est] = base
+    variations = _named(data, "variations", where)
+    perturbations = _named(data, "perturbations", where)
+    _check_names("variation", axes.get("variation", ()), variations, where, "variation")
+    _check_names("perturbation", axes.get("perturbation", ()), perturbations, where, "perturbation")
+    for name, pert in perturbations.items():
+        kind = pert.get("kind")
+        if kind not in sims.PERTURBATIONS:
+            raise ConfigError(f"{where}: perturbations.{name}: unknown perturbation kind {kind!r}; known: "
+                              f"{', '.join(sims.PERTURBATIONS.names())}")
+    if "variation" in axes:
+        missing = [n for n, sc in scenarios.items() if sc.stiffness is None]
+        if missing:
+            raise ConfigError(f"{where}: scenarios.{missing[0]}: the grid has a 'variation' axis, so the scenario "
+                              f"needs 'stiffness: {{mean, amplitude, period}}' (the levels the variations take)")
+    joints = {}
+    for i, v in enumerate(axes.get("joint", ())):
+        if v != NATIVE:
+            if not isinstance(v, str):
+                raise ConfigError(f"{where}: grid.joint[{i}]: expected '{NATIVE}' or the name of a model in "
+                                  f"configs/models, got {v!r}")
+            joints[v] = resolve_joint(v, f"{where}: grid.joint[{i}]")
+    for i, v in enumerate(axes.get("noise", ())):
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not (v >= 0 and math.isfinite(v)):
+            raise ConfigError(f"{where}: grid.noise[{i}]: expected a number >= 0 (var(noise)/var(torque) on the "
+                              f"torque channel; 0 = no noise), got {v!r}")
+    _no_repeats("noise", axes.get("noise", ()), [float(v) for v in axes.get("noise", ())], where)
+    fs = []
+    for i, v in enumerate(axes.get("fs", ())):
+        if v == NATIVE:
+            fs.append(v)
+            continue
+        from jointbench.core.schema import _number   # the unit-aware number reader of every config value
+
+        x = _number(v, "Hz", f"{where}: grid", f"fs[{i}]", False)
+        if not x > 0:
+            raise ConfigError(f"{where}: grid.fs[{i}]: expected '{NATIVE}' or a rate > 0 Hz, got {v!r}")
+        fs.append(float(x))
+    if "fs" in axes:
+        _no_repeats("fs", axes["fs"], fs, where, " Hz")
+        axes["fs"] = tuple(fs)
+    for i, v in enumerate(axes.get("backend", ())):
+        if not isinstance(v, str) or v not in sims.BACKENDS:
+            raise ConfigError(f"{where}: grid.backend[{i}]: unknown simulation backend {v!r}; known: "
+                              f"{', '.join(sims.BACKENDS.names())}")
+        if getattr(sims.BACKENDS.get(v), "unavailable", lambda: None)():     # an extra not installed
+            raise ConfigError(f"{where}: grid.backend[{i}]: simulation backend {v!r} "
+                              f"{sims.BACKENDS.get(v).unavailable()}")
+    for i, v in enumerate(axes.get("data", ())):
+        if v not in DATA:
+            raise ConfigError(f"{where}: grid.data[{i}]: {v!r} not allowed; allowed: {', '.join(DATA)}")
+    for i, v in enumerate(axes.get("tuning", ())):
+        if v not in TUNING:
+            raise ConfigError(f"{where}: grid.tuning[{i}]: {v!r} not allowed; allowed: {', '.join(TUNING)}")
+    search = _search(data.get("tuning"), f"{where}: tuning")
+    for sname, sc in scenarios.items():
+        _search(sc.tuning, f"{where}: scenarios.{sname}.tuning")
+        for est in axes["estimator"]:          # every candidate parses (errors at load)
+            for cand in candidates(est, {**grid_settings(part_estimators, est), **(sc.estimators.get(est) or {})},
+                                   {**search.get(est, {}), **(sc.tuning.get(est) or {})}):
+                estimators.make(est, cand, f"{where}: tuning of {est} (scenario {sname})")
+    only = _only(data.get("only"), axes, where)
+    budget = data.get("budget", DEFAULT_BUDGET_MIN)
+    if isinstance(budget, bool) or not isinstance(budget, (int, float)) or not budget > 0:
+        raise ConfigError(f"{where}: key 'budget': expected minutes > 0, got {budget!r}")
+    size = math.prod(len(v) for v in axes.values())
+    if size > MAX_COMBINATIONS:
+        raise ConfigError(f"{where}: grid: {' x '.join(f'{len(v)} {a}' for a, v in axes.items())} = {size} "
+                          f"combinations, more than the {MAX_COMBINATIONS} a grid may have; shorten the axes")
+    return Grid(axes=axes, scenarios=scenarios, variations=variations, perturbations=perturbations,
+                joints=joints, settings=settings, budget_minutes=float(budget), search=search, only=only)
+
+
+# ------------------------------------------------------------------------------------------ expansion
+def stiffness_profile(variation: Mapping, levels: Stiffness) -> Any:
+    """The profile of a relative variation at a scenario's levels: sine/square/smooth_random take
+    ``mean`` and ``amplitude`` (and sine/square the ``period``) unless the variation gives them; a ramp
+    goes from ``mean - amplitude`` to ``mean + amplitude``; ``constant`` is ``mean``."""
+    v = dict(variation)
+    shape = v.get("shape")
+    if shape == "constant":
+        return float(v.get("mean", levels.mean))
+    if shape in ("sine", "square", "smooth_random"):
+        v.setdefault("mean", levels.mean)
+        v.setdefault("amplitude", levels.amplitude)
+        if shape != "smooth_random" and "frequency" not in v:
+            v.setdefault("period", levels.period)
+    elif shape == "ramp":
+        v.setdefault("initial", levels.mean - levels.amplitude)
+        v.setdefault("final", levels.mean + levels.amplitude)
+    return v
+
+
+def _experiment(grid: Grid, combo: Mapping[str, Any]) -> dict:
+    """The experiment mapping of one combination (scenario with the joint, variation, perturbation,
+    noise and rate of the combination)."""
+    sc = grid.scenarios[combo["scenario"]]
+    exp = copy.deepcopy(sc.experiment)
+    if combo.get("joint", NATIVE) != NATIVE:
+        exp["joint"] = copy.deepcopy(grid.joints[combo["joint"]])
+    if combo.get("variation", NATIVE) != NATIVE:
+        joint = exp["joint"]
+        key = sc.stiffness.key or ("k" if "k" in joint and "K" not in joint else "K")
+        joint[key] = stiffness_profile(grid.variations[combo["variation"]], sc.stiffness)
+    if combo.get("perturbation", NATIVE) != NATIVE:
+        exp["perturbation"] = copy.deepcopy(grid.perturbations[combo["perturbation"]])
+    if "noise" in combo:
+        sensors = dict(exp.get("sensors") or {})
+        torque = {k: v for k, v in (sensors.get("torque") or {}).items()
+                  if k not in ("noise_rms", "noise_snr_db", "noise_variance_ratio")}
+        if combo["noise"]:
+            torque["noise_variance_ratio"] = combo["noise"]
+        sensors["torque"] = torque
+        exp["sensors"] = sensors
+    if combo.get("fs", NATIVE) != NATIVE:
+        exp["acquisition"] = {**(exp.get("acquisition") or {}), "fs": combo["fs"]}
+    return exp
+
+
+def _refusal(cls, mode: str) -> str | None:
+    if mode in cls.accepts:
+        return None
+    takes = " or ".join({"trial": "single trials", "pooled": "pooled records", "ensemble": "ensembles"}[k]
+                        for k in ("trial", "pooled", "ensemble") if k in cls.accepts)
+    return f"{cls.name} takes {takes}, not {'an ensemble' if mode == 'ensemble' else 'a single trial'}"
+
+
+def expand_grid(study_id: str, part, backend: str | None = None) -> tuple[list[dict], list[dict]]:
+    """The cases of a grid part as the fields of :class:`benchmarks.harness.case.Case` (one per estimator,
+    combination and seed; each case simulates every realization), and the skipped combinations (labels,
+    ``estimator``, ``reason``). ``backend`` (``--backend``) replaces the backend axis."""
+    grid: Grid = part.grid
+    axes = dict(grid.axes)
+    if backend is not None:
+        axes["backend"] = (backend,)
+    axes.setdefault("backend", (part.backend,))
+    names = [a for a in AXES if a in axes]
+    cases, skipped = [], []
+    identified: dict[str, dict] = {}       # params.identify: one identifiability case per experiment and seed
+    built: dict[str, Any] = {}
+    for values in itertools.product(*(axes[a] for a in names)):
+        combo = dict(zip(names, values))
+        est = combo["estimator"]
+        cls = estimators.REGISTRY.get(est)
+        mode = combo.get("data") or ("trial" if "trial" in cls.accepts else "ensemble")
+        sc = grid.scenarios[combo["scenario"]]
+        mapping = _experiment(grid, combo)
+        key = json.dumps([mapping, combo["backend"]], sort_keys=True, default=str)
+        if key not in built:
+            try:
+                built[key] = sims.Experiment.from_mapping(mapping, "the experiment", backend=combo["backend"])
+            except Incompatible as exc:  # valid settings that cannot go together: skipped, with the reason
+                built[key] = str(exc)
+            except ConfigError as exc:   # an invalid config: an error before anything runs
+                labels = ", ".join(f"{a}={v}" for a, v in combo.items() if a != "estimator")
+                raise ConfigError(f"{part.where}: the combination {labels}: "
+                                  f"{str(exc).removeprefix('the experiment: ')}") from None
+        exp = built[key]
+        settings = {**grid.settings[est], **(sc.estimators.get(est) or {})}
+        tuned = combo.get("tuning") == "tuned"
+        search = candidates(est, settings, {**grid.search.get(est, {}), **(sc.tuning.get(est) or {})}) if tuned else []
+        reason = exp if isinstance(exp, str) else (cls.supports(exp) or _refusal(cls, mode))
+        if not reason:
+            reason = next((why for when, keep, why in grid.only
+                           if _matches({**combo, "data": mode}, when) and not _matches({**combo, "data": mode}, keep)),
+                          None)
+        if not reason and tuned and not search:
+            reason = (f"nothing to tune: the tuning search names no setting of {est} (its tuned column is its "
+                      f"paper column)")
+        if reason:
+            skipped.append({**combo, "data": mode, "reason": reason})
+            continue
+        params = {**part.params, "data": mode}
+        if sc.discard is not None:
+            params["discard"] = sc.discard
+        if sc.realizations is not None:
+            params["realizations"] = sc.realizations
+        if search:
+            params["search"] = search
+        for seed in part.seeds:
+            cases.append(dict(study=study_id, part=part.name, protocol=part.protocol, params=params,
+                              sweep={**combo, "data": mode}, experiment=mapping, estimators={est: settings},
+                              seed=seed, where=part.where, backend=combo["backend"]))
+            scen = {a: v for a, v in combo.items() if a in SCENARIO_AXES}
+            ident = json.dumps([scen, seed], sort_keys=True, default=str)
+            if part.params.get("identify") and ident not in identified:
+                identified[ident] = dict(study=study_id, part=part.name, protocol="identifiability",
+                                         params={k: v for k, v in params.items() if k not in ("data", "search")},
+                                         sweep=scen, experiment=mapping, estimators={}, seed=seed,
+                                         where=part.where, backend=combo["backend"])
+    return cases + list(identified.values()), skipped
+
+
+
+def skipped_rows(study_id: str, skipped: list[dict]) -> list[dict]:
+    """Tidy rows (metric ``skipped``, value NaN, the ``reason``) for the skipped combinations of a run."""
+    rows = []
+    for s in skipped:
+        labels = {k: v for k, v in s.items() if k not in ("part", "estimator", "reason")}
+        cid = s["part"] + "".join(f"-{k}={v}" for k, v in labels.items()) + f"-estimator={s['estimator']}"
+        rows.append({"study": study_id, "part": s["part"], "case_id": cid, "estimator": s["estimator"],
+                     "metric": "skipped", "value": math.nan, "status": "skipped", "reason": s["reason"], **labels})
+    return rows
+
+
+# --------------------------------------------------------------------------------------- time estimate
+#: rough CPU seconds per simulated step of one response, by backend, and of the sensors and acquisition of
+#: every trial; measured on the 2-core development machine (the matrix study); the estimate says it is rough
+SIM_S_PER_STEP = {"analytic": 0.8e-6, "lti": 0.8e-6, "ltv": 0.8e-6, "mujoco": 4e-6}
+TRIAL_S_PER_STEP = 0.15e-6
+#: rough fit seconds per acquired sample (of every realization of an ensemble), by estimator (the matrix
+#: study's medians); others: FIT_DEFAULT
+FIT_S_PER_SAMPLE = {"fsewls": 0.7e-6, "kbr": 12e-6, "skirt": 3e-6, "sds": 6e-6, "guarin": 12e-6,
+                    "ensemble_irf": 3e-6, "irf2_ls": 0.3e-6, "irf2_corr": 0.1e-6, "ibk_irf": 2.5e-6,
+                    "ibk_spectral": 2.5e-6, "spectral": 2.5e-6, "ensemble_spectral": 10e-6}
+FIT_DEFAULT = 1e-5
+#: rough CPU seconds a case spends besides its fits (scoring, the bootstrap of the spread, parsing)
+CASE_OVERHEAD_S = 0.15
+
+
+def estimate_seconds(cases: list, groups: list[list[int]]) -> float:
+    """A rough estimate (s of one core) of computing ``cases`` of a grid, scheduled in ``groups`` (each
+    group simulates its distinct responses once: R realizations, times the ensemble size when a case of
+    it fits ensembles)."""
+    total = 0.0
+    for g in groups:
+        first = cases[g[0]]
+        exp = sims.Experiment.from_mapping(first.experiment, "estimate", backend=first.backend) \
+            if first.experiment is not None else None
+        R = int(first.params.get("realizations", 10))
+        M = int(first.params.get("ensemble_size", 5))
+        ens = any(cases[i].sweep.get("data") == "ensemble" for i in g)
+        if exp is not None:
+            per_step = SIM_S_PER_STEP.get(first.backend, SIM_S_PER_STEP["mujoco"])
+            total += R * (M if ens else 1) * exp.n_sim * per_step
+            noises = {json.dumps(cases[i].experiment.get("sensors"), sort_keys=True, default=str) for i in g}
+            total += len(noises) * R * (M if ens else 1) * exp.n_sim * TRIAL_S_PER_STEP
+        for i in g:
+            c = cases[i]
+            n = exp.n if exp is not None else 0
+            if c.protocol == "identifiability":     # N_IDENTIFY realizations, with and without noise
+                total += 2 * min(R, 3) * (exp.n_sim * TRIAL_S_PER_STEP if exp is not None else 0) + CASE_OVERHEAD_S
+                continue
+            est = next(iter(c.estimators), "")
+            k = M if c.sweep.get("data") == "ensemble" else 1
+            per_fit = k * n * FIT_S_PER_SAMPLE.get(est, FIT_DEFAULT)
+            total += R * per_fit + CASE_OVERHEAD_S
+            search = c.params.get("search") or ()
+            if search and exp is not None:         # each candidate fitted once; k + 2 tuning realizations
+                per_step = SIM_S_PER_STEP.get(first.backend, SIM_S_PER_STEP["mujoco"])
+                total += len(search) * per_fit + (k + 2) * exp.n_sim * (per_step + TRIAL_S_PER_STEP)
+    return total
