@@ -93,7 +93,7 @@ bench-studies: $(STAMP)
 
 # The studies, side by side (each one's last cases, figures and report overlap the others' computing, so
 # both cores stay busy; quiet: four progress bars would garble each other), then the README's status
-# tables from their comparison.csv files (never typed by hand; --write-readme: by the same command, which
+# tables from their checks.csv files (never typed by hand; --write-readme: by the same command, which
 # has pandas loaded already). The four studies are the parallelism: one
 # command runs them (--jobs 4), each in a process forked after the imports they all share (about 2 CPU-s
 # each, paid once instead of four times; each prints its summary whole when it is done). With fewer than

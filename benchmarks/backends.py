@@ -12,7 +12,7 @@ comparison and figures). Every report then gains:
   that of the study's own run (``results/<study>/report.md``); the other columns show what the same
   checks give on physics-engine data.
 
-Nothing here recomputes a case: it reads each run's ``comparison.csv`` and ``cases.csv``.
+Nothing here recomputes a case: it reads each run's ``checks.csv`` and ``cases.csv``.
 """
 from __future__ import annotations
 
@@ -35,12 +35,12 @@ def runs(folder: Path) -> dict[str, Path]:
     """Every run of the study whose output folder is (or contains) ``folder``: label -> folder.
 
     The study's own run is labelled ``study`` (it may mix backends across parts), the others by their
-    backend. Only runs that wrote a ``comparison.csv`` count, except ``folder`` itself.
+    backend. Only runs that wrote a ``checks.csv`` count, except ``folder`` itself.
     """
     base = folder.parent if folder.name.startswith(PREFIX) else folder
     out = {}
     for label, path in [("study", base)] + [(p.name[len(PREFIX):], p) for p in sorted(base.glob(f"{PREFIX}*"))]:
-        if path == folder or (path / "comparison.csv").is_file():
+        if path == folder or (path / "checks.csv").is_file():
             out[label] = path
     return out
 
@@ -117,7 +117,7 @@ def sections(study, comparison: pd.DataFrame, meta: dict) -> list[Section]:
     table = comparison[["check", "description", "published"]].copy()
     table[_label(this, infos[this])] = comparison["reproduced"].to_numpy(float)
     for label, path in others.items():
-        other = pd.read_csv(path / "comparison.csv")
+        other = pd.read_csv(path / "checks.csv")
         got = dict(zip(other["check"].astype(str), other["reproduced"]))
         col = _label(label, infos[label])
         table[col] = [got.get(c, np.nan) for c in comparison["check"].astype(str)]

@@ -18,8 +18,9 @@ from jointbench.benchmarks import backends
 from jointbench.benchmarks.config import EVIDENCE, Study
 from jointbench.benchmarks.harness.pages import (Code, Figure, Items, Page, Paragraph, Section, paragraphs, table,
                                                  to_html, to_markdown)
-from jointbench.benchmarks.tables import (DIRTY_BANNER, difference_counts, difference_rows, evidence_counts, fidelity,
-                                          headline, headline_rows)
+from jointbench.benchmarks.tables import DIRTY_BANNER
+from jointbench.benchmarks.checks import (difference_counts, difference_rows, evidence_counts, fidelity, headline,
+                                          headline_rows)
 from jointbench.core.files import write_text
 
 #: what each kind of evidence means, as the report says it

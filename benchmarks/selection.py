@@ -1,5 +1,5 @@
 """Selecting tidy rows by a check's conditions (``select``, ``versus``, ``domain`` of the published-values
-file): :class:`Selection`, what :func:`benchmarks.tables.compare` scores every check with."""
+file): :class:`Selection`, what :func:`benchmarks.checks.judge` scores every check with."""
 from __future__ import annotations
 
 from typing import Mapping
@@ -9,7 +9,7 @@ import pandas as pd
 
 
 class Selection:
-    """The tidy rows prepared for many selections (the checks of :func:`benchmarks.tables.compare`): each
+    """The tidy rows prepared for many selections (the checks of :func:`benchmarks.checks.judge`): each
     column's values, text and numbers are taken out of the frame once, as numpy arrays, and a selection
     narrows a set of row positions with them; only the columns a caller asks for are cut out of the frame.
 

@@ -1,9 +1,9 @@
-"""Run a whole study: expand, run cases, write tidy results, comparison, figures and the report, and
+"""Run a whole study: expand, run cases, write tidy results, checks, figures and the report, and
 record the run in the history.
 
 Outputs in ``results/<study>/`` (``./results`` of the current folder, or ``--out``; a run with ``--set`` and
 no ``--out``: ``results/set-runs/<study>-set-<hash>/``, said on stderr): ``cases.csv`` (tidy rows) and
-``cases.parquet`` (the same, typed), ``curves.csv.gz`` (curves behind the figures), ``comparison.csv``
+``cases.parquet`` (the same, typed), ``curves.csv.gz`` (curves behind the figures), ``checks.csv``
 (one row per published check), ``report.md`` with its PNG figures,
 ``report.html`` (the same report, self-contained), ``failures.log`` (tracebacks of failed cases, when
 any). Beside them, shared by every study:
@@ -30,7 +30,8 @@ from jointbench.benchmarks.harness import fingerprint, outputs
 from jointbench.benchmarks.harness.cache import Cache
 from jointbench.benchmarks.harness.history import History
 from jointbench.benchmarks.runner import CaseResult, RunInterrupted, expand, expand_study, group_cases, run_cases
-from jointbench.benchmarks.tables import cases_frame, compare, curves_frame, swap_survival
+from jointbench.benchmarks.tables import cases_frame, curves_frame
+from jointbench.benchmarks.checks import judge, swap_survival
 from jointbench.core.csv_text import write_csv
 from jointbench.core.errors import ConfigError, OutputError
 from jointbench.core.files import atomic_write, replace_as_set, staging_folder, sweep_stale_temps, write_text
@@ -46,7 +47,7 @@ class StudyRun:
     folder: Path
     results: list[CaseResult]
     rows: pd.DataFrame
-    comparison: pd.DataFrame
+    checks: pd.DataFrame             # the study's checks, judged (checks.csv)
     run_id: int | None = None
     part_reports: dict = dataclasses.field(default_factory=dict)
     wall_s: float = 0.0
@@ -280,7 +281,7 @@ def run_study(ref: str | Path, parts: list[str] | None = None, out_root: Path | 
                          ignore_index=True)
     curves = curves_frame(results)
     shown = [p for p in study.parts if p in run_parts or p in from_cache]
-    comparison = compare(study.checks, rows, set(shown), commit)
+    comparison = judge(study.checks, rows, set(shown), commit)
     recorded = False
     try:
         with outputs.study_lock(folder, f"run {run_id} (pid {os.getpid()})"):
@@ -292,7 +293,7 @@ def run_study(ref: str | Path, parts: list[str] | None = None, out_root: Path | 
                 atomic_write(stage / "cases.csv", lambda p: write_csv(rows, p))
                 atomic_write(stage / "cases.parquet", lambda p: outputs.write_parquet(rows, p))
                 atomic_write(stage / "curves.csv.gz", lambda p: write_csv(curves, p, gzip_level=GZIP_LEVEL))
-                atomic_write(stage / "comparison.csv", lambda p: write_csv(comparison, p))
+                atomic_write(stage / "checks.csv", lambda p: write_csv(comparison, p))
                 failed = [r for r in results if r.status != "ok"]
                 if failed:
                     write_text(stage / "failures.log",

@@ -1,13 +1,13 @@
-"""Tidy tables from case results, and the comparison with published values."""
+"""Tidy tables from case results: the rows (``cases.csv``), the curves behind the figures, and summaries over seeds.
+
+The judging of those rows against the published values is :mod:`benchmarks.checks`.
+"""
 from __future__ import annotations
 
-from typing import Mapping
 
 import numpy as np
 import pandas as pd
 
-from jointbench.benchmarks.config import Check
-from jointbench.benchmarks.selection import Selection
 
 ROW_FRONT = ["study", "part", "case_id", "seed", "estimator", "metric", "value", "status", "error",
              "wall_time_s", "git_commit"]
@@ -123,238 +123,12 @@ def curves_frame(results) -> pd.DataFrame:
     return out
 
 
-def _out_of_domain(rows: Selection, part: str, where: Mapping, domain: Mapping) -> np.ndarray:
-    """Positions of the rows matching ``where`` but not ``domain``."""
-    every = rows.positions(part, where)
-    inside = rows.positions(part, domain, within=every)
-    return every[~np.isin(every, inside)]
-
-
-def aggregate(values, how: str) -> float:
-    """One of :data:`benchmarks.config.AGGREGATES` over finite values (``std``: sample SD, ddof 1)."""
-    v = np.asarray(values, float)
-    v = v[np.isfinite(v)]
-    if how == "std":
-        return float(np.std(v, ddof=1)) if len(v) > 1 else np.nan
-    return float(getattr(np, how)(v)) if len(v) else np.nan
-
-
-def _grouped(sel: pd.DataFrame, column: str, how: str) -> pd.Series:
-    """Aggregate of the finite values per value of ``column`` (numeric order when numeric)."""
-    sel = sel[np.isfinite(sel["value"].to_numpy(float))]
-    if not column:
-        return pd.Series({"": aggregate(sel["value"], how)}) if len(sel) else pd.Series(dtype=float)
-    if column not in sel.columns:
-        return pd.Series(dtype=float)
-    g = sel.groupby(sel[column].astype(str), sort=False)["value"].agg(lambda v: aggregate(v, how))
-    num = pd.to_numeric(pd.Series(g.index, index=g.index), errors="coerce")
-    order = num.sort_values().index if num.notna().all() else sorted(g.index)
-    return g.loc[list(order)]
-
-
-def _trend(c: Check, rows: Selection) -> tuple[float, str, int]:
-    """Largest move against ``c.direction`` between consecutive aggregates over ``c.over``."""
-    sel = rows.frame(rows.positions(c.part, {**c.select, **(c.domain or {})}), c.over)
-    m = _grouped(sel, c.over, c.aggregate)
-    if len(m) < 2:
-        return np.nan, "", len(sel)
-    d = np.diff(m.to_numpy(float))
-    against = d if c.direction == "decreasing" else -d
-    spread = ", ".join(f"{k}: {v:.4g}" for k, v in m.items())
-    return float(np.max(against)), f"{c.over} -> {spread}", len(sel)
-
-
-def _differences(c: Check, a: pd.DataFrame, b: pd.DataFrame) -> pd.Series:
-    ma, mb = _grouped(a, c.by, c.aggregate), _grouped(b, c.by, c.aggregate)
-    keys = [k for k in ma.index if k in mb.index]
-    return pd.Series({k: float(ma[k] - mb[k]) for k in keys}, dtype=float)
-
-
-def _difference(c: Check, rows: Selection) -> tuple[float, str, int]:
-    """aggregate(select) - aggregate(versus) per value of ``c.by``; the group closest to (or furthest
-    beyond) a bound is the reproduced value."""
-    dom = c.domain or {}
-    a = rows.frame(rows.positions(c.part, {**c.select, **dom}), c.by)
-    b = rows.frame(rows.positions(c.part, {**(c.versus or {}), **dom}), c.by)
-    d = _differences(c, a, b)
-    if d.empty:
-        return np.nan, "", len(a) + len(b)
-    margin = np.minimum(d - c.low, c.high - d)
-    worst = margin.idxmin()
-    spread = ", ".join(f"{k}: {v:+.4g}" for k, v in d.items()) if c.by else ""
-    return float(d[worst]), (f"{c.by} -> {spread}" if c.by else spread), len(a) + len(b)
-
-
-def _outside(c: Check, rows: Selection) -> str:
-    """What the rows outside the check's domain give (shown, not scored)."""
-    if not c.domain:
-        return ""
-    if c.kind == "difference":
-        a = rows.frame(_out_of_domain(rows, c.part, c.select, c.domain), c.by)
-        b = rows.frame(_out_of_domain(rows, c.part, c.versus or {}, c.domain), c.by)
-        d = _differences(c, a, b)
-        body = ", ".join(f"{k}: {v:+.4g}" for k, v in d.items())
-        return f"{c.by} -> {body}" if body else ""
-    col = next(iter(c.domain))
-    out = rows.frame(_out_of_domain(rows, c.part, c.select, c.domain), col)
-    g = _grouped(out, col if col in out.columns else "", c.aggregate)
-    return f"{col} -> " + ", ".join(f"{k}: {v:.4g}" for k, v in g.items()) if len(g) else ""
-
-
-COMPARISON_COLUMNS = ["check", "description", "published", "reproduced", "low", "high", "status", "evidence",
-                      "reading", "free_parameter", "aggregate", "n", "spread", "out_of_domain", "part",
-                      "source", "tolerance_reason", "domain_reason", "note", "count", "target", "cause", "commit"]
-
-
-def compare(checks: tuple[Check, ...], rows: pd.DataFrame, parts_run: set[str], commit: str = "") -> pd.DataFrame:
-    """One row per check: published, reproduced, tolerance, pass/miss, and the kind of evidence.
-
-    Check kinds: ``value`` (aggregate over seeds of the selected rows within [low, high]); ``trend``
-    (aggregates per value of ``over`` must move in ``direction``; reproduced = the largest move against
-    it, which must not exceed ``slack``); ``difference`` (aggregate of ``select`` minus that of ``versus``
-    per value of ``by``, every one within [low, high]; reproduced = the one closest to or beyond a bound).
-    A check's ``domain`` restricts the scored rows; what the rest gives is in ``out_of_domain``.
-    ``commit`` is stamped on every row (``...-dirty`` rows say loudly that they must not be committed).
-    """
-    out = []
-    rows = Selection(rows)
-    for c in checks:
-        if c.part not in parts_run:
-            continue
-        if c.kind == "value":
-            v = rows.values(rows.positions(c.part, {**c.select, **(c.domain or {})}))
-            v = v[np.isfinite(v)]
-            n = len(v)
-            rep = aggregate(v, c.aggregate)
-            spread = f"{v.min():.4g} to {v.max():.4g}" if n > 1 else ""
-            low, high = c.low, c.high
-        else:
-            rep, spread, n = _trend(c, rows) if c.kind == "trend" else _difference(c, rows)
-            low, high = (-np.inf, c.slack) if c.kind == "trend" else (c.low, c.high)
-        if not np.isfinite(rep):
-            status = "miss"
-            note = "no result: the case failed or produced no such metric (see the failed cases)"
-        else:
-            status = "pass" if low <= rep <= high else "miss"
-            note = "" if status == "pass" else c.if_missed
-        out.append({"check": c.id, "description": c.description, "published": c.published,
-                    "reproduced": rep, "low": low, "high": high, "status": status,
-                    "evidence": c.evidence, "reading": c.reading, "free_parameter": c.free_parameter,
-                    "aggregate": c.aggregate if c.kind == "value" else f"{c.kind} of {c.aggregate}s",
-                    "n": n, "spread": spread, "out_of_domain": _outside(c, rows), "part": c.part,
-                    "source": c.source, "tolerance_reason": c.tolerance_reason,
-                    "domain_reason": c.domain_reason, "note": note, "count": c.count, "target": c.target,
-                    "cause": c.cause, "commit": stamp(commit)})
-    return pd.DataFrame(out, columns=COMPARISON_COLUMNS)
-
-
 DIRTY_BANNER = "generated from an uncommitted tree - do not commit"
 
 
 def stamp(commit: str) -> str:
     """The commit as recorded in the outputs: a dirty tree's stamp carries :data:`DIRTY_BANNER`."""
     return f"{commit} ({DIRTY_BANNER})" if commit.endswith("-dirty") else commit
-
-
-def _is_difference(comparison: pd.DataFrame) -> pd.Series:
-    """Rows of checks counted as method differences (their own line, never in the headline)."""
-    if "count" not in comparison:
-        return pd.Series(False, index=comparison.index)
-    return comparison["count"].fillna("headline").astype(str) == "method_difference"
-
-
-def headline_rows(comparison: pd.DataFrame) -> pd.DataFrame:
-    """The checks that count one published value or claim each (method differences left out)."""
-    return comparison[~_is_difference(comparison)]
-
-
-def difference_rows(comparison: pd.DataFrame) -> pd.DataFrame:
-    """The method-difference checks (differences of published cells already checked one by one)."""
-    return comparison[_is_difference(comparison)]
-
-
-def evidence_counts(comparison: pd.DataFrame) -> dict[str, tuple[int, int]]:
-    """Evidence kind -> (passes, checks), in :data:`benchmarks.config.EVIDENCE` order (kinds present),
-    over the checks of one published value each: method-difference checks (``count``) are left out, so
-    that a published cell is counted once (:func:`difference_counts` counts them).
-
-    The headline of a report or of the README is ``reproduction`` alone; the others go beside it.
-    A comparison written before the evidence column existed counts under ``unrecorded``.
-    """
-    from jointbench.benchmarks.config import EVIDENCE
-
-    if comparison.empty:
-        return {}
-    comparison = headline_rows(comparison)
-    ev = comparison["evidence"].fillna("unrecorded") if "evidence" in comparison else \
-        pd.Series("unrecorded", index=comparison.index)
-    out = {}
-    for kind in (*EVIDENCE, "unrecorded"):
-        sel = comparison[ev == kind]
-        if len(sel):
-            out[kind] = (int((sel["status"] == "pass").sum()), len(sel))
-    return out
-
-
-def difference_counts(comparison: pd.DataFrame) -> tuple[int, int] | None:
-    """(passes, checks) of the method-difference checks, or None when there are none."""
-    d = difference_rows(comparison) if not comparison.empty else comparison
-    if d.empty:
-        return None
-    return int((d["status"] == "pass").sum()), len(d)
-
-
-def headline(comparison: pd.DataFrame) -> str:
-    """``reproduction 9 of 14 pass; method differences 20 of 30; beside them: conditional 3 of 3, ...``"""
-    counts = evidence_counts(comparison)
-    diff = difference_counts(comparison)
-    if not counts and not diff:
-        return "no checks"
-    rep = counts.get("reproduction")
-    head = f"reproduction {rep[0]} of {rep[1]} pass" if rep else "no reproduction check"
-    if diff:
-        head += f"; method differences {diff[0]} of {diff[1]}"
-    notes = {"calibrated": " (not counted)"}
-    others = [f"{k} {p} of {n}{notes.get(k, '')}" for k, (p, n) in counts.items() if k != "reproduction"]
-    return head + ("; beside them: " + ", ".join(others) if others else "")
-
-
-def method_specific(checks, estimators: tuple[str, str]) -> list[Check]:
-    """Checks whose ``select`` or ``versus`` names one of ``estimators``."""
-    names = set(estimators)
-    return [c for c in checks
-            if str(c.select.get("estimator", "")) in names or str((c.versus or {}).get("estimator", "")) in names]
-
-
-def swap_estimators(rows: pd.DataFrame, part: str, estimators: tuple[str, str]) -> pd.DataFrame:
-    """The rows with the two estimators' labels exchanged in ``part`` (their reproduced values swapped)."""
-    a, b = estimators
-    out = rows.copy()
-    inside = out["part"] == part
-    col = out["estimator"].astype(str)
-    out.loc[inside & (col == a), "estimator"] = b
-    out.loc[inside & (col == b), "estimator"] = a
-    return out
-
-
-def swap_survival(checks, rows: pd.DataFrame, part: str, estimators: tuple[str, str]) -> dict:
-    """How many method-specific checks of ``part`` pass with the two estimators' values swapped.
-
-    Returns ``n`` (method-specific checks), ``pass`` and ``pass_swapped`` (how many pass as reproduced
-    and with the values swapped), ``survivors`` (ids passing both ways: they do not tell the methods
-    apart) and ``difference_survivors`` (those of kind ``difference`` comparing the two estimators).
-    """
-    own = [c for c in method_specific(checks, estimators) if c.part == part]
-    if not own:
-        return {"n": 0, "pass": 0, "pass_swapped": 0, "survivors": [], "difference_survivors": []}
-    before = compare(tuple(own), rows, {part}).set_index("check")["status"]
-    after = compare(tuple(own), swap_estimators(rows, part, estimators), {part}).set_index("check")["status"]
-    both = [c.id for c in own if before[c.id] == "pass" and after[c.id] == "pass"]
-    between = {c.id for c in own if c.kind == "difference"
-               and {str(c.select.get("estimator")), str((c.versus or {}).get("estimator"))} == set(estimators)}
-    return {"n": len(own), "pass": int((before == "pass").sum()), "pass_swapped": int((after == "pass").sum()),
-            "survivors": both, "difference_survivors": [i for i in both if i in between],
-            "differences": len(between)}
 
 
 def over_seeds(rows: pd.DataFrame, by: list[str], metrics: list[str] | None = None) -> pd.DataFrame:
@@ -383,52 +157,3 @@ def median_range(median: float, low: float, high: float, n: int, digits: int | N
 def summarize(rows: pd.DataFrame, part: str, by: list[str]) -> pd.DataFrame:
     """Median and min-max over seeds of every metric of a part, grouped by ``by`` columns."""
     return over_seeds(rows[rows["part"] == part], by + ["estimator", "metric"])
-
-
-def _target(row) -> str:
-    """The published table or figure a check belongs to: its ``target``, else its family (the id up to the
-    first '-') with the first phrase of its source."""
-    t = str(row.get("target", "") or "").strip()
-    if t and t != "nan":
-        return t
-    fam = str(row["check"]).split("-")[0]
-    src = str(row.get("source", "") or "")
-    head = src.replace("'", ":").split(":")[0].split(";")[0].strip().rstrip(",")
-    head += ")" * max(0, head.count("(") - head.count(")"))   # a cut inside a bracket closes it
-    return f"{fam} ({head})" if head and head != "nan" else fam
-
-
-def fidelity(comparison: pd.DataFrame) -> pd.DataFrame:
-    """Per published table or figure: the checks passing (reproduction, conditional, method differences),
-    the calibrated and sanity ones beside them, the misses explained by a one-line cause and those causes
-    (``cause: n checks``), from the comparison rows (never typed)."""
-    if comparison.empty:
-        return pd.DataFrame()
-    comp = comparison.copy()
-    comp["_target"] = [_target(r) for r in comp.to_dict("records")]
-    comp["_diff"] = _is_difference(comp)
-    ev = comp["evidence"].fillna("unrecorded") if "evidence" in comp else pd.Series("unrecorded", index=comp.index)
-    cause = (comp["cause"].astype(object).fillna("").astype(str).replace("nan", "") if "cause" in comp
-             else pd.Series("", index=comp.index))
-    passed = comp["status"] == "pass"
-    recs = []
-    for target in dict.fromkeys(comp["_target"]):
-        sel = comp["_target"] == target
-
-        def count(mask):             # counted on the masks (cutting the frame for each cost 0.1 CPU-s a README)
-            m = sel & mask
-            n = int(m.sum())
-            return f"{int((m & passed).sum())} of {n}" if n else "–"
-        miss = sel & (comp["status"] != "pass")
-        causes = cause[miss]
-        named = causes[causes != ""].value_counts()
-        recs.append({"published": target,
-                     "reproduction": count(~comp["_diff"] & (ev == "reproduction")),
-                     "conditional": count(~comp["_diff"] & (ev == "conditional")),
-                     "method differences": count(comp["_diff"]),
-                     "calibrated (not counted)": count(~comp["_diff"] & (ev == "calibrated")),
-                     "sanity": count(~comp["_diff"] & (ev == "sanity")),
-                     "misses explained": f"{int((causes != '').sum())} of {int(miss.sum())}" if miss.any() else "–",
-                     "causes of the misses": "; ".join(f"{c}: {n} check{'s' if n > 1 else ''}"
-                                                       for c, n in named.items())})
-    return pd.DataFrame(recs)

@@ -354,7 +354,7 @@ def run(study: str | Path | Mapping[str, Any], *, parts: Sequence[str] | None = 
             exe.shutdown(wait=True)
     failures = pd.DataFrame([{"case_id": f.case.case_id, "error": f.error} for f in r.failed],
                             columns=["case_id", "error"])
-    return StudyResult(r.study.id, r.folder, r.rows, r.comparison, failures, r.run_id, r.wall_s)
+    return StudyResult(r.study.id, r.folder, r.rows, r.checks, failures, r.run_id, r.wall_s)
 
 
 # ------------------------------------------------------------------------------------------------ history

@@ -111,13 +111,13 @@ def test_every_paper_study_runs_on_mujoco(mujoco_runs, study):
     run = mujoco_runs[study]
     assert not run.failed, [r.error for r in run.failed]
     assert run.folder.name == "backend-mujoco" and run.folder.parent.name == run.study.id
-    for name in ("comparison.csv", "cases.csv", "report.md"):
+    for name in ("checks.csv", "cases.csv", "report.md"):
         assert (run.folder / name).is_file(), name
     rows = pd.read_csv(run.folder / "cases.csv")
     simulated = rows[rows["n_trials"] > 0]
     assert len(simulated) and set(simulated["backend"]) == {"mujoco"}
     assert (simulated["sim_time_s"] > 0).all()
-    assert len(run.comparison) and run.comparison["reproduced"].notna().any()
+    assert len(run.checks) and run.checks["reproduced"].notna().any()
     assert "## Simulation backends" in (run.folder / "report.md").read_text()
 
 
@@ -128,10 +128,10 @@ def test_the_study_report_shows_mujoco_beside_every_check(mujoco_runs):
     section = text.split("### Checks by backend")[1].split("\n## ")[0]
     header = next(line for line in section.splitlines() if line.startswith("| check"))
     assert "| analytic (study) |" in header and "| mujoco |" in header and "| mujoco within |" in header
-    mj = pd.read_csv(run.folder / "backend-mujoco" / "comparison.csv")
-    for check in run.comparison["check"]:
+    mj = pd.read_csv(run.folder / "backend-mujoco" / "checks.csv")
+    for check in run.checks["check"]:
         assert f"| {check} |" in section
-    assert len(mj) == len(run.comparison)
+    assert len(mj) == len(run.checks)
     # the simulation time per trial of each backend
     table = text.split("## Simulation backends")[1].split("###")[0]
     assert "`westwick2012/backend-mujoco`" in table and "this report" in table
@@ -170,14 +170,14 @@ def test_apparatus_study_smoke(tmp_path):
     assert not run.failed, [r.error for r in run.failed]
     for name in ("apparatus_servo.png", "apparatus_gravity.png", "report.md"):
         assert (run.folder / name).is_file(), name
-    comp = run.comparison.set_index("check")
+    comp = run.checks.set_index("check")
     assert comp.loc["G1-offset", "status"] == "pass" and comp["reproduced"].notna().all()
     rows = run.rows
     off = rows[rows["metric"] == "gravity_offset"].set_index("posture_deg")["value"]
     assert off[0] > 2.5 and off[180] < -2.5      # m g l = 2.75 N·m/rad
     text = (run.folder / "report.md").read_text()
     assert "| this report | mujoco | gravity, servo |" in text
-    check_golden("apparatus", run.comparison)      # every check's status in this smoke run is pinned
+    check_golden("apparatus", run.checks)      # every check's status in this smoke run is pinned
 
 
 def test_simulation_timing_counts_computed_responses_per_backend():

@@ -8,7 +8,7 @@ import pytest
 
 from jointbench.benchmarks.config import load_study
 from jointbench.benchmarks.locate import STUDIES
-from jointbench.benchmarks.tables import difference_counts, evidence_counts, headline
+from jointbench.benchmarks.checks import difference_counts, evidence_counts, headline
 
 
 def _comp(statuses, evidence, counts):
@@ -130,7 +130,7 @@ def test_prefilter_noise_ratio_and_the_ratio_a_published_row_implies():
 
 
 def test_fidelity_target_names_its_source_up_to_the_first_colon_with_brackets_closed():
-    from jointbench.benchmarks.tables import _target
+    from jointbench.benchmarks.checks import _target
     assert _target({"check": "A1-prediction-2s", "source": "Sec. II-A, eqs. 3-8 (prediction: reading R7)"}) \
         == "A1 (Sec. II-A, eqs. 3-8 (prediction))"
     assert _target({"check": "X1-posture", "source": "Sec. III-B, Fig. 2: 'better for posture'"}) \

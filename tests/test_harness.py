@@ -13,7 +13,7 @@ from jointbench.benchmarks.config import Check, load_study
 from jointbench.benchmarks.locate import STUDIES
 from jointbench.benchmarks.runner import Cache, expand, run_cases
 from jointbench.benchmarks.study import run_study
-from jointbench.benchmarks.tables import compare
+from jointbench.benchmarks.checks import judge
 from jointbench.core.errors import ConfigError
 from tests.harness_studies import study_copy
 
@@ -74,7 +74,7 @@ def test_failing_case_is_recorded_and_others_run(tmp_path):
     assert "never falls 500" in failed.error and "Traceback" in failed.detail
     cases = pd.read_csv(run.folder / "cases.csv")
     assert (cases.loc[cases["part"] == "fig8", "status"] == "failed").all()
-    comp = pd.read_csv(run.folder / "comparison.csv")
+    comp = pd.read_csv(run.folder / "checks.csv")
     w6 = comp[comp["check"] == "W6-eq17"].iloc[0]
     assert w6["status"] == "miss" and "failed" in w6["note"]
     assert (run.folder / "failures.log").is_file()
@@ -116,7 +116,7 @@ def test_compare_aggregates_and_flags_misses():
     checks = (Check("c1", "p", "d", "s", 2, 1.5, 2.5, {"metric": "m", "fs_hz": 50}),
               Check("c2", "p", "d", "s", 5, 4, 6, {"metric": "m", "fs_hz": 100}, if_missed="why"),
               Check("c3", "p", "d", "s", 5, 0, 1, {"metric": "absent"}))
-    out = compare(checks, rows, {"p"}).set_index("check")
+    out = judge(checks, rows, {"p"}).set_index("check")
     assert out.loc["c1", "reproduced"] == 2.0 and out.loc["c1", "status"] == "pass"   # median of 1, 2, 10
     assert out.loc["c2", "status"] == "miss" and out.loc["c2", "note"] == "why"
     assert out.loc["c3", "status"] == "miss" and np.isnan(out.loc["c3", "reproduced"])
@@ -141,7 +141,7 @@ def test_trend_and_difference_checks():
         Check("d2", **{**base, "low": -12}, select={"metric": "m", "cond": "move"}, kind="difference",
               versus={"metric": "m", "cond": "post"}, by="f"),
     )
-    out = compare(checks, rows, {"p"}).set_index("check")
+    out = judge(checks, rows, {"p"}).set_index("check")
     # sorted by f: 0.1 -> 90, 0.5 -> 85, 1.0 -> 86: largest rise 1
     assert out.loc["t1", "reproduced"] == 1.0 and out.loc["t1", "status"] == "pass"
     assert out.loc["t2", "status"] == "miss"
@@ -183,13 +183,13 @@ def test_partial_run_keeps_other_parts_from_cache(tmp_path):
     out = tmp_path / "out"
     run_study("westwick2012", parts=["fig2", "fig3"], out_root=out, serial=True, progress=False)
     run = run_study("westwick2012", parts=["fig2"], out_root=out, serial=True, progress=False)
-    comp = pd.read_csv(run.folder / "comparison.csv")
+    comp = pd.read_csv(run.folder / "checks.csv")
     assert {"fig2", "fig3"} == set(comp["part"])          # fig3 served from the cache
     text = (run.folder / "report.md").read_text()
     assert "come from the cache" in text and "Not included" in text
     fresh = run_study("westwick2012", parts=["fig2"], out_root=out, serial=True, progress=False,
                       use_cache=False)
-    assert set(fresh.comparison["part"]) == {"fig2"}
+    assert set(fresh.checks["part"]) == {"fig2"}
 
 
 def test_report_section_puts_a_part_under_interpretation():

@@ -105,7 +105,7 @@ def test_code_hash_covers_what_computes_a_case_and_nothing_else():
     assert shared | {"benchmarks/metrics.py", "benchmarks/studies/xu1998/protocol.py", "estimators/kbr.py",
                      "estimators/_kbr_solve.py", "estimators/fsewls.py"} <= files   # xu1998 imports fsewls
     assert not files & {"estimators/skirt.py", "estimators/sds.py", "benchmarks/studies/westwick2012/protocol.py"}
-    assert not {f for f in files if f.startswith(("benchmarks/figures/", "benchmarks/harness/nightly"))
+    assert not {f for f in files if f.startswith(("benchmarks/figures/", "benchmarks/nightly"))
                 or f.endswith("/figures.py")}
     assert not files & {"benchmarks/report.py", "benchmarks/tables.py", "jointbench/cli/studies.py",
                         "benchmarks/config.py", "benchmarks/study.py", "benchmarks/runner.py",
@@ -350,7 +350,7 @@ def test_regenerated_reports_do_not_make_a_run_dirty(tmp_path, monkeypatch):
 def test_a_version_1_history_gains_the_evidence_of_each_check(tmp_path):
     """Histories written before checks recorded their kind of evidence are upgraded in place: old
     runs keep their checks (evidence NULL, shown as 'unrecorded'), new runs record it."""
-    from jointbench.benchmarks.harness.compare import compare_runs
+    from jointbench.benchmarks.harness.diff import diff_runs
     from jointbench.benchmarks.harness.history import SCHEMA
 
     path = tmp_path / "history.sqlite"
@@ -366,7 +366,7 @@ def test_a_version_1_history_gains_the_evidence_of_each_check(tmp_path):
         db.execute("UPDATE checks SET evidence = NULL WHERE run_id = ?", (old.run_id,))   # as a v1 run
     new = run_study(study, out_root=tmp_path, serial=True, progress=False, use_cache=False)
     with History(path) as h:
-        assert list(h.checks(new.run_id)["evidence"]) == list(new.comparison["evidence"]) == ["sanity", "sanity"]
+        assert list(h.checks(new.run_id)["evidence"]) == list(new.checks["evidence"]) == ["sanity", "sanity"]
         assert h.checks(old.run_id)["evidence"].isna().all()
-        d = compare_runs(h, old.run_id, new.run_id)
+        d = diff_runs(h, old.run_id, new.run_id)
     assert list(d.checks["evidence"]) == ["sanity", "sanity"] and d.flipped.empty

@@ -155,11 +155,11 @@ def test_a_column_missing_is_one_line(out):
 def test_diff_labels_checks_of_runs_without_evidence_unrecorded(out):
     """Runs recorded before the kind of evidence was: their checks are 'unrecorded' in the diff, never
     taken for reproductions."""
-    from jointbench.benchmarks.harness.compare import compare_runs
+    from jointbench.benchmarks.harness.diff import diff_runs
 
     _edit(out, "UPDATE checks SET evidence = NULL", "UPDATE checks SET status = 'miss' WHERE run_id = 1")
     with History(out / "history.sqlite", create=False) as h:
-        d = compare_runs(h, 1, 2)
+        d = diff_runs(h, 1, 2)
     assert set(d.checks["evidence"]) == {"unrecorded"} and len(d.flipped)
     r = cli("diff", "1", "2", "--out", out)
     assert r.returncode == 0, r.stderr

@@ -14,7 +14,7 @@ import pytest
 import yaml
 
 from jointbench.benchmarks.locate import CONFIGS, study_ids
-from jointbench.benchmarks.harness.nightly import load_config
+from jointbench.benchmarks.nightly import load_config
 from jointbench.benchmarks.nightly import run_nightly
 from jointbench.core.errors import ConfigError
 from tests.harness_studies import REPO, tiny_study

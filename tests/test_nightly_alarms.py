@@ -8,8 +8,8 @@ from pathlib import Path
 import yaml
 
 from jointbench.benchmarks.locate import CONFIGS
-from jointbench.benchmarks.harness.compare import Rules
-from jointbench.benchmarks.harness.nightly import load_config
+from jointbench.benchmarks.harness.diff import Rules
+from jointbench.benchmarks.nightly import load_config
 from jointbench.benchmarks.nightly import run_nightly
 from tests.harness_studies import tiny_grid_part, tiny_study
 

@@ -44,7 +44,7 @@ def test_a_run_that_fails_late_leaves_the_last_good_set(tmp_path, monkeypatch, f
     assert main(["run", str(first), "--out", str(out), "--quiet", "--serial"]) == 0
     folder = out / "tiny"
     good = _snapshot(folder)
-    assert {"cases.csv", "curves.csv.gz", "comparison.csv", "report.md", "report.html"} <= set(good)
+    assert {"cases.csv", "curves.csv.gz", "checks.csv", "report.md", "report.html"} <= set(good)
     disk_full = OutputError(f"{folder}/report.html: cannot write: {os.strerror(errno.ENOSPC)}")
     if fail_in == "report":
         real = report.write

@@ -14,7 +14,7 @@ from jointbench.benchmarks.config import load_study
 from jointbench.benchmarks.figures import PartReport
 from jointbench.benchmarks.harness.pages import (Code, Figure, Items, Page, Paragraph, Section, inline_html,
                                                  markdown_table, table, to_html, to_markdown)
-from jointbench.benchmarks.tables import compare
+from jointbench.benchmarks.checks import judge
 
 PNG = bytes.fromhex("89504e470d0a1a0a0000000d4948445200000001000000010806000000"
                     "1f15c4890000000d49444154789c6360f8cfc0f01f0005000201e5276a4a0000000049454e44ae426082")
@@ -106,7 +106,7 @@ def _meta(folder: Path, **kw) -> dict:
 def test_study_report_is_one_page_written_as_markdown_and_self_contained_html(tmp_path):
     s = load_study("westwick2012")
     (tmp_path / "fig2.png").write_bytes(PNG)
-    comp = compare(s.checks, pd.DataFrame(columns=["part", "status", "metric", "value"]), {"fig2", "fig3"}, "abc1234")
+    comp = judge(s.checks, pd.DataFrame(columns=["part", "status", "metric", "value"]), {"fig2", "fig3"}, "abc1234")
     parts = {"fig2": PartReport(figures=[("fig2.png", "Fig. 2 caption")], text="Text one.\n\nText two.",
                                 tables=[("A table", pd.DataFrame({"x": [1.5]}))]),
              "fig3": "ValueError: broken plot"}

@@ -57,6 +57,6 @@ def test_lpv_study_smoke(tmp_path):
 
 @pytest.mark.parametrize("sid", ["reflex", "lpv"])
 def test_the_studies_are_in_the_nightly(sid):
-    from jointbench.benchmarks.harness.nightly import load_config
+    from jointbench.benchmarks.nightly import load_config
 
     assert sid in load_config().studies

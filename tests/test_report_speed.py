@@ -15,7 +15,8 @@ from jointbench.benchmarks.harness import cache as cache_mod
 from jointbench.benchmarks.harness.case import Case, CaseResult
 from jointbench.benchmarks.harness.outputs import parquet_frame
 from jointbench.benchmarks.selection import Selection, select
-from jointbench.benchmarks.tables import compare, curves_frame
+from jointbench.benchmarks.tables import curves_frame
+from jointbench.benchmarks.checks import judge
 
 NAN = float("nan")
 
@@ -96,7 +97,7 @@ def test_compare_scores_value_trend_difference_and_the_rows_outside_the_domain()
         Check(id="o", part="p", description="", source="", published="", select={"metric": "K", "estimator": "a"},
               domain={"snr_db": {"lt": 7}}, domain_reason="r", low=0, high=2, aggregate="mean"),
     )
-    out = compare(checks, rows, {"p"}).set_index("check")
+    out = judge(checks, rows, {"p"}).set_index("check")
     # value: K of a in p (rows 0, 5, 9: 1, 6, 10) -> median 6, inside [0, 6]
     assert out.loc["v", "reproduced"] == 6.0 and out.loc["v", "status"] == "pass" and out.loc["v", "n"] == 3
     # trend over snr_db: 5 -> 1, 10 -> 10, inf -> 6: the largest fall is 4 (10 -> 6), above slack 0

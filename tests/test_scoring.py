@@ -18,8 +18,9 @@ from jointbench.benchmarks import report, status
 from jointbench.benchmarks.config import EVIDENCE, Check, load_checks, load_study
 from jointbench.benchmarks import locate
 from jointbench.benchmarks.protocols import Context
-from jointbench.benchmarks.tables import (DIRTY_BANNER, compare, evidence_counts, headline, method_specific, stamp,
-                               swap_estimators, swap_survival)
+from jointbench.benchmarks.tables import DIRTY_BANNER, stamp
+from jointbench.benchmarks.checks import (evidence_counts, headline, judge, method_specific, swap_estimators,
+                                          swap_survival)
 from jointbench.core.errors import ConfigError
 from jointbench.core.signal import decimate_fft
 from jointbench.core.types import Trial
@@ -88,7 +89,7 @@ def test_default_aggregate_through_the_parser_is_the_median(tmp_path):
     (c,) = load_checks(_write(tmp_path, [_check(low=1.5, high=2.5)]), {"p": None})
     assert c.aggregate == "median"
     rows = pd.DataFrame({"part": "p", "status": "ok", "metric": "m", "value": [1.0, 2.0, 30.0]})
-    out = compare((c,), rows, {"p"}).iloc[0]
+    out = judge((c,), rows, {"p"}).iloc[0]
     assert out["reproduced"] == 2.0 and out["status"] == "pass"     # the mean, 11, would miss
 
 
@@ -121,10 +122,10 @@ def _rows(**cols) -> pd.DataFrame:
 def test_compare_records_evidence_reading_reason_and_commit():
     c = Check("c", "p", "d", "s", 1, 0, 2, {"metric": "m"}, evidence="conditional", reading="R2",
               tolerance_reason="because")
-    out = compare((c,), _rows(metric="m", value=[1.0]), {"p"}, commit="abc1234").iloc[0]
+    out = judge((c,), _rows(metric="m", value=[1.0]), {"p"}, commit="abc1234").iloc[0]
     assert (out["evidence"], out["reading"], out["tolerance_reason"], out["commit"]) == \
         ("conditional", "R2", "because", "abc1234")
-    dirty = compare((c,), _rows(metric="m", value=[1.0]), {"p"}, commit="abc1234-dirty").iloc[0]
+    dirty = judge((c,), _rows(metric="m", value=[1.0]), {"p"}, commit="abc1234-dirty").iloc[0]
     assert DIRTY_BANNER in dirty["commit"] and stamp("abc") == "abc"
 
 
@@ -132,14 +133,14 @@ def test_domain_scores_inside_and_shows_outside():
     rows = _rows(metric="v", f_v=[0.5, 0.5, 1.0, 2.0], value=[99.0, 98.0, 80.0, 85.0])
     c = Check("x3", "p", "d", "s", "close to 100", 95, 100, {"metric": "v"}, aggregate="min",
               domain={"f_v": {"lt": 1.0}}, domain_reason="tasks below 1 Hz")
-    out = compare((c,), rows, {"p"}).iloc[0]
+    out = judge((c,), rows, {"p"}).iloc[0]
     assert out["reproduced"] == 98.0 and out["status"] == "pass" and out["n"] == 2
     assert out["out_of_domain"] == "f_v -> 1.0: 80, 2.0: 85" and out["domain_reason"] == "tasks below 1 Hz"
     # difference checks: groups outside the domain are shown, not scored
     rows = _rows(metric=["a", "b"] * 3, f=[0.1, 0.1, 0.5, 0.5, 1.0, 1.0], value=[1.0, 0.0, -1.0, 0.0, -2.0, 0.0])
     d = Check("x4", "p", "d", "s", "negative", -math.inf, 0, {"metric": "a"}, kind="difference",
               versus={"metric": "b"}, by="f", domain={"f": {"ge": 0.2}}, domain_reason="resolution")
-    out = compare((d,), rows, {"p"}).iloc[0]
+    out = judge((d,), rows, {"p"}).iloc[0]
     assert out["status"] == "pass" and out["reproduced"] == -1.0 and out["out_of_domain"] == "f -> 0.1: +1"
 
 
@@ -147,7 +148,7 @@ def test_std_aggregate_and_range_select():
     rows = _rows(metric="m", fs_hz=[50, 50, 50, 100, 250, 500], value=[1.0, 2.0, 3.0, 7.0, 9.0, 11.0])
     sd = Check("sd", "p", "d", "s", 1, 0.5, 1.5, {"metric": "m", "fs_hz": 50}, aggregate="std")
     mx = Check("mx", "p", "d", "s", 1, 0, 10, {"metric": "m", "fs_hz": {"ge": 100, "lt": 500}}, aggregate="max")
-    out = compare((sd, mx), rows, {"p"}).set_index("check")
+    out = judge((sd, mx), rows, {"p"}).set_index("check")
     assert out.loc["sd", "reproduced"] == pytest.approx(1.0)        # sample SD (ddof 1) of 1, 2, 3
     assert out.loc["mx", "reproduced"] == 9.0 and out.loc["mx", "n"] == 2
 
@@ -172,7 +173,7 @@ def _meta(commit="abc1234", **kw):
 
 def test_report_groups_checks_by_evidence_with_reasons_and_not_reproduced():
     s = load_study("xu1998")
-    comp = compare(s.checks, pd.DataFrame(columns=["part", "status", "metric", "value"]), set(s.parts), "abc1234")
+    comp = judge(s.checks, pd.DataFrame(columns=["part", "status", "metric", "value"]), set(s.parts), "abc1234")
     text = report.render(s, comp, {}, [], _meta(parts=list(s.parts)))
     head = text.index("**Reproduction:")
     assert head < text.index("### Reproduction checks") < text.index("### Conditional checks") < \
@@ -261,8 +262,8 @@ def test_swapping_the_methods_fails_every_gap_check_with_published_values():
     s = load_study("vanderuit2018_table1")
     rows = _table1_rows(_published_cells(s.checks))
     gaps = [c for c in s.checks if c.id.startswith("D-")]
-    before = compare(tuple(gaps), rows, {"table1"})
-    after = compare(tuple(gaps), swap_estimators(rows, "table1", ("kbr", "skirt")), {"table1"})
+    before = judge(tuple(gaps), rows, {"table1"})
+    after = judge(tuple(gaps), swap_estimators(rows, "table1", ("kbr", "skirt")), {"table1"})
     assert (before["status"] == "pass").all(), list(before.loc[before["status"] != "pass", "check"])
     assert (after["status"] == "miss").all(), list(after.loc[after["status"] != "miss", "check"])
 
@@ -271,7 +272,7 @@ def test_swapping_the_reproduced_values_fails_every_passing_gap_check():
     """With the reproduced medians of the committed comparison (a synthetic rows frame built from it), no
     check of a KBR - skirt gap passes both as reproduced and with the methods swapped."""
     s = load_study("vanderuit2018_table1")
-    committed = pd.read_csv(REPO / "results" / "vanderuit2018_table1" / "comparison.csv").set_index("check")
+    committed = pd.read_csv(REPO / "results" / "vanderuit2018_table1" / "checks.csv").set_index("check")
     cells = {}
     for c in s.checks:
         if c.id.startswith("T1-") and c.id in committed.index:
@@ -296,10 +297,10 @@ def test_method_specific_checks():
 
 
 # ------------------------------------------------------------------------------------ README status
-def test_readme_status_block_is_generated_from_the_committed_comparisons():
+def test_readme_status_block_is_generated_from_the_committed_checks():
     assert status.readme_block() == status.block(), (
         "README.md's status block is not what `jointbench status --write-readme` gives from the committed "
-        "results/*/comparison.csv: run it (make reproduce does)")
+        "results/*/checks.csv: run it (make reproduce does)")
 
 
 def test_status_writes_between_markers(tmp_path):
@@ -307,10 +308,10 @@ def test_status_writes_between_markers(tmp_path):
     res.mkdir(parents=True)
     pd.DataFrame({"check": ["A1-x", "A1-y", "B2-z"], "status": ["pass", "miss", "pass"],
                   "evidence": ["reproduction", "reproduction", "sanity"],
-                  "commit": ["abc1234"] * 3}).to_csv(res / "comparison.csv", index=False)
+                  "commit": ["abc1234"] * 3}).to_csv(res / "checks.csv", index=False)
     grid = tmp_path / "results" / "grid1"                    # a comparison study: no published value
     grid.mkdir()
-    pd.DataFrame(columns=["check", "status", "evidence", "commit"]).to_csv(grid / "comparison.csv", index=False)
+    pd.DataFrame(columns=["check", "status", "evidence", "commit"]).to_csv(grid / "checks.csv", index=False)
     readme = tmp_path / "README.md"
     readme.write_text(f"intro\n{status.BEGIN}\nold text\n{status.END}\noutro\n")
     path, changed = status.write_readme(tmp_path / "results", readme)
@@ -329,7 +330,7 @@ def test_status_writes_between_markers(tmp_path):
 def test_committed_results_are_not_from_a_dirty_tree():
     """No committed report or comparison was generated from an uncommitted tree."""
     folders = sorted(p for p in (REPO / "results").glob("*/") if (p / "report.md").is_file())
-    comps = [pd.read_csv(p / "comparison.csv") for p in folders]
+    comps = [pd.read_csv(p / "checks.csv") for p in folders]
     if not all("commit" in c.columns for c in comps):
         pytest.skip("the committed results predate the stamped format (no 'commit' column): they are "
                     "regenerated at a clean commit with `make reproduce` after the last merge")

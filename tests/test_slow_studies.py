@@ -1,7 +1,7 @@
 """Exact values of the full studies (marker ``slow``: ``make test-slow``; minutes each on 2 cores).
 
 Each study is run from scratch (no cache) and every check must reproduce the committed
-``results/<study>/comparison.csv`` exactly: the same status and, to 1e-9 relative, the same reproduced
+``results/<study>/checks.csv`` exactly: the same status and, to 1e-9 relative, the same reproduced
 value. The committed results are regenerated at a clean commit after every change that moves a number,
 so a difference here is a change nobody regenerated (or a loss of determinism).
 """
@@ -20,12 +20,12 @@ STUDIES = ("westwick2012", "xu1998", "vanderuit2018_table1")
 @pytest.mark.slow
 @pytest.mark.parametrize("study", STUDIES)
 def test_full_study_reproduces_the_committed_comparison(study, tmp_path):
-    committed = pd.read_csv(REPO / "results" / study / "comparison.csv")
+    committed = pd.read_csv(REPO / "results" / study / "checks.csv")
     if "evidence" not in committed.columns:
-        pytest.skip(f"results/{study}/comparison.csv predates the current format: regenerate it (make reproduce)")
+        pytest.skip(f"results/{study}/checks.csv predates the current format: regenerate it (make reproduce)")
     run = run_study(study, out_root=tmp_path, use_cache=False, progress=False)
     assert not run.failed, [r.error for r in run.failed]
-    now = run.comparison.set_index("check")
+    now = run.checks.set_index("check")
     old = committed.set_index("check")
     assert list(now.index) == list(old.index)
     assert (now["status"] == old["status"]).all(), list(now.index[now["status"] != old["status"]])

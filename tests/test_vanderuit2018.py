@@ -163,7 +163,7 @@ def smoke(tmp_path_factory):
 def test_smoke_run_writes_outputs_and_sane_metrics(smoke):
     assert not smoke.failed, [r.error for r in smoke.failed]
     folder = smoke.folder
-    for name in ("comparison.csv", "cases.csv", "curves.csv.gz", "report.md", "table1_fig3_square.png",
+    for name in ("checks.csv", "cases.csv", "curves.csv.gz", "report.md", "table1_fig3_square.png",
                  "table1_fig4_sine.png", "table1_tf_image.png"):
         assert (folder / name).is_file(), name
     rows = smoke.rows
@@ -181,7 +181,7 @@ def test_smoke_run_writes_outputs_and_sane_metrics(smoke):
     assert "| sine 20 s | kbr | 10 | 96.7 |" in text and "| sine 20 s | kbr | 5 |" not in text   # the smoke sweep
     for r in load_study("vanderuit2018_table1").readings:
         assert f"**{r.id}. {r.topic}.**" in text
-    comp = pd.read_csv(folder / "comparison.csv")
+    comp = pd.read_csv(folder / "checks.csv")
     assert set(comp["evidence"]) == {"reproduction", "calibrated", "conditional"}
     assert "## Not reproduced" in text and "**Swap test**" in text
-    check_golden("vanderuit2018_table1", smoke.comparison)
+    check_golden("vanderuit2018_table1", smoke.checks)

@@ -106,7 +106,7 @@ def smoke(tmp_path_factory):
 def test_smoke_run_writes_both_tables_the_figure_and_sane_numbers(smoke):
     assert not smoke.failed, [r.error for r in smoke.failed]
     folder = smoke.folder
-    for name in ("comparison.csv", "cases.csv", "curves.csv.gz", "report.md", "table2_stiffness.png",
+    for name in ("checks.csv", "cases.csv", "curves.csv.gz", "report.md", "table2_stiffness.png",
                  "table2_pralds_stiffness.png"):
         assert (folder / name).is_file(), name
     rows = smoke.rows
@@ -124,10 +124,10 @@ def test_smoke_run_writes_both_tables_the_figure_and_sane_numbers(smoke):
     text = (folder / "report.md").read_text()
     assert "Table II layout" in text and "Overall (published)" in text and "Stiffness tracking" in text
     assert "| P1 |" in text
-    comp = pd.read_csv(folder / "comparison.csv")
+    comp = pd.read_csv(folder / "checks.csv")
     assert "G1-gap-kbr-sds" in set(comp["check"])
 
 
 def test_smoke_outcome_is_pinned(smoke):
     """Every check's status in this smoke run is pinned: a check that flips fails here."""
-    check_golden("vanderuit2018_table2", smoke.comparison)
+    check_golden("vanderuit2018_table2", smoke.checks)

@@ -26,10 +26,10 @@ def smoke(tmp_path_factory):
 
 def test_study_writes_every_output(smoke):
     folder = smoke.folder
-    for name in ("comparison.csv", "cases.csv", "curves.csv.gz", "report.md", "fig2.png", "fig3.png",
+    for name in ("checks.csv", "cases.csv", "curves.csv.gz", "report.md", "fig2.png", "fig3.png",
                  "fig4.png", "fig5.png", "fig6_ibk_spectral.png", "fig7.png", "fig8.png"):
         assert (folder / name).is_file(), name
-    comp = pd.read_csv(folder / "comparison.csv")
+    comp = pd.read_csv(folder / "checks.csv")
     assert list(comp.columns[:9]) == ["check", "description", "published", "reproduced", "low", "high", "status",
                                       "evidence", "reading"]
     assert list(comp["check"]) == [c.id for c in load_study("westwick2012").checks]
@@ -41,11 +41,11 @@ def test_study_writes_every_output(smoke):
 
 def test_smoke_outcome_is_pinned(smoke):
     """Every check's status in this smoke run is pinned: a check that flips fails here."""
-    check_golden("westwick2012", smoke.comparison)
+    check_golden("westwick2012", smoke.checks)
 
 
 def test_analytic_checks_pass(smoke):
-    comp = smoke.comparison.set_index("check")
+    comp = smoke.checks.set_index("check")
     for check in comp.index:
         if check[:2] in ("W1", "W2", "W3"):
             assert comp.loc[check, "status"] == "pass", check
@@ -55,7 +55,7 @@ def test_report_lists_misses_with_reasons_and_every_reading(smoke):
     text = (smoke.folder / "report.md").read_text()
     for r in load_study("westwick2012").readings:
         assert f"**{r.id}. {r.topic}.**" in text
-    for row in smoke.comparison.itertuples():
+    for row in smoke.checks.itertuples():
         if row.status == "miss":
             assert f"**{row.check}**" in text and row.note, row.check
 

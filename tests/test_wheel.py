@@ -86,7 +86,7 @@ def test_an_empty_folder_lists_runs_and_estimates(venv, tmp_path):
     _run([jb, "run", "westwick2012", "--parts", "fig2", "--quiet"], cwd=tmp_path)
     report = tmp_path / "results" / "westwick2012" / "report.md"
     assert report.is_file() and "fig2" in report.read_text()
-    comparison = pd.read_csv(tmp_path / "results" / "westwick2012" / "comparison.csv")
+    comparison = pd.read_csv(tmp_path / "results" / "westwick2012" / "checks.csv")
     assert set(comparison["commit"]) == {f"v{jointbench.__version__}"}       # no git: the package's version
     assert (comparison["status"] == "pass").all()
     # a code hash of the same source, wherever it is installed

@@ -207,13 +207,13 @@ def smoke(tmp_path_factory):
 def test_smoke_run_writes_every_output(smoke):
     assert not smoke.failed, [r.error for r in smoke.failed]
     folder = smoke.folder
-    for name in ("comparison.csv", "cases.csv", "curves.csv.gz", "report.md", "fig2.png", "fig2_traces.png",
+    for name in ("checks.csv", "cases.csv", "curves.csv.gz", "report.md", "fig2.png", "fig2_traces.png",
                  "fig3.png", "fig3_traces.png", "fig3_angle_noise.png", "traces_sine.png", "traces_square.png",
                  "calibration.png", "readings.png"):
         assert (folder / name).is_file(), name
-    comp = pd.read_csv(folder / "comparison.csv")
+    comp = pd.read_csv(folder / "checks.csv")
     assert list(comp["check"]) == [c.id for c in load_study("xu1998").checks]
-    check_golden("xu1998", smoke.comparison)
+    check_golden("xu1998", smoke.checks)
     text = (folder / "report.md").read_text()
     for r in load_study("xu1998").readings:
         assert f"**{r.id}. {r.topic}.**" in text

@@ -1,7 +1,7 @@
-"""The harness machinery: how cases run, are cached and remembered, and how runs are compared.
+"""The harness machinery: how cases run, are cached and remembered, and what changed between runs.
 
-A newcomer's map (everything a study *computes* lives in ``benchmarks/protocols``; how it is *drawn*
-in ``benchmarks/figures`` and ``benchmarks/report.py``):
+A newcomer's map (everything a study *computes* lives in its ``protocol.py``, ``benchmarks/studies/<id>/``;
+how it is *drawn* in its ``figures.py`` and ``benchmarks/report.py``):
 
 - :mod:`~benchmarks.harness.case`: one case (a JSON-serialisable spec) and ``run_case``, the only code
   that computes numbers; its import closure is what the cache key hashes.
@@ -13,8 +13,9 @@ in ``benchmarks/figures`` and ``benchmarks/report.py``):
 - :mod:`~benchmarks.harness.outputs`: where results go (``results/<study>``, checked and locked).
 - :mod:`~benchmarks.harness.history`: every run in ``results/history.sqlite`` (SQLite, WAL,
   transactional).
-- :mod:`~benchmarks.harness.compare`: what changed between two runs (checks, metrics, timings).
-- :mod:`~benchmarks.harness.nightly`, :mod:`~benchmarks.harness.nightly_pages` and :mod:`~benchmarks.harness.pages`:
-  what ``jointbench nightly`` (:mod:`benchmarks.nightly`) counts as a regression, and its static HTML
-  pages (Jinja2 templates in ``templates/``).
+- :mod:`~benchmarks.harness.diff`: what changed between two runs (checks, metrics, timings):
+  ``jointbench diff``.
+- :mod:`~benchmarks.harness.pages` and :mod:`~benchmarks.harness.nightly_pages`: the report model and the
+  static HTML pages (Jinja2 templates in ``templates/``) of a study and of ``jointbench nightly``
+  (:mod:`benchmarks.nightly`).
 """

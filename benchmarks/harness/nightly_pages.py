@@ -13,10 +13,10 @@ import numpy as np
 import pandas as pd
 
 from jointbench.benchmarks.harness.history import History
-from jointbench.benchmarks.harness.compare import by_evidence
+from jointbench.benchmarks.harness.diff import by_evidence
 from jointbench.benchmarks.harness.pages import (Figure, Items, Page, Paragraph, Section, Table, figure_png, table,
                                                  to_html, to_markdown)
-from jointbench.benchmarks.tables import headline
+from jointbench.benchmarks.checks import headline
 from jointbench.core.files import write_text
 
 VERDICT_TEXT = {
@@ -119,7 +119,7 @@ def _summary_table(outcomes) -> Table:
             continue
         recs.append({"study": f"[{o.study}](#study-{o.study})", "run": o.run.run_id,
                      "compared with run": o.previous or "", "cases": len(o.run.results),
-                     "failed": len(o.run.failed), "checks": headline(o.run.comparison),
+                     "failed": len(o.run.failed), "checks": headline(o.run.checks),
                      "wall time (s)": round(o.run.wall_s, 1), "regressions": len(o.regressions)})
     return table("", pd.DataFrame(recs),
                  classes=lambda r: {"regressions": "bad" if r["regressions"] not in (0, "") else "good"})
@@ -132,7 +132,7 @@ def _study_section(o, site: Path) -> Section:
     rel = Path(os.path.relpath(run.folder, site)).as_posix()
     sec = Section(f"{run.study.id}: {run.study.title}", anchor=f"study-{run.study.id}")
     sec.add(Paragraph(f"Run {run.run_id}: {len(run.results)} cases, {len(run.failed)} failed; "
-                      f"{headline(run.comparison)}; {run.wall_s:.1f} s. Its report: "
+                      f"{headline(run.checks)}; {run.wall_s:.1f} s. Its report: "
                       f"[{rel}/report.html]({rel}/report.html) ([markdown]({rel}/report.md)); the same report "
                       "follows."))
     if run.report is not None:

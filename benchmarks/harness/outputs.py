@@ -6,7 +6,7 @@
 - The folders must be writable: a read-only ``results/`` is one line (exit 2), before hours of work.
 - Two runs of one study may run at once (cases and cache entries are written atomically under unique
   names); each writes its outputs under an exclusive lock of the study folder, so every set of
-  ``cases.csv``, ``comparison.csv``, report and figures comes from one run. The second waits for the
+  ``cases.csv``, ``checks.csv``, report and figures comes from one run. The second waits for the
   first to finish writing (a few seconds) and says so.
 """
 from __future__ import annotations
@@ -94,7 +94,7 @@ def study_lock(folder: Path, owner: str, wait_message: bool = True):
 
 
 #: where runs with ``--set`` and no ``--out`` write (``<results>/set-runs/<study>-set-<hash8>/``): beside, not
-#: among, the studies' own folders (``results/*/comparison.csv`` are the studies' status)
+#: among, the studies' own folders (``results/*/checks.csv`` are the studies' status)
 SET_RUNS = "set-runs"
 
 

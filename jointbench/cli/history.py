@@ -82,8 +82,8 @@ def _show_run(h, run_id: int) -> int:
 def _diff(args) -> int:
     import pandas as pd
 
-    from jointbench.benchmarks.harness.compare import by_evidence, compare_runs
-    from jointbench.benchmarks.harness.nightly import DEFAULT_CONFIG, load_config
+    from jointbench.benchmarks.harness.diff import by_evidence, diff_runs
+    from jointbench.benchmarks.nightly import DEFAULT_CONFIG, load_config
 
     rules = load_config(Path(args.config) if args.config else DEFAULT_CONFIG).rules
     with _history(args) as h:
@@ -91,7 +91,7 @@ def _diff(args) -> int:
         if a["study"] != b["study"]:
             raise ConfigError(f"runs {args.run_a} and {args.run_b} are of different studies "
                               f"({a['study']}, {b['study']})")
-        d = compare_runs(h, args.run_a, args.run_b, rules)
+        d = diff_runs(h, args.run_a, args.run_b, rules)
     print(f"{d.study}: run {args.run_a} ({a['started'][:19]}, {a['status']}) -> run {args.run_b} "
           f"({b['started'][:19]}, {b['status']})")
     sections = [

@@ -85,16 +85,16 @@ def _run_one(args, study: str, backend: str | None) -> int:
     finally:
         if executor is not None:
             executor.shutdown(wait=True)
-    from jointbench.benchmarks.tables import headline
+    from jointbench.benchmarks.checks import headline
 
-    comp = run.comparison
+    comp = run.checks
     n_pass = int((comp["status"] == "pass").sum()) if len(comp) else 0
     n_cached = sum(r.cached for r in run.results)
     lines = [f"{run.study.id}: {len(run.results)} cases ({n_cached} from cache, {len(run.results) - n_cached} "
              f"computed), {len(run.failed)} failed; {headline(comp)}"]
     lines += [f"  {r.status:4s}  {r.evidence:12s}  {r.check:18s} reproduced {r.reproduced:.5g}  "
               f"[{r.low:.5g}, {r.high:.5g}]" for r in comp.itertuples()]
-    lines.append(f"wrote {run.folder}/report.md, comparison.csv, cases.csv, cases.parquet; history run {run.run_id}")
+    lines.append(f"wrote {run.folder}/report.md, checks.csv, cases.csv, cases.parquet; history run {run.run_id}")
     sys.stdout.write("\n".join(lines) + "\n")       # one write: under PYTHONUNBUFFERED print() makes two,
     sys.stdout.flush()                                # and a study side by side could land between them
     if run.failed and not run.study.expected_failures:
@@ -137,7 +137,7 @@ def _list(args) -> int:
 
 
 def _nightly(args) -> int:
-    from jointbench.benchmarks.harness.nightly import DEFAULT_CONFIG, load_config
+    from jointbench.benchmarks.nightly import DEFAULT_CONFIG, load_config
     from jointbench.benchmarks.nightly import run_nightly
 
     config = load_config(Path(args.config) if args.config else DEFAULT_CONFIG)
@@ -156,7 +156,7 @@ def _nightly(args) -> int:
 
 def add_parsers(sub) -> None:
     """Add ``run``, ``status``, ``nightly`` and ``list`` to an :mod:`argparse` subparsers object."""
-    p = sub.add_parser("run", help="run a study: results/<study>/{comparison.csv,cases.csv,report.md}")
+    p = sub.add_parser("run", help="run a study: results/<study>/{checks.csv,cases.csv,report.md}")
     p.add_argument("study", nargs="+", help="a shipped study's id (jointbench list) or the path of a study file; "
                                             "several: one after another, or side by side with --jobs")
     p.add_argument("--jobs", type=positive_int, default=1, metavar="N",
@@ -190,7 +190,7 @@ def add_parsers(sub) -> None:
                    help="refuse a comparison grid estimated to take longer (default: its config's budget)")
     p.add_argument("--yes", action="store_true", help="run a grid even when it is estimated over its budget")
     p.set_defaults(func=_run)
-    p = sub.add_parser("status", help="status of every study from results/*/comparison.csv (README tables)")
+    p = sub.add_parser("status", help="status of every study from results/*/checks.csv (README tables)")
     p.add_argument("--write-readme", action="store_true",
                    help="rewrite the block between <!-- status:begin --> and <!-- status:end --> in README.md")
     p.add_argument("--results", metavar="DIR", help="results folder (default: ./results)")

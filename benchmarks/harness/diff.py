@@ -229,7 +229,7 @@ def _changes(a: dict, b: dict) -> list[tuple[str, str, str]]:
     return out
 
 
-def compare_runs(history: History, before: int, after: int, rules: Rules | None = None) -> RunDiff:
+def diff_runs(history: History, before: int, after: int, rules: Rules | None = None) -> RunDiff:
     """Everything that changed from run ``before`` to run ``after`` (both recorded in ``history``)."""
     rules = rules or Rules()
     a, b = history.run(before), history.run(after)
