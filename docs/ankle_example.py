@@ -48,7 +48,7 @@ def run(npz: Path, out: Path) -> pd.DataFrame:
             row = {"record": rec, "estimator": name}
             for col in ("I", "B", "K", "stiffness"):
                 row[col] = with_interval(fit.frame, col)
-            row["VAF_%"] = round(fit.vaf, 1)
+            row["VAF_%"] = round(fit.vaf[0], 1)
             rows.append(row)
     return pd.DataFrame(rows)
 

@@ -39,8 +39,8 @@ if TYPE_CHECKING:  # pragma: no cover
 
     from jointbench.fitting.pipeline import Fit
 
-__all__ = ["StudyResult", "estimators", "experiment", "fit", "history", "history_cases", "history_checks",
-           "history_rows", "joint", "load_plugin", "read", "run", "scenario", "scenarios", "settings", "simulate"]
+__all__ = ["History", "StudyResult", "estimators", "experiment", "fit", "joint", "load_plugin", "read", "run",
+           "scenario", "scenarios", "score", "settings", "simulate"]
 
 
 # ----------------------------------------------------------------------------------------- estimators
@@ -78,74 +78,37 @@ def load_plugin(ref: str):
 
 # ---------------------------------------------------------------------------------------------- fitting
 def read(path: str | Path | Sequence[str | Path], *, array: str | None = None, fs: float | None = None,
-         ensemble: bool = False, schedule: str | None = None):
-    """Read records (CSV, NPZ, MATLAB ``.mat``; ``FILE:ARRAY`` picks an N x 2 array) as ``jointbench
-    estimate --input`` does: a list of :class:`~jointbench.core.types.Trial`, or an
-    :class:`~jointbench.core.ensemble.Ensemble` (a file with 2-D angle and torque, or ``ensemble=True``).
+         schedule: str | None = None):
+    """Read records (CSV, NPZ, MATLAB ``.mat``; ``FILE:ARRAY`` picks an N x 2 array) as :func:`fit` and
+    ``jointbench estimate --input`` read them: a list of :class:`~jointbench.core.types.Trial`, or the
+    :class:`~jointbench.core.ensemble.Ensemble` of a file whose angle and torque are 2-D.
 
     ``schedule`` names a recorded scheduling variable (a CSV column, an NPZ/.mat array) to read beside the
     angle and torque into each trial's ``channels`` (``jointbench estimate --schedule``); the names derived
-    from the angle (``angle_slow``, ``angle``) need no column."""
-    from jointbench.fitting import checks, read, read_ensemble
-    from jointbench.fitting import schedule as sched
+    from the angle (``angle_slow``, ``angle``) need none. Fitting several records as one ensemble is
+    :func:`fit`'s choice (``ensemble=``)."""
+    from jointbench.fitting import inputs
 
-    paths = [path] if isinstance(path, (str, Path)) else list(path)
-    sources = [read.parse_source(str(p), array) for p in paths]
-    records = read_ensemble.read_records(sources, fs=fs, ensemble=ensemble)
-    if schedule:
-        records = sched.attach(records, sources, schedule, checks.PYTHON)
-    return records
+    return inputs.read_files(path, array=array, fs=fs, schedule=schedule)
 
 
-def _records(data, angle, torque, fs, time, array, name: str, names):
-    """(records, ensemble name or None) of the data given to :func:`fit`."""
-    import numpy as np
-
-    from jointbench.core.ensemble import Ensemble
-
-    if data is not None and (angle is not None or torque is not None):
-        raise ConfigError("fit: give either data (records, an ensemble or file paths) or angle= and torque=")
-    if data is None:
-        if angle is None or torque is None:
-            raise ConfigError("fit: give data (a Trial, a list of records, an Ensemble or file paths), or the "
-                              "arrays angle= and torque= with fs= (or time=)")
-        if fs is None:
-            if time is None:
-                raise ConfigError("fit: angle= and torque= need the sampling rate fs= (Hz) or the sample times time=")
-            t = np.asarray(time, float)
-            fs = 1.0 / float(np.median(np.diff(t)))
-        if np.ndim(angle) == 2:
-            ens = Ensemble.from_arrays(angle, torque, fs, name=name)
-            return list(ens.realizations), ens.name
-        if time is not None:
-            return [Trial(time=np.asarray(time, float), angle=angle, torque=torque, fs=fs, name=name)], None
-        return [Trial.from_arrays(angle, torque, fs, name=name)], None
-    if isinstance(data, (str, Path)) or (isinstance(data, (list, tuple)) and data
-                                         and all(isinstance(d, (str, Path)) for d in data)):
-        data = read(data, array=array, fs=fs)
-    if isinstance(data, Ensemble):
-        return list(data.realizations), data.name
-    if isinstance(data, Trial):
-        return [data], None
-    if isinstance(data, (list, tuple)) and data and all(isinstance(d, Trial) for d in data):
-        return list(data), None
-    raise ConfigError(f"fit: data must be a Trial, a list of Trials, an Ensemble or file paths, got "
-                      f"{type(data).__name__}")
-
-
-def fit(estimator, data=None, *, angle=None, torque=None, fs: float | None = None, time=None,
+def fit(estimator, data=None, *, angle=None, torque=None, fs: float | None = None, array: str | None = None,
         settings: Mapping[str, Any] | None = None, decimate: int = 1, window=None, torque_sign: int = 1,
-        ensemble: bool | None = None, array: str | None = None, name: str = "record",
-        figure: str | None = None, schedule: str | None = None, names=None) -> "Fit":
-    """Fit ``estimator`` through the checked pipeline of ``jointbench estimate`` (same steps, same numbers).
+        ensemble: bool | None = None, schedule: str | None = None) -> "Fit":
+    """Fit ``estimator`` through the checked pipeline (:mod:`jointbench.fitting.pipeline`), the one that
+    ``jointbench estimate`` runs: same steps, same numbers.
 
     Parameters
     ----------
     estimator : str or Estimator
         A registered name (``api.estimators()``) with ``settings``, or an estimator object.
     data : Trial, list of Trial, Ensemble, path or list of paths, optional
-        The records (files are read as :func:`read` reads them). Or give ``angle`` and ``torque`` arrays
-        (1-D: one record; 2-D, samples x realizations: an ensemble) with ``fs`` (Hz) or ``time`` (s).
+        The records (files are read as :func:`read` reads them). Or give the arrays ``angle`` and ``torque``
+        (1-D: one record; 2-D, samples x realizations: an ensemble) with ``fs``.
+    fs : float, optional
+        The sampling rate (Hz) of ``angle`` and ``torque``, or of files that carry none.
+    array : str, optional
+        The N x 2 ``[angle, torque]`` array of NPZ/.mat files (or name it in the path: ``"ankle.npz:z_df"``).
     settings : mapping, optional
         The estimator's settings, checked strictly; units allowed (``{"lag_before": "40 ms"}``);
         ``auto=True`` chooses a time-varying method's smoothing from the data.
@@ -157,62 +120,55 @@ def fit(estimator, data=None, *, angle=None, torque=None, fs: float | None = Non
     torque_sign : {1, -1}
         -1 negates every torque record.
     ensemble : bool, optional
-        Fit several records as the realizations of one time-varying condition (default: when the
-        estimator takes ensembles only).
-    figure : {'png', 'pdf', 'svg'}, optional
-        Also draw the estimate (``Fit.figure``, bytes); ``Fit.plot(path)`` draws it later.
+        Fit several records as the realizations of one time-varying condition (default: when the estimator
+        takes ensembles only; an Ensemble given is one unless ``ensemble=False``).
     schedule : str, optional
         The scheduling variable of a parameter-varying estimator (``pv_irf``): ``angle_slow`` or ``angle``
-        (derived from the angle), or a recorded channel (read from file paths as :func:`read` does, or a
-        trial's ``channels``); ``fit.estimate.stiffness_at(values)`` and ``stiffness_band(values)`` then give
-        K at chosen values (``jointbench estimate --schedule NAME --at V1,V2``).
-    names : optional
-        How errors name the arguments (``jointbench estimate`` passes its flags).
+        (derived from the angle), or a recorded channel (read from files as :func:`read` does, or a trial's
+        ``channels``); ``fit.estimate.stiffness_at(values)`` and ``stiffness_band(values)`` then give K at
+        chosen values (``jointbench estimate --schedule NAME --at V1,V2``).
 
     Returns
     -------
     Fit
         ``estimate`` (:class:`~jointbench.core.estimate.Estimate`), ``frame`` (parameters over time with 95 %
-        intervals), ``response`` (IRF/FRF), ``vaf`` / ``vafs`` (each record's predicted-torque VAF, %),
-        ``predictions``, ``trials`` (as fitted), ``notes``.
+        intervals), ``response`` (IRF/FRF), ``vaf`` (each record's predicted-torque VAF, %), ``predictions``,
+        ``trials`` (as fitted), ``notes``; ``plot(path)`` draws it.
 
     Raises
     ------
     ConfigError, InputError
         Bad settings or arguments, unusable data: one line naming the argument or the record.
     """
-    from jointbench import estimators as reg
-    from jointbench.fitting import checks, pipeline
+    from jointbench.fitting import pipeline
 
-    names = names or checks.PYTHON
-    if schedule is not None:
-        from jointbench.fitting import schedule as sched
+    return pipeline.fit(estimator, data, angle=angle, torque=torque, fs=fs, array=array, settings=settings,
+                        decimate=decimate, window=window, torque_sign=torque_sign, ensemble=ensemble,
+                        schedule=schedule)
 
-        if not isinstance(estimator, str):
-            raise ConfigError("fit: schedule= applies to an estimator given by name; give a built one its "
-                              "schedule setting instead")
-        sched.check_schedulable(estimator, names)
-        settings = {**(settings or {}), "schedule": schedule}
-        if isinstance(data, (str, Path)) or (isinstance(data, (list, tuple)) and data
-                                             and all(isinstance(d, (str, Path)) for d in data)):
-            data = read(data, array=array, fs=fs, schedule=schedule)
-    if isinstance(estimator, str):
-        est = pipeline.estimator_from(estimator, settings, names)
-    elif isinstance(estimator, reg.Estimator):
-        if settings:
-            raise ConfigError("fit: settings= applies to an estimator given by name; this one is built already")
-        est = estimator
-    else:
-        raise ConfigError(f"fit: estimator must be a registered name or an Estimator, got {type(estimator).__name__}")
-    records, ens_name = _records(data, angle, torque, fs, time, array, name, names)
-    if ens_name is None:
-        pooled_ok = {"trial", "pooled"} & est.accepts
-        if ensemble or (ensemble is None and len(records) > 1 and "ensemble" in est.accepts and not pooled_ok):
-            ens_name = f"{len(records)} records" if len(records) > 1 else records[0].name
-    if window is not None:
-        window = checks.as_window(window, names)
-    return pipeline.compute(est, records, torque_sign=torque_sign, decimate=decimate, window=window,
-                           plot=Path(f"figure.{figure}") if figure else None, ensemble=ens_name, names=names)
+
+def score(estimate, data, *, fs: float | None = None, array: str | None = None,
+          torque_sign: int = 1) -> "pd.DataFrame":
+    """How well ``estimate`` (an :class:`~jointbench.core.estimate.Estimate`, or a :class:`Fit`) predicts the
+    torque of other records at its sampling rate (held-out trials, another condition), as :func:`fit` scores
+    its own: one row per record, ``record, vaf, samples, definition`` (the VAF in %, on the samples the
+    estimate predicts; ``definition`` says what is compared). ``data`` as in :func:`fit`."""
+    import pandas as pd
+
+    from jointbench.fitting import inputs, pipeline
+
+    est = getattr(estimate, "estimate", estimate)
+    records = list(inputs.records(data, fs=fs, array=array))
+    if isinstance(torque_sign, bool) or torque_sign not in (1, -1):
+        raise ConfigError(f"torque_sign: must be 1 or -1, got {torque_sign!r}")
+    records = [t.replace(torque=torque_sign * t.torque) for t in records]
+    for t in records:
+        if t.fs != est.fs:
+            raise ConfigError(f"data: record '{t.name}' is sampled at {t.fs:g} Hz, the estimate at {est.fs:g} Hz; "
+                              f"decimate the record first (api.fit's decimate= does it for a fit)")
+    predictions = pipeline.score(est, records)
+    return pd.DataFrame([{"record": t.name, "vaf": p.vaf(), "samples": int(p.used.sum()), "definition": p.definition}
+                         for t, p in zip(records, predictions)])
 
 
 # ------------------------------------------------------------------------------------------- simulating
@@ -358,34 +314,62 @@ def run(study: str | Path | Mapping[str, Any], *, parts: Sequence[str] | None = 
 
 
 # ------------------------------------------------------------------------------------------------ history
-def _history(out):
-    from jointbench.benchmarks.harness.history import History
-    from jointbench.benchmarks.study import HISTORY_FILE, results_root
+class History:
+    """The run history of a results folder, ``<out>/history.sqlite`` (default ``./results``): every run of
+    every study, its cases, tidy rows and checks (``jointbench history``, ``jointbench diff``).
 
-    return History(results_root(Path(out) if out else None) / HISTORY_FILE, create=False)
+    Examples
+    --------
+    >>> h = api.History("results")                       # doctest: +SKIP
+    >>> runs = h.runs(study="westwick2012"); h.checks(int(runs["id"].max()))   # doctest: +SKIP
+    """
 
+    def __init__(self, out: str | Path | None = None):
+        from jointbench.benchmarks.study import HISTORY_FILE, results_root
 
-def history(out: str | Path | None = None, study: str | None = None, kind: str | None = None,
-            limit: int | None = None) -> "pd.DataFrame":
-    """The recorded runs (``<out>/history.sqlite``, default ``./results``): one row per run with its study,
-    status, commit, code hash, counts of cases and checks, wall time and versions."""
-    with _history(out) as h:
-        return h.runs(study=study, kind=kind, limit=limit)
+        self.path = results_root(Path(out) if out else None) / HISTORY_FILE
 
+    def _open(self):
+        from jointbench.benchmarks.harness.history import History as Store
 
-def history_rows(run_id: int, out: str | Path | None = None) -> "pd.DataFrame":
-    """The tidy rows of recorded run ``run_id`` (case labels as columns)."""
-    with _history(out) as h:
-        return h.rows(run_id)
+        return Store(self.path, create=False)
 
+    def runs(self, study: str | None = None, kind: str | None = None, limit: int | None = None) -> "pd.DataFrame":
+        """One row per recorded run: its study, status, commit, code hash, counts of cases and checks, wall
+        time and versions."""
+        with self._open() as h:
+            return h.runs(study=study, kind=kind, limit=limit)
 
-def history_checks(run_id: int, out: str | Path | None = None) -> "pd.DataFrame":
-    """The checks of recorded run ``run_id`` (outcome, band, evidence)."""
-    with _history(out) as h:
-        return h.checks(run_id)
+    def run(self, run_id: int) -> dict:
+        """Recorded run ``run_id`` in full (parts, commit, environment, command, counts, error)."""
+        with self._open() as h:
+            return h.run(run_id)
 
+    def rows(self, run_id: int) -> "pd.DataFrame":
+        """The tidy rows of run ``run_id`` (case labels as columns)."""
+        with self._open() as h:
+            return h.rows(run_id)
 
-def history_cases(run_id: int, out: str | Path | None = None) -> "pd.DataFrame":
-    """The cases of recorded run ``run_id`` (status, error, wall time, cached, cache key)."""
-    with _history(out) as h:
-        return h.cases(run_id)
+    def checks(self, run_id: int) -> "pd.DataFrame":
+        """The checks of run ``run_id`` (outcome, band, evidence)."""
+        with self._open() as h:
+            return h.checks(run_id)
+
+    def cases(self, run_id: int) -> "pd.DataFrame":
+        """The cases of run ``run_id`` (status, error, wall time, cached, cache key)."""
+        with self._open() as h:
+            return h.cases(run_id)
+
+    def diff(self, before: int, after: int, config: str | Path | None = None):
+        """What changed from run ``before`` to run ``after`` of one study (checks flipped, metrics drifted
+        beyond the thresholds of ``config``, default the nightly's, failures, timings, versions): a
+        :class:`~jointbench.benchmarks.harness.diff.RunDiff`."""
+        from jointbench.benchmarks.harness.diff import diff_runs
+        from jointbench.benchmarks.nightly import DEFAULT_CONFIG, load_config
+
+        rules = load_config(Path(config) if config else DEFAULT_CONFIG).rules
+        with self._open() as h:
+            a, b = h.run(before), h.run(after)
+            if a["study"] != b["study"]:
+                raise ConfigError(f"runs {before} and {after} are of different studies ({a['study']}, {b['study']})")
+            return diff_runs(h, before, after, rules)

@@ -36,9 +36,9 @@ def test_a_notebook_fit_and_jointbench_estimate_give_the_same_numbers(gated_reco
     assert list(command.columns) == list(fit.frame.columns)
     np.testing.assert_allclose(command.to_numpy(float), fit.frame.to_numpy(float), rtol=1e-9, atol=1e-12)
     (printed,) = [float(v) for v in re.findall(r"^\s+wrist\.csv\s+(-?[\d.]+) %", cmd.stdout, re.M)]
-    assert fit.vaf == pytest.approx(printed, abs=0.051)
+    assert fit.vaf == [pytest.approx(printed, abs=0.051)]                  # one VAF per record
     # and the same from arrays (a simulated trial, its truth kept for scoring)
-    again = api.fit("skirt", angle=trial.angle, torque=trial.torque, fs=trial.fs, name="wrist.csv")
+    again = api.fit("skirt", angle=trial.angle, torque=trial.torque, fs=trial.fs)
     np.testing.assert_allclose(again.frame.to_numpy(float), command.to_numpy(float), rtol=1e-6, atol=1e-9)
     # without the pipeline (the whole record, quiet ends included) the plain fit finds no lines: the crop matters
     with pytest.raises(InputError, match="no clearly excited lines"):

@@ -11,6 +11,7 @@ import pytest
 from scipy import signal as sps
 
 from jointbench import estimators
+from jointbench.fitting import checks
 from tests.multisine_data import multisine_impedance_trial
 from jointbench.cli import estimate as cli_estimate
 from jointbench.estimators import Estimator
@@ -173,7 +174,7 @@ def test_torque_sign_and_csv_input(tmp_path, stubs, capsys):
 
 def test_decimation_does_not_ring_at_offset_record_ends():
     t = synthetic(n=2000, fs=1000.0)
-    low = cli_estimate.decimate_trial(t, 10)
+    low = checks.decimate_trial(t, 10)
     assert low.fs == 100.0 and low.n == 200
     # the angle sits at 0.1 rad: the ends of the decimated record must stay near the original samples
     assert np.abs(low.angle[[0, -1]] - t.angle[[0, -1]]).max() < 2e-3

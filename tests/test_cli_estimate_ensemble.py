@@ -4,6 +4,7 @@ import pandas as pd
 import pytest
 from scipy import io as sio
 
+from jointbench import estimators
 from jointbench.fitting import read_ensemble
 from jointbench.core.ensemble import Ensemble
 from jointbench.core.errors import InputError
@@ -88,7 +89,23 @@ def test_read_records_kinds(tmp_path):
     assert isinstance(ens, Ensemble) and ens.size == 3 and ens.fs == FS
     trials = read_ensemble.read_records([tmp_path / "one.npz", tmp_path / "one.npz"])
     assert isinstance(trials, list) and len(trials) == 2
-    assert read_ensemble.read_records([tmp_path / "one.npz", tmp_path / "one.npz"], ensemble=True).size == 2
+
+
+def test_one_rule_decides_whether_records_are_an_ensemble(tmp_path):
+    """pipeline.ensemble_name, the one place (for api.fit and jointbench estimate alike): an Ensemble given is
+    one unless ensemble=False; a list is one with ensemble=True, or by default when there are several and the
+    estimator takes ensembles only."""
+    from jointbench.fitting.pipeline import ensemble_name
+
+    U, Y, _ = ensemble_arrays(n=300, R=3)
+    ens = Ensemble.from_arrays(U, Y, FS, name="e")
+    two = list(ens.realizations[:2])
+    only_ensembles, pools = estimators.make("ensemble_irf"), estimators.make("irf2_ls")
+    assert ensemble_name(pools, ens, None) == "e" and ensemble_name(pools, ens, False) is None
+    assert ensemble_name(only_ensembles, two, None) == "2 records"
+    assert ensemble_name(pools, two, None) is None and ensemble_name(pools, two, True) == "2 records"
+    assert ensemble_name(only_ensembles, two[:1], None) is None
+    assert ensemble_name(pools, two[:1], True) == two[0].name
 
 
 @pytest.mark.parametrize("make,argv,parts", [

@@ -56,8 +56,9 @@ def _numbers(path: Path) -> pd.DataFrame:
 def _cases(out: Path) -> pd.DataFrame:
     from jointbench import api
 
-    runs = api.history(out=out).sort_values("id")
-    cases = api.history_cases(int(runs["id"].iloc[-1]), out=out)
+    history = api.History(out)
+    runs = history.runs().sort_values("id")
+    cases = history.cases(int(runs["id"].iloc[-1]))
     cases["estimator"] = cases["case_id"].str.extract(r"estimator=([a-z0-9_]+)")[0]
     return cases.set_index("estimator")
 

@@ -6,9 +6,10 @@
                         [--set key=value ...] [--decimate Q] [--window START:END] [--array NAME]
                         [--fs HZ] [--torque-sign {1,-1}] [--plot FIG.png] [--list]
 
-Reads the records (:mod:`jointbench.fitting.read`) and fits them with :func:`jointbench.api.fit` (the
-checked pipeline, :mod:`jointbench.fitting.pipeline`: torque sign, decimation, crop, checks, fit), the
-errors naming this command's flags; only then, when every step that can fail has passed, it
+Parses its arguments and calls :func:`jointbench.api.fit` (the checked pipeline,
+:mod:`jointbench.fitting.pipeline`, makes every decision: reading the records, the ensemble, the schedule,
+torque sign, decimation, crop, checks, fit, scores), its errors worded with this command's flags; only then,
+when every step that can fail has passed, it
 writes ``OUT.csv`` (:meth:`~jointbench.core.estimate.Estimate.to_frame`), ``OUT_irf.csv`` or
 ``OUT_frf.csv`` (the response, when the estimate has one), ``OUT_prediction.csv`` (what each VAF is
 computed on) and the figure, and prints a summary. User errors raise
@@ -26,16 +27,13 @@ import os
 from pathlib import Path
 from typing import TYPE_CHECKING, Sequence
 
-from jointbench.fitting import schedule
-from jointbench.fitting.checks import CLI, decimate_trial, parse_window  # noqa: F401 - public
-from jointbench.fitting.pipeline import Fit as Outcome
-from jointbench.fitting.pipeline import compute as _compute
-from jointbench.fitting.pipeline import estimator_from, fit, prediction_of, prediction_vaf  # noqa: F401
-from jointbench.core.errors import ConfigError
+from jointbench.core.errors import ConfigError, worded_as
 from jointbench.core.files import atomic_write_set
 
 if TYPE_CHECKING:  # pragma: no cover
-    from jointbench.fitting.read import Source
+    import numpy as np
+
+    from jointbench.fitting.pipeline import Fit
 
 PLOT_SUFFIXES = (".png", ".pdf", ".svg")
 UNITS = {"I": "kg m^2", "B": "N m s/rad", "K": "N m/rad", "stiffness": "N m/rad"}
@@ -100,8 +98,16 @@ def add_parser(subparsers) -> None:
     p.set_defaults(func=run)
 
 
+#: how this command words the arguments of :func:`jointbench.api.fit` in its messages
+FLAGS = {"data": "--input", "estimator": "--estimator", "settings": "--set", "decimate": "--decimate",
+         "window": "--window", "array": "--array", "fs": "--fs", "torque_sign": "--torque-sign",
+         "ensemble": "--ensemble", "schedule": "--schedule"}
+
+
 def run(args: argparse.Namespace) -> int:
-    """Execute ``estimate``; returns 0 or raises :class:`~jointbench.core.errors.JointBenchError`."""
+    """Execute ``estimate``: parse the arguments, fit with :func:`jointbench.api.fit` (every decision is made
+    there), then write the outputs as one set and print the summary. Returns 0 or raises
+    :class:`~jointbench.core.errors.JointBenchError`."""
     if getattr(args, "plugin", None):
         from jointbench.core import plugins
 
@@ -114,59 +120,61 @@ def run(args: argparse.Namespace) -> int:
                                   ("--output", args.output)) if not v]
     if missing:
         raise ConfigError(f"estimate: missing {', '.join(missing)} (see jointbench estimate --help)")
-    if args.decimate < 1:
-        raise ConfigError(f"--decimate: must be a whole number >= 1, got {args.decimate}")
-    if args.fs is not None and not (args.fs == args.fs and 0 < args.fs < float("inf")):
-        raise ConfigError(f"--fs: must be a finite rate > 0 Hz, got {args.fs}")
-    window = parse_window(args.window) if args.window else None
-    at = schedule.parse_at(args.at) if getattr(args, "at", None) else None
-    if at is not None and not getattr(args, "schedule", None):
+    at = parse_at(args.at) if args.at else None
+    if at is not None and not args.schedule:
         raise ConfigError("--at: needs --schedule (the scheduling variable the values belong to)")
-    estimator = (schedule.make_scheduled(args.estimator, args.settings, args.schedule, make_estimator)
-                 if getattr(args, "schedule", None) else make_estimator(args.estimator, args.settings))
-
-    from jointbench.fitting import read
-
-    sources = [read.parse_source(s, args.array) for s in args.input]
     out = Path(args.output)
     plot = Path(args.plot) if args.plot else None
-    _check_outputs(out, plot, sources)
-    from jointbench.fitting import read_ensemble
-    from jointbench.core.ensemble import Ensemble
-
-    ensemble = args.ensemble or (len(sources) > 1 and "ensemble" in estimator.accepts
-                                 and not {"trial", "pooled"} & estimator.accepts)
-    records = read_ensemble.read_records(sources, fs=args.fs, ensemble=ensemble)
-    if getattr(args, "schedule", None):
-        records = schedule.attach(records, sources, args.schedule)
+    _check_outputs(out, plot, args.input)
     from jointbench import api
+    from jointbench.core.schema import parse_assignments
 
-    outcome = api.fit(estimator, records, torque_sign=args.torque_sign, decimate=args.decimate, window=window,
-                      ensemble=isinstance(records, Ensemble), figure=plot.suffix[1:].lower() if plot else None,
-                      names=CLI)
-    written = write_outputs(out, plot, outcome)
-    print(summary_text(args.estimator, estimator.settings, outcome, written, torque_sign=args.torque_sign))
-    if getattr(args, "schedule", None):
-        print(schedule.stiffness_text(outcome.estimate, at))
+    with worded_as(FLAGS):
+        fit = api.fit(args.estimator, list(args.input), fs=args.fs, array=args.array,
+                      settings=parse_assignments(args.settings, where="--set"), decimate=args.decimate,
+                      window=args.window, torque_sign=args.torque_sign, ensemble=True if args.ensemble else None,
+                      schedule=args.schedule)
+        figure = fit.plot(fmt=plot.suffix[1:].lower()) if plot is not None else None
+    written = write_outputs(out, plot, fit, figure)
+    print(summary_text(args.estimator, fit.estimator.settings, fit, written, torque_sign=args.torque_sign))
+    if args.schedule:
+        print(stiffness_text(fit.estimate, at))
     return 0
 
 
-# --- the steps (public so that tests and other commands can use them) ------------------------------
+# --- presentation: the values of --at, the summary, the output files -----------------------------------
 
-def make_estimator(name: str, assignments: Sequence[str]):
-    """The estimator with its ``--set`` settings (:func:`~jointbench.fitting.pipeline.estimator_from`:
-    ``auto=true`` sets each of its :attr:`AUTO` keys to 'auto')."""
-    from jointbench.core.schema import parse_assignments
+def parse_at(text: str) -> "np.ndarray":
+    """``V1,V2,...`` -> an array of numbers (one-line error otherwise)."""
+    import numpy as np
 
-    return estimator_from(name, parse_assignments(list(assignments), where="--set"), CLI)
+    try:
+        values = np.array([float(v) for v in str(text).split(",") if v.strip()])
+    except ValueError:
+        raise ConfigError(f"--at: expected numbers separated by commas, e.g. -0.3,0,0.2; got {text!r}") from None
+    if not values.size or not np.all(np.isfinite(values)):
+        raise ConfigError(f"--at: expected finite numbers separated by commas, got {text!r}")
+    return values
 
 
-def compute(estimator, raw: list, *, torque_sign: int = 1, decimate: int = 1,
-            window: tuple[float | None, float | None] | None = None, plot: Path | None = None,
-            ensemble: str | None = None) -> Outcome:
-    """:func:`jointbench.fitting.pipeline.compute` with the errors naming this command's flags."""
-    return _compute(estimator, raw, torque_sign=torque_sign, decimate=decimate, window=window, plot=plot,
-                    ensemble=ensemble, names=CLI)
+
+
+def stiffness_text(est, at: "np.ndarray | None" = None) -> str:
+    """K at the scheduling values ``at`` (default: 5 over the visited range) with the estimate's band."""
+    import numpy as np
+
+    if not hasattr(est, "stiffness_at"):
+        return ""
+    values = np.linspace(est.lo, est.hi, 5) if at is None else np.asarray(at, float)
+    k = est.stiffness_at(values)
+    lo, hi = est.stiffness_band(values)
+    level = getattr(est, "level", 0.95)
+    lines = [f"K at chosen values of the scheduling variable '{est.schedule_name}' (visited {est.lo:.4g} ... "
+             f"{est.hi:.4g}; {100 * level:g} % pointwise intervals in [ ]):"]
+    for v, kk, a, b in zip(values, k, lo, hi):
+        outside = "" if est.lo <= v <= est.hi else "  (outside the visited range: extrapolated)"
+        lines.append(f"  {v:10.4g}   K = {kk:.4g} [{a:.4g}, {b:.4g}] N.m/rad{outside}")
+    return "\n".join(lines)
 
 
 def response_kind(est) -> str | None:
@@ -214,9 +222,10 @@ def prediction_frame(trials: list, predictions: list):
     return frame
 
 
-def write_outputs(out: Path, plot: Path | None, o: Outcome) -> list[tuple[Path, int | None, list[str] | None]]:
-    """Write every output as one set (:func:`jointbench.core.files.atomic_write_set`); nothing is written before
-    :func:`compute` has succeeded."""
+def write_outputs(out: Path, plot: Path | None, o: Fit, figure: bytes | None = None
+                  ) -> list[tuple[Path, int | None, list[str] | None]]:
+    """Write every output as one set (:func:`jointbench.core.files.atomic_write_set`): the fit and its figure
+    are made before anything is written."""
     from jointbench.core.csv_text import write_csv      # pandas' bytes, faster (imports pandas: not for --list)
 
     written = [(out, len(o.frame), list(o.frame.columns))]
@@ -229,8 +238,8 @@ def write_outputs(out: Path, plot: Path | None, o: Outcome) -> list[tuple[Path, 
     tables.append((prediction_path(out), pred))
     written.append((prediction_path(out), len(pred), list(pred.columns)))
     items = [(path, lambda p, table=table: write_csv(table, p)) for path, table in tables]
-    if plot is not None and o.figure is not None:
-        items.append((plot, lambda p: Path(p).write_bytes(o.figure)))
+    if plot is not None and figure is not None:
+        items.append((plot, lambda p: Path(p).write_bytes(figure)))
         written.append((plot, None, None))
     atomic_write_set(items)         # all or nothing: a full disk leaves the last good set as it was
     return written
@@ -265,7 +274,7 @@ def list_text(name: str | None = None) -> str:
     return "\n".join(lines)
 
 
-def summary_text(name: str, settings, o: Outcome, written: Sequence[tuple[Path, int | None, list[str] | None]],
+def summary_text(name: str, settings, o: Fit, written: Sequence[tuple[Path, int | None, list[str] | None]],
                  torque_sign: int = 1) -> str:
     """The text printed after a successful run."""
     est = o.estimate
@@ -300,8 +309,8 @@ def summary_text(name: str, settings, o: Outcome, written: Sequence[tuple[Path, 
             defs.append(p.definition)
     lines.append("VAF of the predicted torque, 100 (1 - var(y - yhat) / var(y)) in %, y and yhat: "
                  + "; ".join(defs))
-    for t, p in zip(o.trials, o.predictions):
-        lines.append(f"  {t.name:<{w}}  {p.vaf():6.1f} %")
+    for t, vaf in zip(o.trials, o.vaf):
+        lines.append(f"  {t.name:<{w}}  {vaf:6.1f} %")
     lines.append("wrote:")
     for path, rows, cols in written:
         lines.append(f"  {path}" + (f"  ({rows} rows: {', '.join(cols)})" if cols else ""))
@@ -350,7 +359,9 @@ def _settings_text(settings) -> str:
     return ", ".join(items) if items else "no settings"
 
 
-def _check_outputs(out: Path, plot: Path | None, sources: Sequence["Source"]) -> None:
+def _check_outputs(out: Path, plot: Path | None, inputs: Sequence[str]) -> None:
+    """Refuse outputs that cannot be written, or would overwrite an input (``FILE`` or ``FILE:ARRAY``), before
+    anything is read or fitted."""
     if out.suffix.lower() != ".csv":
         raise ConfigError(f"--output: must name a .csv file, got {str(out)!r}")
     if out.is_dir():
@@ -359,9 +370,9 @@ def _check_outputs(out: Path, plot: Path | None, sources: Sequence["Source"]) ->
         raise ConfigError(f"--plot: must end in {', '.join(PLOT_SUFFIXES)}, got {str(plot)!r}")
     targets = [out, out.with_name(f"{out.stem}_irf{out.suffix}"), out.with_name(f"{out.stem}_frf{out.suffix}"),
                prediction_path(out)] + ([plot] if plot else [])
-    inputs = {os.path.abspath(s.path) for s in sources}
+    given = {os.path.abspath(p) for s in inputs for p in (s, s.rpartition(":")[0] or s)}
     for t in targets:
-        if os.path.abspath(t) in inputs:
+        if os.path.abspath(t) in given:
             raise ConfigError(f"refusing to overwrite input file {t}")
         if t.is_dir():
             raise ConfigError(f"{t}: is a folder; cannot write the output there")

@@ -5,17 +5,16 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from jointbench.cli.common import positive_int
-from jointbench.core.errors import ConfigError
 
 if TYPE_CHECKING:  # pragma: no cover - pandas is imported where a table is made (`jointbench estimate
     import pandas as pd  # --list` builds this parser and must start fast)
 
 
 def _history(args):
-    from jointbench.benchmarks.harness.history import History
-    from jointbench.benchmarks.study import HISTORY_FILE, results_root
+    """The run history of ``--out`` (:class:`jointbench.api.History`)."""
+    from jointbench import api
 
-    return History(results_root(Path(args.out) if args.out else None) / HISTORY_FILE, create=False)
+    return api.History(args.out)
 
 
 def _text(df: pd.DataFrame) -> str:
@@ -25,10 +24,10 @@ def _text(df: pd.DataFrame) -> str:
 def _list_runs(args) -> int:
     import pandas as pd
 
-    with _history(args) as h:
-        if args.run is not None:
-            return _show_run(h, args.run)
-        runs = h.runs(study=args.study, kind=args.kind, limit=args.limit)
+    h = _history(args)
+    if args.run is not None:
+        return _show_run(h, args.run)
+    runs = h.runs(study=args.study, kind=args.kind, limit=args.limit)
     if runs.empty:
         print("no runs recorded" + (f" for study {args.study}" if args.study else ""))
         return 0
@@ -82,16 +81,11 @@ def _show_run(h, run_id: int) -> int:
 def _diff(args) -> int:
     import pandas as pd
 
-    from jointbench.benchmarks.harness.diff import by_evidence, diff_runs
-    from jointbench.benchmarks.nightly import DEFAULT_CONFIG, load_config
+    from jointbench.benchmarks.harness.diff import by_evidence
 
-    rules = load_config(Path(args.config) if args.config else DEFAULT_CONFIG).rules
-    with _history(args) as h:
-        a, b = h.run(args.run_a), h.run(args.run_b)
-        if a["study"] != b["study"]:
-            raise ConfigError(f"runs {args.run_a} and {args.run_b} are of different studies "
-                              f"({a['study']}, {b['study']})")
-        d = diff_runs(h, args.run_a, args.run_b, rules)
+    h = _history(args)
+    d = h.diff(args.run_a, args.run_b, config=args.config)
+    a, b = h.run(args.run_a), h.run(args.run_b)
     print(f"{d.study}: run {args.run_a} ({a['started'][:19]}, {a['status']}) -> run {args.run_b} "
           f"({b['started'][:19]}, {b['status']})")
     sections = [
@@ -127,7 +121,10 @@ def _cache(args) -> int:
     entries = list(cache_mod.entries(folder))
     size = sum(p.stat().st_size for p in entries)
     if args.action == "prune":
-        with _history(args) as h:
+        from jointbench.benchmarks.harness.history import History
+        from jointbench.benchmarks.study import HISTORY_FILE
+
+        with History(folder.parent / HISTORY_FILE, create=False) as h:
             keep = h.keys_in_use(args.keep_runs)
         gone = cache_mod.prune(folder, keep, dry_run=args.dry_run)
         freed = sum(p.stat().st_size for p in gone) if args.dry_run else None

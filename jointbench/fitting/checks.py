@@ -4,16 +4,17 @@ double precision's comfortable range, constant signals, a fit that would not fit
 
 Every function raises :class:`~jointbench.core.errors.InputError` or :class:`~jointbench.core.errors.ConfigError`
 with a message naming the record or the argument; nothing here writes files. The arguments are named as
-the caller knows them (:class:`Names`): the Python API's keywords (``window=``, ``decimate=``) by default,
-the command line's flags (``--window``, ``--decimate``) for ``jointbench estimate``. numpy and the
-estimators are imported inside the functions (``jointbench estimate --list`` must start quickly).
+the caller knows them (:func:`jointbench.core.errors.argument`): the Python API's keywords (``window=``,
+``decimate=``) by default, the command line's flags (``--window``, ``--decimate``) for ``jointbench
+estimate``. numpy and the estimators are imported inside the functions (``jointbench estimate --list`` must
+start quickly).
 """
 from __future__ import annotations
 
 import dataclasses
 import re
 
-from jointbench.core.errors import ConfigError, InputError
+from jointbench.core.errors import ConfigError, InputError, argument
 
 #: data whose largest magnitude lies outside this range cannot be squared, multiplied and inverted safely
 #: in double precision (variances of 1e-160 underflow, of 1e300 overflow); such values mean wrong units
@@ -22,34 +23,9 @@ MAGNITUDE_RANGE = (1e-50, 1e50)
 MEMORY_FRACTION = 0.5
 
 
-@dataclasses.dataclass(frozen=True)
-class Names:
-    """How error messages name the pipeline's arguments: keywords of :func:`jointbench.api.fit`
-    (:data:`PYTHON`) or flags of ``jointbench estimate`` (:data:`CLI`)."""
-
-    flags: tuple[tuple[str, str], ...] = ()
-
-    def __call__(self, key: str, value=None) -> str:
-        """``key`` (``window``, ``decimate``, ``settings``), with ``value`` when given: ``decimate=4`` or
-        ``--decimate 4``; a window ``(start, end)`` in seconds."""
-        flag = dict(self.flags).get(key)
-        if value is None:
-            return flag or key
-        if key == "window":
-            a, b = value
-            return f"{flag} {a:.3f}s:{b:.3f}s" if flag else f"window=({a:.3f}, {b:.3f})"
-        return f"{flag} {value}" if flag else f"{key}={value!r}"
-
-
-PYTHON = Names()
-CLI = Names((("window", "--window"), ("decimate", "--decimate"), ("settings", "--set"),
-             ("torque_sign", "--torque-sign"), ("fs", "--fs"), ("ensemble", "--ensemble"),
-             ("schedule", "--schedule"), ("at", "--at")))
-
-
-def parse_window(text: str, names: Names = CLI) -> tuple[float | None, float | None]:
+def parse_window(text: str) -> tuple[float | None, float | None]:
     """``START:END`` in seconds (``s`` or ``ms`` suffix allowed; either side may be left empty)."""
-    w = names("window")
+    w = argument("window")
     m = re.fullmatch(r"\s*([^:]*):([^:]*)\s*", text)
     if not m:
         raise ConfigError(f"{w}: expected START:END in seconds (e.g. 5s:45s), got {text!r}")
@@ -82,12 +58,12 @@ def _slice(trial, i0: int, i1: int):
                  channels={k: v[i0:i1] for k, v in getattr(trial, "channels", {}).items()})
 
 
-def as_window(value, names: Names = PYTHON) -> tuple[float | None, float | None]:
+def as_window(value) -> tuple[float | None, float | None]:
     """A window from ``"START:END"`` text (:func:`parse_window`) or a ``(start, end)`` pair of seconds (either
     may be None), checked alike."""
     if isinstance(value, str):
-        return parse_window(value, names)
-    w = names("window")
+        return parse_window(value)
+    w = argument("window")
     try:
         start, end = value
     except (TypeError, ValueError):
@@ -102,10 +78,10 @@ def as_window(value, names: Names = PYTHON) -> tuple[float | None, float | None]
     return (None if start is None else float(start), None if end is None else float(end))
 
 
-def crop_window(trial, window: tuple[float | None, float | None], names: Names = PYTHON):
+def crop_window(trial, window: tuple[float | None, float | None]):
     """The samples ``start <= t - t0 < end`` of ``trial`` (``t0`` its first sample's time)."""
     start, end = window
-    w = names("window")
+    w = argument("window")
     fs = trial.fs
     i0 = 0 if start is None else int(round(start * fs))
     i1 = trial.n if end is None else int(round(end * fs))
@@ -118,7 +94,7 @@ def crop_window(trial, window: tuple[float | None, float | None], names: Names =
     return _slice(trial, i0, i1)
 
 
-def crop_gated(estimator, trials: list, names: Names = PYTHON) -> tuple[list, list[str]]:
+def crop_gated(estimator, trials: list) -> tuple[list, list[str]]:
     """For the multisine methods: crop a gated multisine (quiet at the start or end) to its whole periods.
 
     Returns the trials and a note per cropped record. Other estimators get the records unchanged.
@@ -141,15 +117,15 @@ def crop_gated(estimator, trials: list, names: Names = PYTHON) -> tuple[list, li
         if g.period:
             text += (f"; fitted on {t.time[g.start] - t0:.3f} ... {t.time[g.stop - 1] - t0 + 1 / t.fs:.3f} s "
                      f"({g.periods} whole period{'s' if g.periods > 1 else ''} of {g.period / t.fs:g} s); "
-                     f"{names('window')} chooses another part")
+                     f"{argument('window')} chooses another part")
         else:
-            text += f"; fitted on that part (no repeating period found); {names('window')} chooses another part"
+            text += f"; fitted on that part (no repeating period found); {argument('window')} chooses another part"
         notes.append(text)
         out.append(_slice(t, g.start, g.stop))
     return out, notes
 
 
-def gate_hint(estimator, trials: list, names: Names = PYTHON) -> str:
+def gate_hint(estimator, trials: list) -> str:
     """``"; ... gated ..."`` when a record's perturbation is on for part of it only (for error messages)."""
     try:
         from jointbench.core.signal import find_gate
@@ -160,7 +136,7 @@ def gate_hint(estimator, trials: list, names: Names = PYTHON) -> str:
                 t0 = t.time[0]
                 a, b = t.time[g.on] - t0, t.time[g.off - 1] - t0 + 1 / t.fs
                 return (f" (record '{t.name}' is perturbed from {a:.3f} s to {b:.3f} s only: fit that part with "
-                        f"{names('window', (a, b))})")
+                        f"{argument('window', (a, b))})")
     except Exception:  # noqa: BLE001 - a hint must never hide the error it decorates
         return ""
     return ""
@@ -198,7 +174,7 @@ def _gib(b: float) -> str:
     return f"{b / 2 ** 30:.3g} GiB" if b >= 2 ** 29 else f"{b / 2 ** 20:.3g} MiB"
 
 
-def check_memory(estimator, trials: list, names: Names = PYTHON) -> None:
+def check_memory(estimator, trials: list) -> None:
     """Refuse a fit whose planned memory (``estimator.memory_bytes(trials)``) exceeds what is available.
 
     The message names the decimation that would fit. Estimators without ``memory_bytes`` are not checked.
@@ -221,10 +197,10 @@ def check_memory(estimator, trials: list, names: Names = PYTHON) -> None:
         if plan(shapes) <= budget:
             raise InputError(f"{estimator.name}: the fit and its prediction need about {_gib(need)} for {n} samples at "
                              f"{fs:g} Hz, more than half the memory available ({_gib(2 * budget)}); at "
-                             f"{fs / q:g} Hz ({names('decimate', q)}) they need {_gib(plan(shapes))}")
+                             f"{fs / q:g} Hz ({argument('decimate', q)}) they need {_gib(plan(shapes))}")
     raise InputError(f"{estimator.name}: the fit needs about {_gib(need)} for {n} samples at {fs:g} Hz, more than "
                      f"half the memory available ({_gib(2 * budget)}), at any decimation; shorten the records "
-                     f"({names('window')})")
+                     f"({argument('window')})")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -244,7 +220,7 @@ class _Shape:
         return self.n / self.fs
 
 
-def decimate_trial(trial, q: int, names: Names = PYTHON):
+def decimate_trial(trial, q: int):
     """Decimate ``trial`` by the whole factor ``q`` with :func:`jointbench.core.signal.resample_trial`."""
     if q == 1:
         return trial
@@ -253,4 +229,4 @@ def decimate_trial(trial, q: int, names: Names = PYTHON):
     try:
         return resample_trial(trial, trial.fs / q)
     except InputError as exc:
-        raise InputError(f"{names('decimate', q)}: {exc}") from None
+        raise InputError(f"{argument('decimate', q)}: {exc}") from None

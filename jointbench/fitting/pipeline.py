@@ -1,12 +1,14 @@
-"""The checked fit of recorded (or simulated) angle and torque: every step that can fail, in order, before
-anything is written. :func:`jointbench.api.fit` and ``jointbench estimate`` both run it, so a notebook
-fit and the command give the same numbers on the same record.
+"""The checked fit of recorded (or simulated) angle and torque: every decision and every step that can fail,
+in order, before anything is written. :func:`jointbench.api.fit` is this :func:`fit`, and ``jointbench
+estimate`` calls :func:`jointbench.api.fit`: a notebook fit and the command give the same numbers on the same
+record, because there is one path.
 
-Steps (:func:`compute`): check the data's magnitudes, negate the torque, decimate, crop (``window``, or
-the perturbed part of a gated multisine for the multisine methods), check the records carry information,
-check the memory the estimator plans to use, fit (numerical failures turned into one-line errors), check
-the estimate is finite, compute each record's prediction and VAF (and, when asked, the figure). Errors
-name the arguments as the caller knows them (:class:`~jointbench.fitting.checks.Names`).
+:func:`fit`: the estimator and its settings (a scheduling variable added), the records (:mod:`.inputs`), whether
+several records are one ensemble (:func:`ensemble_name`: the one place this is decided), then the steps of
+:func:`prepare` (the data's magnitudes, the torque's sign, decimation, the crop: ``window``, or the perturbed
+part of a gated multisine for the multisine methods; information; memory), the fit (numerical failures
+turned into one-line errors), the estimate checked finite, and each record's prediction and VAF
+(:func:`score`). Errors name the arguments as the caller knows them (:func:`jointbench.core.errors.argument`).
 """
 from __future__ import annotations
 
@@ -15,13 +17,13 @@ import io as _io
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Mapping
 
-from jointbench.fitting.checks import (PYTHON, Names, check_information, check_magnitudes,
-                                                     check_memory, crop_gated, crop_window, decimate_trial,
-                                                     gate_hint)
-from jointbench.core.errors import ConfigError, InputError
+from jointbench.core.ensemble import Ensemble
+from jointbench.core.errors import ConfigError, InputError, argument
+from jointbench.core.schema import parse
+from jointbench.fitting import checks, inputs
 
 if TYPE_CHECKING:  # pragma: no cover
-    from jointbench.core.estimate import Estimate
+    from jointbench.core.estimate import Estimate, Prediction
 
 
 @dataclasses.dataclass
@@ -30,21 +32,22 @@ class Fit:
 
     Attributes
     ----------
+    estimator : Estimator
+        What was fitted, with its settings (``estimator.settings``).
     estimate : Estimate
         The fitted model (:class:`jointbench.core.estimate.Estimate`: ``stiffness(t)``, ``to_frame()``, ...).
     raw, trials : list of Trial
         The records as given, and as fitted (torque sign, decimation and crop applied).
     notes : list of str
         What the pipeline did that the caller did not ask for (a gated multisine cropped to its periods).
-    predictions : list
+    predictions : list of Prediction
         Each fitted record's torque prediction (:meth:`Estimate.prediction`), on which its VAF is computed.
     frame, response : DataFrame
         ``estimate.to_frame()`` (parameters over time, with intervals) and ``estimate.response_frame()``
         (the IRF or FRF, or None).
-    figure : bytes or None
-        The figure, when one was asked for.
     """
 
+    estimator: object
     estimate: "Estimate"
     raw: list
     trials: list
@@ -52,17 +55,12 @@ class Fit:
     predictions: list
     frame: object
     response: object
-    figure: bytes | None
 
     @property
-    def vafs(self) -> list[float]:
-        """VAF (%) of each fitted record's predicted torque (the definition: ``predictions[i].definition``)."""
+    def vaf(self) -> list[float]:
+        """VAF (%) of each fitted record's predicted torque, in the order of :attr:`trials` (the definition:
+        ``predictions[i].definition``)."""
         return [p.vaf() for p in self.predictions]
-
-    @property
-    def vaf(self) -> float:
-        """VAF (%) of the first record (of the only one, usually)."""
-        return self.vafs[0]
 
     def parameters(self) -> dict:
         """The estimate's parameters (``I``, ``B``, ``K``, arrays when time-varying; or the stiffness)."""
@@ -72,7 +70,8 @@ class Fit:
         return params or {"stiffness": np.atleast_1d(self.estimate.stiffness(self.estimate.time))}
 
     def plot(self, path: str | Path | None = None, fmt: str = "png") -> bytes:
-        """Draw the estimate (with the fitted records) and return the image; written to ``path`` when given."""
+        """Draw the estimate (with the fitted records) and return the image; written to ``path`` when given
+        (its suffix is the format: .png, .pdf or .svg)."""
         from jointbench.fitting.plots import plot_estimate
 
         fmt = Path(path).suffix[1:].lower() if path else fmt
@@ -83,75 +82,107 @@ class Fit:
         return buf.getvalue()
 
 
-def estimator_from(name: str, settings: Mapping[str, Any] | None = None, names: Names = PYTHON):
-    """Estimator ``name`` with ``settings`` parsed strictly (units allowed: ``"40 ms"``). ``auto=True``
-    sets each of the estimator's :attr:`AUTO` keys to 'auto' (its smoothing chosen from the data)."""
-    from jointbench import estimators
+@dataclasses.dataclass(frozen=True)
+class _Auto:
+    """The one setting the pipeline reads itself: ``auto`` (choose a time-varying method's smoothing)."""
 
+    auto: bool = False
+
+
+def make_estimator(estimator, settings: Mapping[str, Any] | None = None, schedule: str | None = None):
+    """The estimator to fit: a registered name with ``settings`` parsed strictly (units allowed: ``"40 ms"``;
+    ``auto=True`` sets each of the estimator's :attr:`AUTO` keys to 'auto'; ``schedule`` added as its
+    scheduling variable), or an estimator object as it is."""
+    from jointbench import estimators
+    from jointbench.fitting.schedule import check_schedulable
+
+    if isinstance(estimator, estimators.Estimator):
+        if settings or schedule is not None:
+            raise ConfigError(f"{argument('settings')}: applies to an estimator given by name; this one is built "
+                              f"already (give it its settings, schedule included, when you build it)")
+        return estimator
+    if not isinstance(estimator, str):
+        raise ConfigError(f"{argument('estimator')}: must be a registered name or an Estimator, got "
+                          f"{type(estimator).__name__}")
     settings = dict(settings or {})
-    cls = estimators.REGISTRY.get(name)
-    where = names("settings")
+    if schedule is not None:
+        check_schedulable(estimator)
+        settings["schedule"] = schedule
+    cls = estimators.REGISTRY.get(estimator)
+    where = f"{argument('settings')} (estimator '{estimator}')"
     if "auto" in settings:
-        value = settings.pop("auto")
-        text = str(value).strip().lower()
-        if text not in ("true", "false", "yes", "no", "1", "0"):
-            raise ConfigError(f"{where} (estimator '{name}'): key 'auto': expected true or false, got {value!r}")
+        auto = parse(_Auto, {"auto": settings.pop("auto")}, where).auto
         keys = getattr(cls, "AUTO", ())
         if not keys:
-            raise ConfigError(f"{where} (estimator '{name}'): key 'auto': {name} has no smoothing or "
-                              f"regularisation parameter to choose from the data (the time-varying methods do)")
-        if text in ("true", "yes", "1"):
-            for k in keys:
-                settings.setdefault(k, "auto")
-    return estimators.make(name, settings, where=where)
+            raise ConfigError(f"{where}: key 'auto': {estimator} has no smoothing or regularisation parameter to "
+                              f"choose from the data (the time-varying methods do)")
+        for k in keys if auto else ():
+            settings.setdefault(k, "auto")
+    return estimators.make(estimator, settings, where=argument("settings"))
 
 
-def compute(estimator, raw: list, *, torque_sign: int = 1, decimate: int = 1,
-            window: tuple[float | None, float | None] | None = None, plot: Path | None = None,
-            ensemble: str | None = None, names: Names = PYTHON) -> Fit:
-    """Every step that can fail, in order, without writing anything (the module docstring).
+def ensemble_name(estimator, records, ensemble: bool | None) -> str | None:
+    """The one rule for fitting records as an ensemble (realizations of one time-varying condition): the name
+    of the ensemble to fit, or None to fit the records one by one or pooled.
 
-    With ``ensemble`` (its name), the records are the realizations of one time-varying condition and are
-    fitted as an :class:`~jointbench.core.ensemble.Ensemble` (after the same checks and cropping).
-    """
-    import numpy as np
+    An :class:`~jointbench.core.ensemble.Ensemble` given (or read from one file) is one unless
+    ``ensemble=False``; a list of records is one with ``ensemble=True``, or by default when there are several
+    and the estimator takes ensembles only."""
+    if isinstance(records, Ensemble):
+        return None if ensemble is False else records.name
+    if ensemble is None:
+        ensemble = len(records) > 1 and "ensemble" in estimator.accepts and not {"trial", "pooled"} & estimator.accepts
+    if not ensemble:
+        return None
+    return f"{len(records)} records" if len(records) > 1 else records[0].name
 
-    if torque_sign not in (1, -1):
-        raise ConfigError(f"{names('torque_sign')}: must be 1 or -1, got {torque_sign!r}")
+
+def prepare(estimator, raw: list, *, torque_sign: int = 1, decimate: int = 1,
+            window: tuple[float | None, float | None] | None = None) -> tuple[list, list[str]]:
+    """The records as they are fitted, and notes on what was done unasked: magnitudes checked, the torque's
+    sign, decimation, the crop (``window``, or a gated multisine's whole periods), then information and
+    memory checked."""
+    if isinstance(torque_sign, bool) or torque_sign not in (1, -1):
+        raise ConfigError(f"{argument('torque_sign')}: must be 1 or -1, got {torque_sign!r}")
     if isinstance(decimate, bool) or not isinstance(decimate, int) or decimate < 1:
-        raise ConfigError(f"{names('decimate')}: must be a whole number >= 1, got {decimate!r}")
-    notes: list[str] = []
-    check_magnitudes(raw)
+        raise ConfigError(f"{argument('decimate')}: must be a whole number >= 1, got {decimate!r}")
+    checks.check_magnitudes(raw)
     if torque_sign == -1:
         raw = [t.replace(torque=-t.torque) for t in raw]
-    trials = [decimate_trial(t, decimate, names) for t in raw]
+    trials = [checks.decimate_trial(t, decimate) for t in raw]
+    notes: list[str] = []
     if window is not None:
-        trials = [crop_window(t, window, names) for t in trials]
+        trials = [checks.crop_window(t, window) for t in trials]
     else:
-        trials, gate_notes = crop_gated(estimator, trials, names)
-        notes += gate_notes
-    check_information(trials)
-    check_memory(estimator, trials, names)
-    if ensemble is not None:
-        from jointbench.core.ensemble import Ensemble
+        trials, notes = checks.crop_gated(estimator, trials)
+    checks.check_information(trials)
+    checks.check_memory(estimator, trials)
+    return trials, notes
 
-        est = fit(estimator, Ensemble(tuple(trials), name=ensemble), names)
-    else:
-        est = fit(estimator, trials, names)
-    frame = est.to_frame()
-    response = est.response_frame()
+
+def fit(estimator, data=None, *, angle=None, torque=None, fs: float | None = None, array: str | None = None,
+        settings: Mapping[str, Any] | None = None, decimate: int = 1, window=None, torque_sign: int = 1,
+        ensemble: bool | None = None, schedule: str | None = None) -> Fit:
+    """Every decision and every step that can fail, in order, without writing anything (the module
+    docstring); the arguments are :func:`jointbench.api.fit`'s."""
+    import numpy as np
+
+    est = make_estimator(estimator, settings, schedule)
+    given = inputs.records(data, angle=angle, torque=torque, fs=fs, array=array, schedule=schedule)
+    name = ensemble_name(est, given, ensemble)
+    raw = list(given)
+    trials, notes = prepare(est, raw, torque_sign=torque_sign, decimate=decimate,
+                            window=None if window is None else checks.as_window(window))
+    estimate = fit_checked(est, Ensemble(tuple(trials), name=name) if name is not None else trials)
+    frame = estimate.to_frame()
     bad = [c for c in frame.columns if frame[c].dtype.kind == "f" and not np.all(np.isfinite(frame[c]))]
     if bad:
-        raise InputError(f"{estimator.name}: the fit gave non-finite values in {', '.join(bad)}: the data do not "
+        raise InputError(f"{est.name}: the fit gave non-finite values in {', '.join(bad)}: the data do not "
                          f"determine them (constant or far too small/large signals, or too few samples)")
-    predictions = [prediction_of(est, t, k) for k, t in enumerate(trials)]
-    out = Fit(est, list(raw), trials, notes, predictions, frame, response, None)
-    if plot is not None:
-        out.figure = out.plot(fmt=Path(plot).suffix[1:].lower())
-    return out
+    return Fit(est, estimate, raw, trials, notes, score(estimate, trials), frame, estimate.response_frame())
 
 
-def fit(estimator, trials, names: Names = PYTHON):
+def fit_checked(estimator, trials) -> "Estimate":
     """``estimator.fit(trials)`` with numerical failures turned into one-line errors."""
     import numpy as np
 
@@ -160,33 +191,32 @@ def fit(estimator, trials, names: Names = PYTHON):
         with np.errstate(over="ignore", invalid="ignore", divide="ignore", under="ignore"):
             return estimator.fit(trials)
     except InputError as exc:
-        raise InputError(f"{exc}{gate_hint(estimator, records, names)}") from None
+        raise InputError(f"{exc}{checks.gate_hint(estimator, records)}") from None
     except np.linalg.LinAlgError as exc:
         raise InputError(f"{estimator.name}: the fit is numerically singular ({exc}): the records do not "
                          f"determine the model (no perturbation, constant torque, or too few samples)"
-                         f"{gate_hint(estimator, records, names)}") from None
+                         f"{checks.gate_hint(estimator, records)}") from None
     except MemoryError:
         n = sum(t.n for t in records)
         raise InputError(f"{estimator.name}: out of memory for {n} samples at {records[0].fs:g} Hz; decimate "
-                         f"({names('decimate')}) or shorten the records ({names('window')})") from None
+                         f"({argument('decimate')}) or shorten the records ({argument('window')})") from None
 
 
-def prediction_of(est, trial, index: int):
-    """:meth:`Estimate.prediction` of one record, its VAF checked to be computable."""
-    try:
-        p = est.prediction(trial, index)
-    except InputError as exc:
-        raise InputError(f"{trial.name}: {exc}") from None
-    except (ValueError, ArithmeticError) as exc:
-        raise InputError(f"{trial.name}: cannot predict the torque with the {est.estimator} estimate: "
-                         f"{exc}") from None
-    p.vaf()  # raises when the torque has no variance there
-    return p
-
-
-def prediction_vaf(est, trial, index: int = 0) -> float:
-    """VAF (%) of record ``trial`` as defined by :meth:`Estimate.prediction` (``nan`` if not computable)."""
-    try:
-        return est.prediction(trial, index).vaf()
-    except (NotImplementedError, ValueError, ArithmeticError):
-        return float("nan")
+def score(estimate: "Estimate", trials: list) -> list["Prediction"]:
+    """Each record's torque prediction (:meth:`Estimate.prediction`), on which its VAF is computed; one line
+    naming the record when it cannot be predicted or its torque has nothing to explain."""
+    out = []
+    for index, trial in enumerate(trials):
+        try:
+            p = estimate.prediction(trial, index)
+        except InputError as exc:
+            raise InputError(f"{trial.name}: {exc}") from None
+        except (ValueError, ArithmeticError) as exc:
+            raise InputError(f"{trial.name}: cannot predict the torque with the {estimate.estimator} estimate: "
+                             f"{exc}") from None
+        try:
+            p.vaf()
+        except InputError as exc:
+            raise InputError(f"{trial.name}: {exc}") from None
+        out.append(p)
+    return out

@@ -17,7 +17,7 @@ import numpy as np
 from jointbench.fitting.read import (Source, _file_fs, _numeric, _read_mat, _read_npz, _shape, _time_base,
                                       _what_is_there, read_trials)
 from jointbench.core.ensemble import Ensemble
-from jointbench.core.errors import InputError
+from jointbench.core.errors import InputError, argument
 
 def is_ensemble_file(source: Source | str | Path) -> bool:
     """True for an NPZ/.mat file (column layout) whose ``angle`` and ``torque`` are 2-D (samples × realizations)."""
@@ -107,21 +107,15 @@ def read_ensemble(path: str | Path, *, fs: float | None = None, name: str | None
         raise InputError(f"{where}: {exc}") from None
 
 
-def read_records(sources: Sequence[Source | str | Path], *, fs: float | None = None, ensemble: bool = False):
-    """The ``--input`` records: a list of trials, or an ensemble.
-
-    An ensemble file (:func:`is_ensemble_file`) must be the only input and gives an
-    :class:`~jointbench.core.ensemble.Ensemble`; with ``ensemble=True`` several records of equal length and
-    rate become the realizations of one (their order is the realizations' order).
-    """
+def read_records(sources: Sequence[Source | str | Path], *, fs: float | None = None):
+    """The records of ``sources``: a list of trials, or the ensemble of a file with 2-D angle and torque
+    (:func:`is_ensemble_file`), which must then be the only source. Whether several records are fitted as
+    an ensemble is the pipeline's decision (:func:`jointbench.fitting.pipeline.fit`)."""
     srcs = [s if isinstance(s, Source) else Source(Path(s)) for s in sources]
     two_d = [s for s in srcs if is_ensemble_file(s)]
     if two_d:
         if len(srcs) > 1:
             raise InputError(f"{two_d[0].path}: holds an ensemble (2-D angle and torque); give it as the only "
-                             f"--input, or give one record per file")
+                             f"{argument('data')}, or give one record per file")
         return read_ensemble(two_d[0].path, fs=fs)
-    trials = read_trials(srcs, fs=fs)
-    if not ensemble:
-        return trials
-    return Ensemble(tuple(trials), name=f"{len(trials)} records" if len(trials) > 1 else trials[0].name)
+    return read_trials(srcs, fs=fs)
