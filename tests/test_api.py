@@ -124,3 +124,38 @@ def test_the_ankle_example_on_the_api_writes_the_committed_table(tmp_path, monke
     runpy.run_path(sys.argv[0], run_name="__main__")
     assert (tmp_path / "ankle_example.md").read_text() == (REPO / "docs" / "ankle_example.md").read_text()
     assert (tmp_path / "ankle_z_df_ibk_irf.png").stat().st_size > 10_000
+
+
+def test_score_gives_the_fits_own_vaf_on_its_records_and_refuses_another_rate(gated_record):
+    """api.score is the fit's own scoring (pipeline.score): on the records as fitted it gives Fit.vaf; a record
+    at another rate is refused naming the rates, not scored against a mismatched prediction."""
+    trial, _ = gated_record
+    fit = api.fit("irf2_ls", trial, window=(5, 45), decimate=2)
+    scored = api.score(fit, fit.trials)
+    assert list(scored["record"]) == [t.name for t in fit.trials]
+    assert list(scored["vaf"]) == fit.vaf and scored["samples"].iloc[0] == fit.predictions[0].used.sum()
+    with pytest.raises(ConfigError, match=r"sampled at 50 Hz, the estimate at 25 Hz"):
+        api.score(fit, trial)
+    flipped = api.score(fit.estimate, [t.replace(torque=-t.torque) for t in fit.trials], torque_sign=-1)
+    assert list(flipped["vaf"]) == fit.vaf
+
+
+def test_the_history_object_answers_what_the_command_prints(tmp_path):
+    """One history object (api.History) behind `jointbench history` and `jointbench diff`."""
+    from tests.harness_studies import cli_here, tiny_study
+
+    study = tiny_study(tmp_path / "cfg", seeds=1, duration="2 s")
+    out = tmp_path / "out"
+    for _ in range(2):
+        assert cli_here("run", study, "--out", out, "--serial", "--quiet").returncode == 0
+    h = api.History(out)
+    runs = h.runs()
+    assert list(runs["study"]) == ["tiny", "tiny"] and h.run(int(runs["id"].min()))["status"] == "ok"
+    first, second = sorted(int(i) for i in runs["id"])
+    assert len(h.checks(first)) == 2 and len(h.cases(first)) == 1 and len(h.rows(first)) > 0
+    d = h.diff(first, second)
+    assert d.study == "tiny" and not d.regressions
+    shown = cli_here("history", str(first), "--out", out)
+    assert shown.returncode == 0 and f"run {first} (run" in shown.stdout
+    with pytest.raises(Exception, match="history"):
+        api.History(tmp_path / "nowhere").runs()
