@@ -18,7 +18,8 @@ from jointbench.benchmarks import protocols
 from jointbench.benchmarks.config import Part, Study
 from jointbench.benchmarks.harness.cache import Cache
 from jointbench.benchmarks.harness.case import Case, CaseResult, parse_inputs, run_case, run_group
-from jointbench.benchmarks.harness.pool import ExecutorLost, InlineExecutor, WorkerMismatch, WorkerPool, run_task
+from jointbench.benchmarks.harness.pool import InlineExecutor, WorkerPool, run_task
+from jointbench.benchmarks.harness.workers import ExecutorLost, WorkerMismatch
 from jointbench.core.errors import ConfigError
 from jointbench.core.schema import parse
 
@@ -205,9 +206,9 @@ def run_cases(cases: list[Case], cache: Cache, workers: int | None = None, seria
     executor
         Any ``concurrent.futures``-style executor to use instead (``submit`` returning futures with
         ``add_done_callback``; ``terminate_workers()`` when it can stop at once). It is not shut down.
-        A future failing with :class:`~benchmarks.harness.pool.ExecutorLost` (a lost Dask scheduler)
+        A future failing with :class:`~benchmarks.harness.workers.ExecutorLost` (a lost Dask scheduler)
         stops the run (:class:`InfrastructureLost`); one failing with
-        :class:`~benchmarks.harness.pool.WorkerMismatch` (a worker running other code) stops it with
+        :class:`~benchmarks.harness.workers.WorkerMismatch` (a worker running other code) stops it with
         that error. Any other failure of a task fails its cases.
     info
         Filled with ``workers``: what the cases ran on (for the report), e.g. ``2 worker processes``.
