@@ -13,8 +13,6 @@ any). Beside them, shared by every study:
 from __future__ import annotations
 
 import dataclasses
-import functools
-import gc
 import os
 import shutil
 import sys
@@ -162,24 +160,6 @@ def _record_error(history: History, run_id: int, results: list, keys: dict, exc:
             return
         except Exception:  # noqa: BLE001 - see the docstring
             continue
-
-
-def _frozen(run):
-    """``run`` with the objects that live through it kept out of the garbage collector's full passes.
-
-    What exists when the run starts (the imports) and, frozen again once every case result is in, the
-    results (more than a million containers from the cache's JSON for xu1998) are frozen
-    (:func:`gc.freeze`) until it ends: each full collection would otherwise walk all of them again while
-    the tables, figures and report are made (2-3 per run, 0.1-0.5 CPU-s a study; in a study forked side by
-    side it also touched every page shared with the parent; issue 22). Garbage is collected as before."""
-    @functools.wraps(run)
-    def frozen(*args, **kwargs):
-        gc.freeze()
-        try:
-            return run(*args, **kwargs)
-        finally:
-            gc.unfreeze()
-    return frozen
 
 
 @dataclasses.dataclass(frozen=True)
@@ -449,7 +429,6 @@ def _write_outputs(run: _Run, out: _Outcome) -> tuple[dict, object]:
     return part_reports, page
 
 
-@_frozen
 def run_study(ref: str | Path, options: RunOptions | None = None, /, **fields) -> StudyRun:
     """Run study ``ref`` (a shipped study's id, a study file or a folder holding one), write its outputs,
     record the run.
@@ -468,7 +447,6 @@ def run_study(ref: str | Path, options: RunOptions | None = None, /, **fields) -
     run = _prepare(ref, dataclasses.replace(options or RunOptions(), **fields))
     _begin(run)
     results, wall, ran_on = _run_cases(run)
-    gc.freeze()                       # the results too (see _frozen)
     out = _outcome(run, results, wall, ran_on)
     part_reports, page = _write_outputs(run, out)
     run.history.close()
