@@ -7,6 +7,7 @@ JSON-serialisable and cached by a key of everything that can change their number
 from __future__ import annotations
 
 import concurrent.futures as cf
+import dataclasses
 import json
 import math
 import os
@@ -16,9 +17,10 @@ from typing import Callable, Iterable
 
 from jointbench.benchmarks import protocols
 from jointbench.benchmarks.config import Part, Study
-from jointbench.benchmarks.harness.cache import Cache
+from jointbench.benchmarks.harness.cache import Cache, case_key
 from jointbench.benchmarks.harness.case import Case, CaseResult, parse_inputs, run_case, run_group
-from jointbench.benchmarks.harness.pool import ExecutorLost, InlineExecutor, WorkerMismatch, WorkerPool, run_task
+from jointbench.benchmarks.harness.pool import InlineExecutor, WorkerPool, run_task
+from jointbench.benchmarks.harness.workers import ExecutorLost, WorkerMismatch
 from jointbench.core.errors import ConfigError
 from jointbench.core.schema import parse
 
@@ -188,6 +190,168 @@ def _stop(executor) -> None:
         executor.shutdown(wait=False, cancel_futures=True)
 
 
+class _Results:
+    """The results of one :func:`run_cases` call as they come, by case index: each stored in the cache the
+    moment it finishes, passed to ``on_result`` and counted on the progress bar."""
+
+    def __init__(self, cases: list[Case], cache: Cache, on_result: Callable[[CaseResult], None] | None):
+        self.cases, self.cache, self.on_result = cases, cache, on_result
+        self.by_index: dict[int, CaseResult] = {}
+        self.stored: set[int] = set()
+        self.bar = None
+
+    def take_cached(self) -> list[int]:
+        """Reuse every verified cached result; the indices of the cases still to run."""
+        todo = []
+        for i, c in enumerate(self.cases):
+            hit = self.cache.get(c)
+            if hit is not None:
+                self.by_index[i] = hit
+                if self.on_result:
+                    self.on_result(hit)
+            else:
+                todo.append(i)
+        return todo
+
+    def show_progress(self, enabled: bool) -> None:
+        """A progress bar on stderr (when ``enabled``), the cached cases already counted."""
+        self.bar = _progress(len(self.cases), enabled)
+        if self.bar is not None:
+            self.bar.update(len(self.by_index))
+            self.bar.set_postfix_str(f"{len(self.by_index)} cached")
+
+    def finish(self, i: int, res: CaseResult) -> None:
+        """Case ``i`` finished: kept, stored in the cache, reported."""
+        self.by_index[i] = res
+        self.cache.put(res)
+        self.stored.add(i)
+        if self.on_result:
+            self.on_result(res)
+        if self.bar is not None:
+            self.bar.update(1)
+            if res.status != "ok":
+                self.bar.write(f"case {res.case.case_id} failed: {res.error}")
+
+    def keep_finished(self, inflight: dict) -> None:
+        """After a stop: store every finished case not yet stored, and those whose task ended meanwhile (a
+        result, not the error of a terminated worker). A second Ctrl-C cuts this short."""
+        try:
+            for i, res in list(self.by_index.items()):
+                if i not in self.stored and not res.cached:
+                    self.cache.put(res)
+            for fut, group in list(inflight.items()):
+                if fut.done() and not fut.cancelled() and fut.exception() is None:
+                    for i, res in zip(group, fut.result()):
+                        if i not in self.by_index:
+                            self.finish(i, res)
+        except KeyboardInterrupt:
+            pass
+
+    def finished(self) -> list[CaseResult]:
+        """The results so far, in case order."""
+        return [self.by_index[i] for i in sorted(self.by_index)]
+
+    def lost(self, exc: _Lost, todo: list[int]) -> InfrastructureLost:
+        """The error of a run whose executor was lost, counting the cases the workers stored themselves
+        (groups cut short)."""
+        finished, n = self.finished(), len(self.cases)
+        kept = len(finished) + sum(1 for i in todo if i not in self.by_index and self.cache.enabled
+                                   and self.cache.path(case_key(self.cases[i])).is_file())
+        return InfrastructureLost(finished, n, f"{exc.what} after {kept} of {n} cases; run again to resume")
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+
+
+@dataclasses.dataclass
+class _Slots:
+    """Where a run's tasks go: the executor, how many tasks may be in flight at once, what it is (for the
+    report; '' to ask the executor), whether the runner made it (and shuts it down) and the BLAS limit of a
+    run in this process (restored at the end)."""
+
+    executor: cf.Executor
+    capacity: int
+    ran_on: str
+    own: bool
+    limits: object = None
+
+    def restore_blas(self) -> None:
+        if self.limits is not None:
+            self.limits.restore_original_limits()
+
+    def done(self, info: dict | None) -> None:
+        """The run ended well: ``info["workers"]`` says what it ran on; the runner's own executor is shut down."""
+        if info is not None:
+            describe = getattr(self.executor, "describe", None)
+            info["workers"] = self.ran_on or (describe() if callable(describe) else f"{self.capacity // 2} worker(s)")
+        if self.own:
+            self.executor.shutdown(wait=True)
+
+
+def _slots(executor: cf.Executor | None, workers: int, serial: bool, n_tasks: int) -> _Slots:
+    """The given executor, or the runner's own: this process (``serial``, one worker or one task) or a
+    :class:`~benchmarks.harness.pool.WorkerPool` of at most ``workers`` processes."""
+    ran_on = "no worker (every case from the cache)" if not n_tasks else ""
+    if executor is not None:
+        return _Slots(executor, 2 * (getattr(executor, "_max_workers", None) or workers), ran_on, own=False)
+    if serial or workers == 1 or n_tasks <= 1:
+        from threadpoolctl import threadpool_limits
+
+        limits = threadpool_limits(limits=1)     # as in the workers: same BLAS reductions, same numbers
+        return _Slots(InlineExecutor(), 1, ran_on or "1 process (serial)", own=True, limits=limits)
+    n = min(workers, n_tasks)
+    return _Slots(WorkerPool(n), 2 * n, f"{n} worker processes", own=True)
+
+
+def _submitter(executor: cf.Executor, cases: list[Case], todo: list[int], cache: Cache) -> Callable:
+    """How a task (a group of cases) is submitted: :func:`run_group` in this process; elsewhere
+    :func:`~benchmarks.harness.pool.run_task` with the run's code hash and key environment (a worker running
+    other code refuses), the cache folder when the executor's workers store cases themselves and the plugins
+    the workers must import."""
+    if isinstance(executor, InlineExecutor):
+        return lambda batch: executor.submit(run_group, batch)
+    from jointbench.benchmarks.harness.fingerprint import code_hash, key_environment
+
+    code = code_hash()
+    outside = _plugin_modules([cases[i] for i in todo])
+    store = (os.path.abspath(cache.folder) if cache.enabled and getattr(executor, "stores_on_worker", False)
+             else None)                          # absolute: a worker has its own cwd
+    env = dict(key_environment())
+    return lambda batch: executor.submit(run_task, batch, code, env, store, outside)
+
+
+def _drive(slots: _Slots, tasks: list[list[int]], submit: Callable, got: _Results, inflight: dict) -> None:
+    """Keep up to ``slots.capacity`` tasks in ``inflight`` (future -> case indices) until every task is done,
+    finishing each case as its task ends. Polls a queue of done futures every 0.25 s, so Ctrl-C is seen.
+    A lost executor stops the run (:class:`_Lost`), a worker running other code raises its
+    :class:`~benchmarks.harness.workers.WorkerMismatch`; any other failure of a task fails its cases."""
+    done_q: queue.SimpleQueue = queue.SimpleQueue()
+    pending = iter(tasks)
+    while True:
+        while len(inflight) < slots.capacity:
+            group = next(pending, None)
+            if group is None:
+                break
+            fut = submit([got.cases[i] for i in group])
+            inflight[fut] = group
+            fut.add_done_callback(done_q.put)
+        if not inflight:
+            return
+        try:
+            fut = done_q.get(timeout=0.25)
+        except queue.Empty:
+            continue
+        group = inflight.pop(fut)
+        error = None if fut.cancelled() else fut.exception()
+        if isinstance(error, ExecutorLost):
+            raise _Lost(str(error))
+        if isinstance(error, WorkerMismatch):
+            raise error
+        for i, res in zip(group, _outcomes(fut, [got.cases[i] for i in group])):
+            got.finish(i, res)
+
+
 def run_cases(cases: list[Case], cache: Cache, workers: int | None = None, serial: bool = False,
               progress: bool = True, on_result: Callable[[CaseResult], None] | None = None,
               executor: cf.Executor | None = None, info: dict | None = None) -> list[CaseResult]:
@@ -205,9 +369,9 @@ def run_cases(cases: list[Case], cache: Cache, workers: int | None = None, seria
     executor
         Any ``concurrent.futures``-style executor to use instead (``submit`` returning futures with
         ``add_done_callback``; ``terminate_workers()`` when it can stop at once). It is not shut down.
-        A future failing with :class:`~benchmarks.harness.pool.ExecutorLost` (a lost Dask scheduler)
+        A future failing with :class:`~benchmarks.harness.workers.ExecutorLost` (a lost Dask scheduler)
         stops the run (:class:`InfrastructureLost`); one failing with
-        :class:`~benchmarks.harness.pool.WorkerMismatch` (a worker running other code) stops it with
+        :class:`~benchmarks.harness.workers.WorkerMismatch` (a worker running other code) stops it with
         that error. Any other failure of a task fails its cases.
     info
         Filled with ``workers``: what the cases ran on (for the report), e.g. ``2 worker processes``.
@@ -224,126 +388,27 @@ def run_cases(cases: list[Case], cache: Cache, workers: int | None = None, seria
     """
     if workers is not None and workers < 1:
         raise ConfigError(f"workers: need at least 1 process, got {workers}")
-    results: dict[int, CaseResult] = {}
-    todo = []
-    for i, c in enumerate(cases):
-        hit = cache.get(c)
-        if hit is not None:
-            results[i] = hit
-            if on_result:
-                on_result(hit)
-        else:
-            todo.append(i)
-    bar = _progress(len(cases), progress)
-    if bar is not None:
-        bar.update(len(results))
-        bar.set_postfix_str(f"{len(results)} cached")
-
-    stored: set[int] = set()
-
-    def finish(i: int, res: CaseResult) -> None:
-        results[i] = res
-        cache.put(res)
-        stored.add(i)
-        if on_result:
-            on_result(res)
-        if bar is not None:
-            bar.update(1)
-            if res.status != "ok":
-                bar.write(f"case {res.case.case_id} failed: {res.error}")
-
-    workers = workers or os.cpu_count() or 1
+    got = _Results(cases, cache, on_result)
+    todo = got.take_cached()
+    got.show_progress(progress)
     tasks = group_cases(cases, todo)
-    own = executor is None
-    limits = None
-    code = None
-    ran_on = "no worker (every case from the cache)" if not tasks else ""
-    if own and (serial or workers == 1 or len(tasks) <= 1):
-        from threadpoolctl import threadpool_limits
-
-        executor, capacity = InlineExecutor(), 1
-        limits = threadpool_limits(limits=1)     # as in the workers: same BLAS reductions, same numbers
-        ran_on = ran_on or "1 process (serial)"
-    elif own:
-        executor = WorkerPool(min(workers, len(tasks)))
-        capacity = 2 * min(workers, len(tasks))
-        ran_on = f"{min(workers, len(tasks))} worker processes"
-    else:
-        capacity = 2 * (getattr(executor, "_max_workers", None) or workers)
-    outside = None
-    extra: tuple = ()
-    if not isinstance(executor, InlineExecutor):
-        from jointbench.benchmarks.harness.fingerprint import code_hash, key_environment
-
-        code = code_hash()
-        outside = _plugin_modules([cases[i] for i in todo])
-        extra = (dict(key_environment()), os.path.abspath(cache.folder) if cache.enabled and
-                 getattr(executor, "stores_on_worker", False) else None)   # absolute: a worker has its own cwd
-    done_q: queue.SimpleQueue = queue.SimpleQueue()
+    slots = _slots(executor, workers or os.cpu_count() or 1, serial, len(tasks))
     inflight: dict = {}
-    pending = iter(tasks)
     try:
-        while True:
-            while len(inflight) < capacity:
-                group = next(pending, None)
-                if group is None:
-                    break
-                batch = [cases[i] for i in group]
-                fut = (executor.submit(run_group, batch) if code is None else
-                       executor.submit(run_task, batch, code, *extra, outside))
-                inflight[fut] = group
-                fut.add_done_callback(done_q.put)
-            if not inflight:
-                break
-            try:
-                fut = done_q.get(timeout=0.25)
-            except queue.Empty:
-                continue
-            group = inflight.pop(fut)
-            error = None if fut.cancelled() else fut.exception()
-            if isinstance(error, ExecutorLost):
-                raise _Lost(str(error))
-            if isinstance(error, WorkerMismatch):
-                raise error
-            for i, res in zip(group, _outcomes(fut, [cases[i] for i in group])):
-                finish(i, res)
+        _drive(slots, tasks, _submitter(slots.executor, cases, todo, cache), got, inflight)
     except KeyboardInterrupt as exc:
-        _stop(executor)
-        try:                  # keep every finished case: those not yet stored, those done meanwhile
-            for i, res in list(results.items()):
-                if i not in stored and not res.cached:
-                    cache.put(res)
-            for fut, group in list(inflight.items()):   # a result, not the error of a terminated worker
-                if fut.done() and not fut.cancelled() and fut.exception() is None:
-                    for i, res in zip(group, fut.result()):
-                        if i not in results:
-                            finish(i, res)
-        except KeyboardInterrupt:
-            pass
-        if bar is not None:
-            bar.close()
-        finished = [results[i] for i in sorted(results)]
-        if isinstance(exc, _Lost):   # count the cases the workers stored themselves (groups cut short)
-            from jointbench.benchmarks.harness.cache import case_key
-
-            kept = len(finished) + sum(1 for i in todo if i not in results and cache.enabled
-                                       and cache.path(case_key(cases[i])).is_file())
-            raise InfrastructureLost(finished, len(cases), f"{exc.what} after {kept} of {len(cases)} "
-                                     "cases; run again to resume") from None
-        raise RunInterrupted(finished, len(cases), getattr(exc, "reason", "interrupted")) from exc
+        _stop(slots.executor)
+        got.keep_finished(inflight)
+        got.close()
+        if isinstance(exc, _Lost):
+            raise got.lost(exc, todo) from None
+        raise RunInterrupted(got.finished(), len(cases), getattr(exc, "reason", "interrupted")) from exc
     except BaseException:
-        _stop(executor)
-        if bar is not None:
-            bar.close()
+        _stop(slots.executor)
+        got.close()
         raise
     finally:
-        if limits is not None:
-            limits.restore_original_limits()
-    if info is not None:
-        describe = getattr(executor, "describe", None)
-        info["workers"] = ran_on or (describe() if callable(describe) else f"{capacity // 2} worker(s)")
-    if own:
-        executor.shutdown(wait=True)
-    if bar is not None:
-        bar.close()
-    return [results[i] for i in range(len(cases))]
+        slots.restore_blas()
+    slots.done(info)
+    got.close()
+    return [got.by_index[i] for i in range(len(cases))]

@@ -13,8 +13,6 @@ any). Beside them, shared by every study:
 from __future__ import annotations
 
 import dataclasses
-import functools
-import gc
 import os
 import shutil
 import sys
@@ -164,41 +162,279 @@ def _record_error(history: History, run_id: int, results: list, keys: dict, exc:
             continue
 
 
-def _frozen(run):
-    """``run`` with the objects that live through it kept out of the garbage collector's full passes.
+@dataclasses.dataclass(frozen=True)
+class RunOptions:
+    """How :func:`run_study` runs a study (``jointbench run``'s options); the defaults are those of a plain
+    ``jointbench run STUDY``.
 
-    What exists when the run starts (the imports) and, frozen again once every case result is in, the
-    results (more than a million containers from the cache's JSON for xu1998) are frozen
-    (:func:`gc.freeze`) until it ends: each full collection would otherwise walk all of them again while
-    the tables, figures and report are made (2-3 per run, 0.1-0.5 CPU-s a study; in a study forked side by
-    side it also touched every page shared with the parent; issue 22). Garbage is collected as before."""
-    @functools.wraps(run)
-    def frozen(*args, **kwargs):
-        gc.freeze()
-        try:
-            return run(*args, **kwargs)
-        finally:
-            gc.unfreeze()
-    return frozen
+    Attributes
+    ----------
+    parts
+        Only these parts are run (None: all); the outputs still cover every other part whose cases are all
+        in the cache for the current code (so ``make westwick2012-fig4`` after ``make westwick2012`` rewrites
+        fig4 without dropping the rest of the report).
+    out_root
+        The results folder (``--out``; None: :func:`results_root`).
+    serial, workers, executor
+        The cases run in this process, on a pool of ``workers`` processes (None: all cores) or on this
+        ``concurrent.futures``-style executor (:func:`benchmarks.runner.run_cases`).
+    use_cache, read_cache
+        Finished cases are kept in the cache; ``read_cache=False`` recomputes every case but still stores
+        the results (the nightly run does this).
+    progress
+        A progress bar on stderr.
+    command, kind, nightly_id
+        What the history records: the command (default ``jointbench run <study>``), the kind of run (``run``,
+        ``nightly``) and the nightly it belongs to.
+    backend
+        Every part runs on this simulation backend (``jointbench run STUDY --backend mujoco``) and the outputs
+        go to ``results/<study>/backend-<name>/`` (:mod:`benchmarks.backends`); the history records the run
+        as ``<study>@<backend>``.
+    overrides
+        ``PART.KEY=VALUE`` texts (``--set``); without ``out_root`` the outputs go to
+        ``results/set-runs/<study>-set-<hash>/``, never over the study's own results.
+    budget_minutes, confirm
+        The budget of a comparison grid (None: the part's own) and ``--yes`` (:func:`check_budget`).
+    """
+
+    parts: list[str] | None = None
+    out_root: Path | None = None
+    serial: bool = False
+    workers: int | None = None
+    executor: object = None
+    use_cache: bool = True
+    read_cache: bool = True
+    progress: bool = True
+    command: str = ""
+    kind: str = "run"
+    nightly_id: int | None = None
+    backend: str | None = None
+    overrides: tuple = ()
+    budget_minutes: float | None = None
+    confirm: bool = False
 
 
-@_frozen
-def run_study(ref: str | Path, parts: list[str] | None = None, out_root: Path | None = None,
-              serial: bool = False, workers: int | None = None, use_cache: bool = True,
-              progress: bool = True, command: str = "", kind: str = "run", nightly_id: int | None = None,
-              read_cache: bool = True, executor=None, backend: str | None = None,
-              overrides=(), budget_minutes: float | None = None, confirm: bool = False) -> StudyRun:
+@dataclasses.dataclass
+class _Run:
+    """A study's run while it is made: what it runs, where it writes, and its row in the history."""
+
+    study: Study
+    options: RunOptions
+    cases: list
+    skipped: list                    # the combinations of comparison grids left out, with their reasons
+    root: Path
+    folder: Path
+    cache: Cache
+    history: History | None = None
+    run_id: int | None = None
+    keys: dict = dataclasses.field(default_factory=dict)      # case id -> cache key, of every case recorded
+
+    @property
+    def parts(self) -> list[str]:
+        """The parts whose cases this run runs."""
+        return list(dict.fromkeys(c.part for c in self.cases))
+
+    @property
+    def command(self) -> str:
+        return self.options.command or f"jointbench run {self.study.id}"
+
+    @property
+    def n_workers(self) -> int:
+        return 1 if self.options.serial else (self.options.workers or os.cpu_count() or 1)
+
+
+@dataclasses.dataclass
+class _Outcome:
+    """What a run made, before it is written: every case result (those of the parts taken from the cache
+    too), the tidy rows and curves, the judged checks, the parts the report shows and its facts."""
+
+    results: list[CaseResult]
+    wall: float
+    rows: pd.DataFrame
+    curves: pd.DataFrame
+    checks: pd.DataFrame
+    shown: list[str]
+    meta: dict
+
+
+def _output_folder(study: Study, root: Path, opts: RunOptions) -> Path:
+    """``<root>/<study>`` (``backend-<name>/`` in it with a backend); a run with ``--set`` and no ``--out``
+    never replaces the study's own (committed) results: ``<root>/set-runs/<study>-set-<hash>/``, said on
+    stderr."""
+    base = outputs.study_folder(root, study.id, study.path)
+    if opts.overrides and opts.out_root is None:
+        base = outputs.study_folder(root / outputs.SET_RUNS, outputs.set_folder_name(study.id, opts.overrides),
+                                    study.path)
+    folder = backends.run_folder(base, opts.backend)
+    if base.name != study.id:
+        print(f"jointbench: --set without --out: outputs in {folder} (not {root / study.id}; --out DIR to choose)",
+              file=sys.stderr)
+    return folder
+
+
+def _prepare(ref: str | Path, opts: RunOptions) -> _Run:
+    """Everything that can refuse a run before any case runs: the study loaded and expanded, its figure
+    makers known, the folders writable (stale temporary files swept), a grid within its budget."""
+    study = load_study(ref, overrides=opts.overrides)
+    for part in study.parts.values():
+        figure_maker(part)
+    cases, skipped = expand_study(study, opts.parts, opts.backend)
+    root = results_root(opts.out_root)
+    folder = _output_folder(study, root, opts)
+    cache_dir = root / CACHE_FOLDER
+    outputs.ensure_writable(root, folder, cache_dir)
+    for f in (folder, root):
+        sweep_stale_temps(f)
+    sweep_stale_temps(cache_dir, recursive=True)
+    cache = Cache(cache_dir, enabled=opts.use_cache, read=opts.read_cache)
+    check_budget(study, cases, skipped, cache, opts.workers if not opts.serial else 1, opts.budget_minutes,
+                 opts.confirm)
+    return _Run(study, opts, cases, skipped, root, folder, cache)
+
+
+def _begin(run: _Run) -> None:
+    """Record the run's start in the history (``run.history``, ``run.run_id``)."""
+    study, opts = run.study, run.options
+    run.history = History(run.root / HISTORY_FILE)
+    run.run_id = run.history.begin_run(study.id if opts.backend is None else f"{study.id}@{opts.backend}",
+                                       run.parts, config_hash(study), len(run.cases), kind=opts.kind,
+                                       nightly_id=opts.nightly_id, command=run.command, workers=run.n_workers)
+
+
+def _run_cases(run: _Run) -> tuple[list[CaseResult], float, str | None]:
+    """The results of the run's cases (:func:`benchmarks.runner.run_cases`), the wall time and what they ran
+    on; the history's count of finished cases updated every :data:`PROGRESS_EVERY_S`. An interrupted or
+    failed run is recorded as such before its error goes on (``run_id`` set on a :class:`RunInterrupted`)."""
+    opts = run.options
+    done = [0, time.monotonic()]
+
+    def on_result(_res: CaseResult) -> None:
+        done[0] += 1
+        if time.monotonic() - done[1] > PROGRESS_EVERY_S:
+            done[1] = time.monotonic()
+            run.history.progress(run.run_id, done[0])
+
+    run.keys = {c.case_id: run.cache.key(c) for c in run.cases}
+    t0 = time.perf_counter()
+    ran: dict = {}
+    try:
+        results = run_cases(run.cases, run.cache, workers=opts.workers, serial=opts.serial, progress=opts.progress,
+                            on_result=on_result, executor=opts.executor, info=ran)
+    except RunInterrupted as exc:
+        run.history.finish_run(run.run_id, "interrupted", exc.finished, run.keys, wall_s=time.perf_counter() - t0,
+                               error=exc.reason)
+        exc.run_id = run.run_id
+        raise
+    except BaseException as exc:
+        run.history.finish_run(run.run_id, "error", [], run.keys, wall_s=time.perf_counter() - t0,
+                               error=f"{type(exc).__name__}: {exc}")
+        raise
+    return results, time.perf_counter() - t0, ran.get("workers")
+
+
+def _cached_parts(run: _Run) -> tuple[list[CaseResult], list[str]]:
+    """A run of some parts only: the results of every other part whose cases are all in the cache for the
+    current code (their keys added to ``run.keys``), and the names of those parts."""
+    opts = run.options
+    results: list[CaseResult] = []
+    names: list[str] = []
+    if opts.parts is None or not (opts.use_cache and opts.read_cache):
+        return results, names
+    for name in run.study.parts:
+        if name in run.parts:
+            continue
+        extra = expand(run.study, [name], opts.backend)
+        hits = [run.cache.get(c) for c in extra]
+        if all(h is not None for h in hits):
+            results += hits
+            run.keys.update({c.case_id: run.cache.key(c) for c in extra})
+            names.append(name)
+    return results, names
+
+
+def _outcome(run: _Run, results: list[CaseResult], wall: float, ran_on: str | None) -> _Outcome:
+    """The tidy rows and curves of the results (and of the parts the cache holds), the checks judged on the
+    parts shown, and the facts the report states."""
+    n_cached = run.cache.hits
+    extra, from_cache = _cached_parts(run)
+    results = results + extra
+    commit = fingerprint.git_commit()
+    rows = cases_frame(results, commit)
+    if run.skipped:
+        from jointbench.benchmarks.compare.grid import skipped_rows
+
+        rows = pd.concat([rows, pd.DataFrame(skipped_rows(run.study.id, run.skipped)).assign(git_commit=commit)],
+                         ignore_index=True)
+    shown = [p for p in run.study.parts if p in run.parts or p in from_cache]
+    checks = judge(run.study.checks, rows, set(shown), commit)
+    meta = {"commit": commit, "command": run.command, "n_cases": len(run.cases), "n_cached": n_cached,
+            "wall_s": wall, "workers": run.n_workers, "parts": run.parts, "from_cache": from_cache,
+            "folder": run.folder, "backend": run.options.backend, "stage": None, "ran_on": ran_on}
+    return _Outcome(results, wall, rows, curves_frame(results), checks, shown, meta)
+
+
+def _stage(run: _Run, out: _Outcome, stage: Path) -> tuple[dict, object, list[CaseResult]]:
+    """Write the outputs into the staging folder ``stage``: the tables, ``failures.log`` (when a case
+    failed), the figures and the report; the part reports, the report page and the failed cases."""
+    rows, curves, comparison, study = out.rows, out.curves, out.checks, run.study
+    atomic_write(stage / "cases.csv", lambda p: write_csv(rows, p))
+    atomic_write(stage / "cases.parquet", lambda p: outputs.write_parquet(rows, p))
+    atomic_write(stage / "curves.csv.gz", lambda p: write_csv(curves, p, gzip_level=GZIP_LEVEL))
+    atomic_write(stage / "checks.csv", lambda p: write_csv(comparison, p))
+    failed = [r for r in out.results if r.status != "ok"]
+    if failed:
+        write_text(stage / "failures.log", "\n\n".join(f"== {r.case.case_id}\n{r.detail or r.error}" for r in failed))
+    part_reports = _part_reports(study, out.shown, out.results, rows, curves, stage)
+    meta = {**out.meta, "stage": stage}
+    swap = study.method_swap
+    if swap is not None and swap.part in out.shown:
+        meta["method_swap"] = {**swap_survival(study.checks, rows, swap.part, swap.estimators),
+                               "part": swap.part, "estimators": swap.estimators}
+    page = report.page(study, comparison, part_reports, failed, meta)
+    report.write(stage, page)
+    return part_reports, page, failed
+
+
+def _write_outputs(run: _Run, out: _Outcome) -> tuple[dict, object]:
+    """Write the outputs and record the run: the outputs are one set, written into a staging folder beside
+    them, the run recorded, then moved into place together. A run that fails on the way (a full disk, the
+    history) leaves the last good set as it was (tests/test_outputs_set.py) and is recorded as interrupted
+    or failed; the part reports and the report page."""
+    check_metrics = {c.id: str(c.select.get("metric", "")) for c in run.study.checks}
+    recorded = False
+    try:
+        with outputs.study_lock(run.folder, f"run {run.run_id} (pid {os.getpid()})"):
+            stage = staging_folder(run.folder)
+            try:
+                part_reports, page, failed = _stage(run, out, stage)
+                run.history.finish_run(run.run_id, "ok", out.results, run.keys, out.checks, check_metrics, out.wall)
+                recorded = True
+                replace_as_set(run.folder, stage)
+                report.relocate(page, stage, run.folder)
+                if not failed:
+                    (run.folder / "failures.log").unlink(missing_ok=True)
+            finally:
+                shutil.rmtree(stage, ignore_errors=True)      # what a failed run staged: never moved
+    except KeyboardInterrupt as exc:
+        if not recorded:
+            run.history.finish_run(run.run_id, "interrupted", out.results, run.keys, out.checks, check_metrics,
+                                   out.wall, error="interrupted while writing the outputs")
+        stop = RunInterrupted(out.results, len(out.results), "interrupted while writing the outputs")
+        stop.run_id = run.run_id
+        raise stop from exc
+    except BaseException as exc:
+        if not recorded:
+            _record_error(run.history, run.run_id, out.results, run.keys, exc, out.wall)
+        raise
+    return part_reports, page
+
+
+def run_study(ref: str | Path, options: RunOptions | None = None, /, **fields) -> StudyRun:
     """Run study ``ref`` (a shipped study's id, a study file or a folder holding one), write its outputs,
     record the run.
 
-    With ``parts``, only those parts are run; the outputs still cover every other part whose cases
-    are all in the cache for the current code (so ``make westwick2012-fig4`` after ``make
-    westwick2012`` rewrites fig4 without dropping the rest of the report). ``read_cache=False``
-    recomputes every case but still stores the results (the nightly run does this).
-
-    With ``backend`` (``jointbench run STUDY --backend mujoco``) every part runs on that simulation
-    backend and the outputs go to ``results/<study>/backend-<name>/`` (:mod:`benchmarks.backends`); the
-    history records the run as ``<study>@<backend>``.
+    ``options`` (:class:`RunOptions`), or its fields as keywords (``run_study("xu1998", serial=True)``; with
+    ``options`` too, they replace its fields).
 
     Raises
     ------
@@ -208,125 +444,11 @@ def run_study(ref: str | Path, parts: list[str] | None = None, out_root: Path | 
         Ctrl-C or SIGTERM: the finished cases are cached and recorded in the history (status
         ``interrupted``); ``run_id`` is set on the exception.
     """
-    study = load_study(ref, overrides=overrides)
-    for part in study.parts.values():
-        figure_maker(part)
-    cases, skipped = expand_study(study, parts, backend)
-    root = results_root(out_root)
-    base = outputs.study_folder(root, study.id, study.path)
-    if overrides and out_root is None:    # a --set run never replaces the study's own (committed) results
-        base = outputs.study_folder(root / outputs.SET_RUNS, outputs.set_folder_name(study.id, overrides), study.path)
-    folder = backends.run_folder(base, backend)
-    if base.name != study.id:
-        print(f"jointbench: --set without --out: outputs in {folder} (not {root / study.id}; --out DIR to choose)",
-              file=sys.stderr)
-    cache_dir = root / CACHE_FOLDER
-    outputs.ensure_writable(root, folder, cache_dir)
-    for f in (folder, root):
-        sweep_stale_temps(f)
-    sweep_stale_temps(cache_dir, recursive=True)
-    cache = Cache(cache_dir, enabled=use_cache, read=read_cache)
-    check_budget(study, cases, skipped, cache, workers if not serial else 1, budget_minutes, confirm)
-    history = History(root / HISTORY_FILE)
-    run_parts = list(dict.fromkeys(c.part for c in cases))
-    n_workers = 1 if serial else (workers or os.cpu_count() or 1)
-    run_id = history.begin_run(study.id if backend is None else f"{study.id}@{backend}", run_parts, config_hash(study),
-                               len(cases), kind=kind,
-                               nightly_id=nightly_id, command=command or f"jointbench run {study.id}",
-                               workers=n_workers)
-    done = [0, time.monotonic()]
-
-    def on_result(_res: CaseResult) -> None:
-        done[0] += 1
-        if time.monotonic() - done[1] > PROGRESS_EVERY_S:
-            done[1] = time.monotonic()
-            history.progress(run_id, done[0])
-
-    keys = {c.case_id: cache.key(c) for c in cases}
-    check_metrics = {c.id: str(c.select.get("metric", "")) for c in study.checks}
-    t0 = time.perf_counter()
-    ran: dict = {}
-    try:
-        results = run_cases(cases, cache, workers=workers, serial=serial, progress=progress,
-                            on_result=on_result, executor=executor, info=ran)
-    except RunInterrupted as exc:
-        history.finish_run(run_id, "interrupted", exc.finished, keys, wall_s=time.perf_counter() - t0,
-                           error=exc.reason)
-        exc.run_id = run_id
-        raise
-    except BaseException as exc:
-        history.finish_run(run_id, "error", [], keys, wall_s=time.perf_counter() - t0,
-                           error=f"{type(exc).__name__}: {exc}")
-        raise
-    wall = time.perf_counter() - t0
-    gc.freeze()                       # the results too (see _frozen)
-    n_cached = cache.hits
-    from_cache = []
-    if parts is not None and use_cache and read_cache:
-        for name in study.parts:
-            if name in run_parts:
-                continue
-            extra = expand(study, [name], backend)
-            hits = [cache.get(c) for c in extra]
-            if all(h is not None for h in hits):
-                results += hits
-                keys.update({c.case_id: cache.key(c) for c in extra})
-                from_cache.append(name)
-    commit = fingerprint.git_commit()
-    rows = cases_frame(results, commit)
-    if skipped:
-        from jointbench.benchmarks.compare.grid import skipped_rows
-
-        rows = pd.concat([rows, pd.DataFrame(skipped_rows(study.id, skipped)).assign(git_commit=commit)],
-                         ignore_index=True)
-    curves = curves_frame(results)
-    shown = [p for p in study.parts if p in run_parts or p in from_cache]
-    comparison = judge(study.checks, rows, set(shown), commit)
-    recorded = False
-    try:
-        with outputs.study_lock(folder, f"run {run_id} (pid {os.getpid()})"):
-            # The outputs are one set: written into a staging folder beside them, the run recorded, then
-            # moved into place together. A run that fails on the way (a full disk, the history) leaves
-            # the last good set as it was (tests/test_outputs_set.py).
-            stage = staging_folder(folder)
-            try:
-                atomic_write(stage / "cases.csv", lambda p: write_csv(rows, p))
-                atomic_write(stage / "cases.parquet", lambda p: outputs.write_parquet(rows, p))
-                atomic_write(stage / "curves.csv.gz", lambda p: write_csv(curves, p, gzip_level=GZIP_LEVEL))
-                atomic_write(stage / "checks.csv", lambda p: write_csv(comparison, p))
-                failed = [r for r in results if r.status != "ok"]
-                if failed:
-                    write_text(stage / "failures.log",
-                               "\n\n".join(f"== {r.case.case_id}\n{r.detail or r.error}" for r in failed))
-                part_reports = _part_reports(study, shown, results, rows, curves, stage)
-                meta = {"commit": commit, "command": command or f"jointbench run {study.id}", "n_cases": len(cases),
-                        "n_cached": n_cached, "wall_s": wall, "workers": n_workers, "parts": run_parts,
-                        "from_cache": from_cache, "folder": folder, "backend": backend, "stage": stage,
-                        "ran_on": ran.get("workers")}
-                swap = study.method_swap
-                if swap is not None and swap.part in shown:
-                    meta["method_swap"] = {**swap_survival(study.checks, rows, swap.part, swap.estimators),
-                                           "part": swap.part, "estimators": swap.estimators}
-                page = report.page(study, comparison, part_reports, failed, meta)
-                report.write(stage, page)
-                history.finish_run(run_id, "ok", results, keys, comparison, check_metrics, wall)
-                recorded = True
-                replace_as_set(folder, stage)
-                report.relocate(page, stage, folder)
-                if not failed:
-                    (folder / "failures.log").unlink(missing_ok=True)
-            finally:
-                shutil.rmtree(stage, ignore_errors=True)      # what a failed run staged: never moved
-    except KeyboardInterrupt as exc:
-        if not recorded:
-            history.finish_run(run_id, "interrupted", results, keys, comparison, check_metrics, wall,
-                               error="interrupted while writing the outputs")
-        stop = RunInterrupted(results, len(results), "interrupted while writing the outputs")
-        stop.run_id = run_id
-        raise stop from exc
-    except BaseException as exc:
-        if not recorded:
-            _record_error(history, run_id, results, keys, exc, wall)
-        raise
-    history.close()
-    return StudyRun(study, folder, results, rows, comparison, run_id, part_reports, wall, root / HISTORY_FILE, page)
+    run = _prepare(ref, dataclasses.replace(options or RunOptions(), **fields))
+    _begin(run)
+    results, wall, ran_on = _run_cases(run)
+    out = _outcome(run, results, wall, ran_on)
+    part_reports, page = _write_outputs(run, out)
+    run.history.close()
+    return StudyRun(run.study, run.folder, out.results, out.rows, out.checks, run.run_id, part_reports, wall,
+                    run.root / HISTORY_FILE, page)

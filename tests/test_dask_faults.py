@@ -198,7 +198,8 @@ def test_a_worker_with_other_code_is_refused_in_one_line(tmp_path, cluster):
 
 def test_a_worker_joining_later_with_other_libraries_refuses_its_task():
     from jointbench.benchmarks.harness.fingerprint import code_hash, key_environment
-    from jointbench.benchmarks.harness.pool import WorkerMismatch, run_task
+    from jointbench.benchmarks.harness.pool import run_task
+    from jointbench.benchmarks.harness.workers import WorkerMismatch
 
     with pytest.raises(WorkerMismatch, match=r"runs other library versions: numpy \S+ \(the run's 0\.0\.1\); "
                                              r"install the same versions on every worker"):

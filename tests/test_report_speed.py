@@ -184,30 +184,6 @@ def test_the_parquet_table_leaves_text_columns_as_they_are():
     assert out["c"].fillna("-").tolist() == ["1.5", "-", "2.5"] and str(out["seed"].dtype) == "Int64"
 
 
-def test_a_run_freezes_what_lives_through_it_and_unfreezes_it_whatever_happens():
-    import gc
-
-    from jointbench.benchmarks.study import _frozen, run_study
-
-    seen = []
-
-    @_frozen
-    def run(fail: bool):
-        held = [[i] for i in range(1000)]                  # containers made during the run: not yet frozen
-        seen.append(gc.get_freeze_count())
-        gc.freeze()
-        seen.append(gc.get_freeze_count())
-        if fail:
-            raise KeyboardInterrupt
-        return len(held)
-
-    before = gc.get_freeze_count()
-    assert run(False) == 1000 and seen[0] > before and seen[1] >= seen[0] + 1000
-    with pytest.raises(KeyboardInterrupt):
-        run(True)
-    assert gc.get_freeze_count() == 0 and run_study.__wrapped__.__name__ == "run_study"
-
-
 def test_the_noise_levels_of_a_figure_are_the_distinct_values_of_its_rows():
     from jointbench.benchmarks.studies.vanderuit2018_table1.figures import _floats, _snr_order
 

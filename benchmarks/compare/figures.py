@@ -17,6 +17,7 @@ identification methods to describe human joint impedance" (the metrics).
 """
 from __future__ import annotations
 
+import dataclasses
 import re
 
 import numpy as np
@@ -113,139 +114,211 @@ def _readings(table: pd.DataFrame, primary: str) -> pd.DataFrame:
     return pd.DataFrame(out)
 
 
-@register("compare")
-def compare_figures(part, rows, curves, folder, checks) -> PartReport:
-    """Tables, figures and the page of a comparison grid part (module docstring)."""
-    rep = PartReport()
+@dataclasses.dataclass
+class _Grid:
+    """A comparison grid part's results as its report reads them, each derived once from the tidy rows."""
+
+    name: str                        # the part's name
+    rows: pd.DataFrame               # the tidy rows, labelled (ct.labelled)
+    curves: pd.DataFrame
+    table: pd.DataFrame              # every method x scenario x metric (ct.full_table)
+    pairs: pd.DataFrame              # the paired comparisons (pairs_.paired)
+    primary: str                     # the backend the rankings are on
+    feas: dict                       # (scenario, backend) -> best median VAF of k (ct.feasibility)
+    methods: list[str]               # methods with a score (skipped ones: reasons)
+    cells: list[str]                 # the scenarios
+    tunings: list[str]
+    backends: list[str]
+    ranked: list[str]                # the scenarios some method beats a constant in
+    infeasible: list[str]
+
+    @property
+    def page_name(self) -> str:
+        return f"{self.name}_comparison.html"
+
+
+def _grid(part, rows: pd.DataFrame, curves: pd.DataFrame, folder) -> _Grid:
+    """The grid's results from its rows; the full table and the paired comparisons written beside the
+    report (``<part>_scores.csv``, ``<part>_pairs.csv``)."""
     rows = labelled(rows)
     table = ct.full_table(rows, curves)
     table.to_csv(folder / f"{part.name}_scores.csv", index=False)
     primary = ct.primary_backend(rows)
     feas = ct.feasibility(table)
-    methods = sorted(dict.fromkeys(table["method"]))          # methods with a score (skipped ones: reasons)
     cells = list(dict.fromkeys(table["cell"])) or list(dict.fromkeys(rows["cell"]))
-    tunings = [t for t in dict.fromkeys(table["tuning"]) if t]
-    backends = [b for b in dict.fromkeys(rows["backend"]) if b]
     ranked = [c for c in cells if feas.get((c, primary), np.nan) > 0]
-    infeasible = [c for c in cells if c not in ranked and (c, primary) in feas]
     pairs = pairs_.paired(rows, table)
     if not pairs.empty:
         pairs.to_csv(folder / f"{part.name}_pairs.csv", index=False)
-    page_name = f"{part.name}_comparison.html"
+    return _Grid(part.name, rows, curves, table, pairs, primary, feas, methods=sorted(dict.fromkeys(table["method"])),
+                 cells=cells, tunings=[t for t in dict.fromkeys(table["tuning"]) if t],
+                 backends=[b for b in dict.fromkeys(rows["backend"]) if b], ranked=ranked,
+                 infeasible=[c for c in cells if c not in ranked and (c, primary) in feas])
 
-    text = [f"{len(methods)} methods on {len(cells)} scenarios ({_axes_text(rows)}), {_r_text(rows)}; "
-            f"backend{'s' if len(backends) > 1 else ''} {_join(backends) or 'unnamed'}"
-            + (f" (rankings on {primary}; the others in one agreement line per scenario)" if len(backends) > 1 else "")
-            + f"; tuning column{'s' if len(tunings) > 1 else ''} {_join(tunings)}. Every number is from the tidy "
-            f"rows (`cases.csv`); the full table is `{part.name}_scores.csv`, the paired comparisons "
-            f"`{part.name}_pairs.csv`, and [the interactive comparison page]({page_name}) has the full table sortable "
+
+def _overview(g: _Grid) -> list[str]:
+    """The report's first two paragraphs: what was compared and where every number is; which scenarios are
+    ranked."""
+    several = len(g.backends) > 1
+    return [f"{len(g.methods)} methods on {len(g.cells)} scenarios ({_axes_text(g.rows)}), {_r_text(g.rows)}; "
+            f"backend{'s' if several else ''} {_join(g.backends) or 'unnamed'}"
+            + (f" (rankings on {g.primary}; the others in one agreement line per scenario)" if several else "")
+            + f"; tuning column{'s' if len(g.tunings) > 1 else ''} {_join(g.tunings)}. Every number is from the tidy "
+            f"rows (`cases.csv`); the full table is `{g.name}_scores.csv`, the paired comparisons "
+            f"`{g.name}_pairs.csv`, and [the interactive comparison page]({g.page_name}) has the full table sortable "
             "and filtered by scenario and metric, and k_hat(t) of the best methods of every scenario.",
-            f"**{len(ranked)} of {len(cells)} scenarios are ranked**"
-            + (f"; {len(infeasible)} are infeasible (no method's median VAF of k is above 0 %, i.e. none beats a "
-               f"constant at the true mean) and left out of every ranking and count: {_join(infeasible)}."
-               if infeasible else "; in every scenario some method beats a constant at the true mean."),
-            DEFINITIONS,
-            "Intervals (90 %), each containing its value: per-realization metrics (VAF of k, RMS error, output VAF, "
+            f"**{len(g.ranked)} of {len(g.cells)} scenarios are ranked**"
+            + (f"; {len(g.infeasible)} are infeasible (no method's median VAF of k is above 0 %, i.e. none beats a "
+               f"constant at the true mean) and left out of every ranking and count: {_join(g.infeasible)}."
+               if g.infeasible else "; in every scenario some method beats a constant at the true mean.")]
+
+
+def _intervals_text(primary: str) -> str:
+    return ("Intervals (90 %), each containing its value: per-realization metrics (VAF of k, RMS error, output VAF, "
             "fit time) show the median over realizations with the percentile bootstrap interval of that median "
             f"({cs.DRAWS} resamplings of the realizations, seed {cs.SEED}); the others show the study's bootstrap "
             "interval over realizations when it contains its value (else none is shown, and the table says so). "
             "Ranks (#) are competition ranks among finite values, per scenario and tuning column, on the "
             f"{primary} backend; an infinite rise time is not ranked, nor the random error of a constant estimate "
-            "(its spread measures no tracking); a metric without a finite value says 'cannot rank'.",
-            _paired_text(pairs, rows)]
-    n_bad = int(table["interval"].str.contains("excludes").sum())
+            "(its spread measures no tracking); a metric without a finite value says 'cannot rank'.")
+
+
+def _text(g: _Grid) -> list[str]:
+    """The report's paragraphs: the overview, the definitions, the intervals, the paired comparisons, the
+    most frequent wins and the backends' agreement (the first five make the page's introduction)."""
+    text = [*_overview(g), DEFINITIONS, _intervals_text(g.primary), _paired_text(g.pairs, g.rows)]
+    n_bad = int(g.table["interval"].str.contains("excludes").sum())
     if n_bad:
         text.append(f"{n_bad} study intervals exclude their own value (rows from before the study re-centred its "
                     "bootstrap): not shown.")
-    main = "error_rms" if (table["metric"] == "error_rms").any() else "vaf_stiffness"
-    for tuning in tunings:
-        s = pairs_.beats_sentences(pairs, main, tuning, top=WIN_SENTENCES)
+    main = "error_rms" if (g.table["metric"] == "error_rms").any() else "vaf_stiffness"
+    for tuning in g.tunings:
+        s = pairs_.beats_sentences(g.pairs, main, tuning, top=WIN_SENTENCES)
         if s:
             text.append(f"The most frequent significant paired wins ({tuning} column; all in the win tables): "
                         + "; ".join(s) + ".")
-    agree = ct.backend_agreement(table, primary)
+    agree = ct.backend_agreement(g.table, g.primary)
     if agree:
         text.append("Backend agreement, one line per scenario:\n\n" + "\n\n".join(agree))
-    rep.text = "\n\n".join(text)
-    rep.title = (f"{len(methods)} methods on {len(cells)} scenarios ({len(ranked)} ranked), {_r_text(rows)}, "
-                 f"tuning {' and '.join(tunings)}, backend{'s' if len(backends) > 1 else ''} {', '.join(backends)}")
+    return text
 
-    ident = ct.identifiability(rows, table)
+
+def _title(g: _Grid) -> str:
+    return (f"{len(g.methods)} methods on {len(g.cells)} scenarios ({len(g.ranked)} ranked), {_r_text(g.rows)}, "
+            f"tuning {' and '.join(g.tunings)}, backend{'s' if len(g.backends) > 1 else ''} {', '.join(g.backends)}")
+
+
+def _method_tables(g: _Grid, ident: pd.DataFrame) -> list[tuple[str, pd.DataFrame]]:
+    """The tables over every scenario: identifiability, who ranks first, the settings, the tuning, its
+    effect and the paired wins."""
+    out = []
     if not ident.empty:
         has = any(h in ident.columns for h in ct.IDENTIFIABILITY.values())
-        rep.tables.append(("Identifiability of every scenario" + ("" if has else
-                           " (the rows carry no identifiability figures: only the best VAF of k)"), ident))
-    readings = _readings(table, primary)
+        out.append(("Identifiability of every scenario" + ("" if has else
+                    " (the rows carry no identifiability figures: only the best VAF of k)"), ident))
+    readings = _readings(g.table, g.primary)
     if not readings.empty:
-        rep.tables.append(("Who ranks first, counted over the ranked scenarios", readings))
-    st = ct.settings_table(rows)
-    rep.tables.append(("Settings of every method" if not st.empty else
-                       "Settings of every method: the rows carry no settings column (a run before settings "
-                       "were recorded)", st))
-    tt = ct.tuning_table(rows)
+        out.append(("Who ranks first, counted over the ranked scenarios", readings))
+    st = ct.settings_table(g.rows)
+    out.append(("Settings of every method" if not st.empty else
+                "Settings of every method: the rows carry no settings column (a run before settings "
+                "were recorded)", st))
+    tt = ct.tuning_table(g.rows)
     if not tt.empty:
-        rep.tables.append(("Tuning: candidates tried on the tuning realizations (never scored), chosen by held-out "
-                           "output VAF", tt))
-    te = pairs_.tuning_effect(rows, table)
+        out.append(("Tuning: candidates tried on the tuning realizations (never scored), chosen by held-out "
+                    "output VAF", tt))
+    te = pairs_.tuning_effect(g.rows, g.table)
     if not te.empty:
-        rep.tables.append(("Tuned against paper settings, per method: paired over the same realizations of each ranked "
-                           "scenario (signed-rank, Holm over the methods of a scenario)", te))
-    for tuning in tunings:
+        out.append(("Tuned against paper settings, per method: paired over the same realizations of each ranked "
+                    "scenario (signed-rank, Holm over the methods of a scenario)", te))
+    for tuning in g.tunings:
         for metric in ("vaf_stiffness", "error_rms"):
-            w = pairs_.wins(pairs, metric, tuning)
+            w = pairs_.wins(g.pairs, metric, tuning)
             if not w.empty:
-                rep.tables.append((f"Paired wins on {METRICS[metric][0]} ({tuning}): row against column, 'w/a/n' = "
-                                   "significantly better in w, median paired difference ahead in a, of n ranked "
-                                   "scenarios", w))
+                out.append((f"Paired wins on {METRICS[metric][0]} ({tuning}): row against column, 'w/a/n' = "
+                            "significantly better in w, median paired difference ahead in a, of n ranked "
+                            "scenarios", w))
+    return out
+
+
+def _scenario_tables(g: _Grid, ident: pd.DataFrame) -> list[tuple[str, pd.DataFrame]]:
+    """One table per scenario (an infeasible one says so, with its identifiability figures), then the
+    combinations skipped or not fitted and those the grid's design leaves out."""
+    out = []
     figures = ident.set_index(["scenario", "backend"]) if not ident.empty else None
-    for cell, df, note in ct.scenario_tables(table, primary):
+    for cell, df, note in ct.scenario_tables(g.table, g.primary):
         status = "ranked"
-        if cell not in ranked:
+        if cell not in g.ranked:
             status = "infeasible: not ranked"
-            if figures is not None and (cell, primary) in figures.index:
-                f = figures.loc[(cell, primary)]
+            if figures is not None and (cell, g.primary) in figures.index:
+                f = figures.loc[(cell, g.primary)]
                 shown = [f"{h} {f[h]:.3g}" for h in ct.IDENTIFIABILITY.values() if h in f and pd.notna(f[h])]
                 status += ("; " + ", ".join(shown)) if shown else ""
         n_m = df["method"].nunique()
-        title = f"{cell} ({primary}; {status}; {n_m} methods): value [90 % interval] #rank"
-        rep.tables.append((title + (f". {note}" if note else ""), df))
-    why = ct.reasons(rows)
+        title = f"{cell} ({g.primary}; {status}; {n_m} methods): value [90 % interval] #rank"
+        out.append((title + (f". {note}" if note else ""), df))
+    why = ct.reasons(g.rows)
     if not why.empty:
-        rep.tables.append(("Combinations skipped or not fitted, and why", why))
-    design = ct.design_skips(rows)
+        out.append(("Combinations skipped or not fitted, and why", why))
+    design = ct.design_skips(g.rows)
     if not design.empty:
-        rep.tables.append(("Combinations left out by the grid's design (not failures)", design))
+        out.append(("Combinations left out by the grid's design (not failures)", design))
+    return out
 
-    sets, order = {}, {}
-    for tuning in tunings:
-        sfx = _suffix(tuning, tunings)
-        f = plots.heat_map(table, rows, primary, tuning, feas, folder, f"{part.name}_heatmap{sfx}.png")
+
+def _figures(g: _Grid, folder) -> tuple[list[tuple[str, str]], dict, dict]:
+    """The figures of each tuning column (heat map, trade-off, k_hat(t)) with their captions, and the curves
+    of the interactive page: ``{(scenario, backend, tuning): curves}`` and the methods in their order."""
+    out, sets, order = [], {}, {}
+    for tuning in g.tunings:
+        sfx = _suffix(tuning, g.tunings)
+        f = plots.heat_map(g.table, g.rows, g.primary, tuning, g.feas, folder, f"{g.name}_heatmap{sfx}.png")
         if f:
-            rep.figures.append((f, f"Methods x scenarios ({tuning} column, {primary}): median VAF of k (%), diverging "
-                                   f"at 0 % (blue: better than a constant at the true mean), colour clipped at "
-                                   f"{plots.VAF_FLOOR:.0f} %, every cell printed; also as PDF"))
-        f, lines = plots.trade_off(table, primary, tuning, folder, f"{part.name}_tradeoff{sfx}.png")
+            out.append((f, f"Methods x scenarios ({tuning} column, {g.primary}): median VAF of k (%), diverging "
+                           f"at 0 % (blue: better than a constant at the true mean), colour clipped at "
+                           f"{plots.VAF_FLOOR:.0f} %, every cell printed; also as PDF"))
+        f, lines = plots.trade_off(g.table, g.primary, tuning, folder, f"{g.name}_tradeoff{sfx}.png")
         if f:
-            rep.figures.append((f, f"Rise time against random error, square-wave scenarios ({tuning} column): bars "
-                                   "are the 90 % intervals; methods with an infinite rise time at the right edge ('>')"
-                                   + (": " + "; ".join(lines) if lines else "") + "; also as PDF"))
-        s = plots.curve_sets(curves, primary, tuning)
-        f = plots.khat_figure(s, table, primary, tuning, folder, f"{part.name}_khat{sfx}.png")
+            out.append((f, f"Rise time against random error, square-wave scenarios ({tuning} column): bars "
+                           "are the 90 % intervals; methods with an infinite rise time at the right edge ('>')"
+                           + (": " + "; ".join(lines) if lines else "") + "; also as PDF"))
+        s = plots.curve_sets(g.curves, g.primary, tuning)
+        f = plots.khat_figure(s, g.table, g.primary, tuning, folder, f"{g.name}_khat{sfx}.png")
         if f:
-            rep.figures.append((f, f"k_hat(t) against the truth ({tuning} column, {primary}): mean over realizations "
-                                   f"of the {plots.CURVES_PER_PANEL} methods with the highest median VAF of k per "
-                                   f"scenario (band: 5th-95th percentile over realizations of the best {plots.BANDS}, "
-                                   "where stored; the axis "
-                                   "spans the truth's range with a margin); more methods on the interactive page; "
-                                   "also as PDF"))
+            out.append((f, f"k_hat(t) against the truth ({tuning} column, {g.primary}): mean over realizations "
+                           f"of the {plots.CURVES_PER_PANEL} methods with the highest median VAF of k per "
+                           f"scenario (band: 5th-95th percentile over realizations of the best {plots.BANDS}, "
+                           "where stored; the axis "
+                           "spans the truth's range with a margin); more methods on the interactive page; "
+                           "also as PDF"))
         for cell, d in s.items():
-            sets[(cell, primary, tuning)] = d
-            order[(cell, primary, tuning)] = plots.best_methods(table, cell, primary, tuning, len(d["methods"]))
+            sets[(cell, g.primary, tuning)] = d
+            order[(cell, g.primary, tuning)] = plots.best_methods(g.table, cell, g.primary, tuning,
+                                                                  len(d["methods"]))
+    return out, sets, order
+
+
+def _write_page(g: _Grid, text: list[str], tables: list, sets: dict, order: dict, folder) -> None:
+    """The interactive page ``<part>_comparison.html``: the introduction (links as plain text), the curves,
+    the tables but the per-scenario ones (the page filters the full table by scenario)."""
+    rows = g.rows
     study = str(rows["study"].dropna().iloc[0]) if "study" in rows and rows["study"].notna().any() else ""
-    title = f"Method comparison: {study + ', part ' if study else 'part '}{part.name}"
+    title = f"Method comparison: {study + ', part ' if study else 'part '}{g.name}"
     intro = [re.sub(r"\[([^\]]+)\]\([^)]+\)", r"\1", p) for p in text[:2]] + [DEFINITIONS, text[3], text[4]]
-    static = [(t, df) for t, df in rep.tables if not t.startswith(tuple(cells))]
-    write_text(folder / page_name, cp.render(title, intro, cp.page_data(table, sets, order), static))
+    static = [(t, df) for t, df in tables if not t.startswith(tuple(g.cells))]
+    write_text(folder / g.page_name, cp.render(title, intro, cp.page_data(g.table, sets, order), static))
+
+
+@register("compare")
+def compare_figures(part, rows, curves, folder, checks) -> PartReport:
+    """Tables, figures and the page of a comparison grid part (module docstring)."""
+    g = _grid(part, rows, curves, folder)
+    text = _text(g)
+    ident = ct.identifiability(g.rows, g.table)
+    rep = PartReport(text="\n\n".join(text), title=_title(g))
+    rep.tables = _method_tables(g, ident) + _scenario_tables(g, ident)
+    rep.figures, sets, order = _figures(g, folder)
+    _write_page(g, text, rep.tables, sets, order, folder)
     return rep
 
 

@@ -16,7 +16,7 @@ import math
 import numpy as np
 import pandas as pd
 
-from jointbench.benchmarks.harness.pages import _env, table
+from jointbench.benchmarks.harness.pages import table, template_env
 
 #: columns of the page's table: (key in the full table, header)
 COLUMNS = (("cell", "scenario"), ("backend", "backend"), ("method", "method"), ("tuning", "tuning"),
@@ -96,5 +96,5 @@ def render(title: str, intro: list[str], data: dict, static: list[tuple[str, pd.
             f"scenario (the plot's legend; all methods' values are in the table); shaded: the 5th to 95th "
             f"percentile over realizations for the best {BANDS}, where the run stored it.")
     tables = [table(t, df, empty="no rows") for t, df in static if df is not None and not df.empty]
-    return _env().get_template("comparison.html.j2").render(title=title, intro=intro, data=blob, plots_note=note,
-                                                             tables=tables)
+    return template_env().get_template("comparison.html.j2").render(title=title, intro=intro, data=blob,
+                                                                    plots_note=note, tables=tables)

@@ -14,15 +14,14 @@ import numpy as np
 import pandas as pd
 
 from jointbench.benchmarks.compare import stats as cs
-from jointbench.benchmarks.compare.tables import (ALPHA, METRICS, _nothing_to_tune, feasibility,
-                                                          primary_backend)
+from jointbench.benchmarks.compare.tables import ALPHA, METRICS, feasibility, primary_backend, with_nothing_to_tune
 
 
 def paired(rows: pd.DataFrame, table: pd.DataFrame) -> pd.DataFrame:
     """Wilcoxon signed-rank tests of every pair of methods over the realizations they share, per feasible
     cell of the primary backend, tuning and per-realization metric; Holm's correction over the pairs of
     each (cell, tuning, metric)."""
-    rows = _nothing_to_tune(rows)
+    rows = with_nothing_to_tune(rows)
     primary = primary_backend(rows)
     feas = feasibility(table)
     if "realization" not in rows.columns:

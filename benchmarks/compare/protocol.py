@@ -193,6 +193,93 @@ def _tune(ctx, p: CompareParams, name: str, keep: np.ndarray):
     return estimators.make(name, p.search[best], f"tuning of {name}"), rows
 
 
+def _realization(ctx, p: CompareParams, r: int, first):
+    """Realization ``r`` as every method is given it (:func:`impedance`) and what is fitted: the trial, or the
+    ensemble of realizations ``r, r + R, r + 2R, ...`` (``first``: realization 0, already simulated)."""
+    R, M = p.realizations, p.ensemble_size
+    trial = impedance(first if r == 0 else sims.simulate(ctx.experiment, ctx.seed, realization=r,
+                                                         name=f"realization {r}"))
+    data = trial
+    if p.data == "ensemble":
+        data = Ensemble((trial, *(impedance(sims.simulate(ctx.experiment, ctx.seed, realization=r + R * m,
+                                                          name=f"realization {r + R * m}")) for m in range(1, M))),
+                        name=f"ensemble {r}")
+    return trial, data
+
+
+def _fit_realizations(ctx, p: CompareParams, name: str, estimator, first, k: np.ndarray, keep: np.ndarray,
+                      label: dict) -> tuple[list, list] | None:
+    """Fit every realization and record its metrics (``fit_time_s``, ``vaf_stiffness``, ``vaf_output``): the
+    estimated stiffness and the valid scored samples of each, or None when the estimator refuses the data
+    (recorded as ``not_fitted``, with the reason)."""
+    t = first.time
+    khats, masks = [], []
+    for r in range(p.realizations):
+        trial, data = _realization(ctx, p, r, first)
+        try:
+            est, seconds = fit_timed(estimator, data)
+        except InputError as exc:            # the data cannot support this estimator: a reason, not a crash
+            ctx.metric("not_fitted", math.nan, name, realization=r, reason=str(exc), **label)
+            return None
+        khat = np.asarray(est.stiffness(t), float)
+        m = keep & valid_mask(est, t)
+        khats.append(khat)
+        masks.append(m)
+        ctx.metric("fit_time_s", seconds, name, realization=r, **label)
+        if m.sum() >= 2 and np.ptp(k[m]) > 0:
+            ctx.metric("vaf_stiffness", metrics.stiffness_vaf(k[m], khat[m]), name, realization=r, **label)
+        yhat = np.asarray(est.predict(trial.input), float)
+        if m.sum() >= 2 and np.all(np.isfinite(yhat[m])):
+            ctx.metric("vaf_output", metrics.vaf(trial.output[m], yhat[m]), name, realization=r, **label)
+    return khats, masks
+
+
+def _framework(tc: np.ndarray, kc: np.ndarray, K: np.ndarray, square: bool) -> dict[str, float]:
+    """The metrics over realizations of the estimates ``K`` (realization x sample) of ``kc`` at times ``tc``;
+    with ``square`` (a square-wave stiffness) the rise time too."""
+    b_rms, b_mean = metrics.bias(kc, K)
+    out = {"bias_rms": b_rms, "bias_mean": b_mean, "random_error": metrics.random_error(K),
+           "total_error": metrics.total_error(kc, K)}
+    if square:
+        out["rise_time_s"] = metrics.rise_time(tc, kc, K.mean(axis=0))[0]
+    return out
+
+
+def _score_realizations(ctx, p: CompareParams, name: str, tc: np.ndarray, kc: np.ndarray, K: np.ndarray,
+                        label: dict) -> None:
+    """Record ``error_rms`` of each realization, then the metrics over realizations (:func:`_framework`) with
+    their spread over ``spread_draws`` bootstrap resamplings of the realizations (:func:`percentile_interval`)."""
+    R = p.realizations
+    for r in range(R):
+        ctx.metric("error_rms", float(np.sqrt(np.mean((K[r] - kc) ** 2))), name, realization=r, **label)
+    square = len(metrics.steps(kc)) > 0
+    values = _framework(tc, kc, K, square)
+    draws = [_framework(tc, kc, K[ctx.rng.integers(0, R, R)], square) for _ in range(p.spread_draws)]
+    for metric, v in values.items():
+        spread = {}
+        if draws:
+            spread = dict(zip(("p05", "p95"), percentile_interval(v, [d[metric] for d in draws],
+                                                                   None if metric == "bias_mean" else 0.0)))
+        extra = {"n_steps": int(len(metrics.steps(kc)))} if metric == "rise_time_s" else {}
+        ctx.metric(metric, v, name, n=R, **spread, **extra, **label)
+
+
+def _record_curves(ctx, p: CompareParams, name: str, first, k: np.ndarray, K: np.ndarray,
+                   common: np.ndarray) -> None:
+    """The mean estimate, its 5th and 95th percentiles over realizations and the truth at ``curve_rate``, for
+    the figures."""
+    t = first.time
+    step = max(1, int(round(first.fs / p.curve_rate)))
+    sel = np.flatnonzero(common)[::step]
+    ctx.curve("stiffness", t[sel], K.mean(axis=0)[::step], series="mean estimate", estimator=name,
+              tuning=p.tuning)
+    ctx.curve("stiffness", t[sel], np.percentile(K, 5, axis=0)[::step], series="p05 over realizations",
+              estimator=name, tuning=p.tuning)
+    ctx.curve("stiffness", t[sel], np.percentile(K, 95, axis=0)[::step], series="p95 over realizations",
+              estimator=name, tuning=p.tuning)
+    ctx.curve("stiffness", t[sel], k[sel], series="truth", estimator=name, tuning=p.tuning)
+
+
 @register("compare", CompareParams, tags=("generic",), share=_share)
 def compare(ctx: Context) -> None:
     """One estimator on one resolved experiment: R realizations fitted and scored (module docstring)."""
@@ -200,7 +287,6 @@ def compare(ctx: Context) -> None:
     if len(ctx.estimators) != 1:
         raise ValueError(f"a comparison case fits one estimator, got {len(ctx.estimators)}")
     (name, estimator), = ctx.estimators.items()
-    R, M = p.realizations, p.ensemble_size
     first = sims.simulate(ctx.experiment, ctx.seed, name="realization 0")
     t = first.time
     k = frozen_stiffness(first)
@@ -217,67 +303,17 @@ def compare(ctx: Context) -> None:
     label = {"settings": settings_json(estimator)}
     for row in search_rows:
         ctx.metric("tuning_vaf_output", row.pop("value"), name, **label, **row)
-    khats, masks = [], []
-    for r in range(R):
-        trial = impedance(first if r == 0 else sims.simulate(ctx.experiment, ctx.seed, realization=r,
-                                                             name=f"realization {r}"))
-        data = trial
-        if p.data == "ensemble":
-            data = Ensemble((trial, *(impedance(sims.simulate(ctx.experiment, ctx.seed, realization=r + R * m,
-                                                              name=f"realization {r + R * m}")) for m in range(1, M))),
-                            name=f"ensemble {r}")
-        try:
-            est, seconds = fit_timed(estimator, data)
-        except InputError as exc:            # the data cannot support this estimator: a reason, not a crash
-            ctx.metric("not_fitted", math.nan, name, realization=r, reason=str(exc), **label)
-            return
-        khat = np.asarray(est.stiffness(t), float)
-        m = keep & valid_mask(est, t)
-        khats.append(khat)
-        masks.append(m)
-        ctx.metric("fit_time_s", seconds, name, realization=r, **label)
-        if m.sum() >= 2 and np.ptp(k[m]) > 0:
-            ctx.metric("vaf_stiffness", metrics.stiffness_vaf(k[m], khat[m]), name, realization=r, **label)
-        yhat = np.asarray(est.predict(trial.input), float)
-        if m.sum() >= 2 and np.all(np.isfinite(yhat[m])):
-            ctx.metric("vaf_output", metrics.vaf(trial.output[m], yhat[m]), name, realization=r, **label)
-    common = np.logical_and.reduce(masks)
+    fitted = _fit_realizations(ctx, p, name, estimator, first, k, keep, label)
+    if fitted is None:
+        return
+    common = np.logical_and.reduce(fitted[1])
     if common.sum() < 2:
         ctx.metric("not_scored", math.nan, name, reason="no sample is valid in every realization", **label)
         return
-    K = np.asarray(khats)[:, common]
-    kc, tc = k[common], t[common]
-    for r in range(R):
-        ctx.metric("error_rms", float(np.sqrt(np.mean((K[r] - kc) ** 2))), name, realization=r, **label)
-    square = len(metrics.steps(kc)) > 0
-
-    def framework(K: np.ndarray) -> dict[str, float]:
-        b_rms, b_mean = metrics.bias(kc, K)
-        out = {"bias_rms": b_rms, "bias_mean": b_mean, "random_error": metrics.random_error(K),
-               "total_error": metrics.total_error(kc, K)}
-        if square:
-            out["rise_time_s"] = metrics.rise_time(tc, kc, K.mean(axis=0))[0]
-        return out
-
-    values = framework(K)
-    draws = [framework(K[ctx.rng.integers(0, R, R)]) for _ in range(p.spread_draws)]
-    for metric, v in values.items():
-        spread = {}
-        if draws:
-            spread = dict(zip(("p05", "p95"), percentile_interval(v, [d[metric] for d in draws],
-                                                                   None if metric == "bias_mean" else 0.0)))
-        extra = {"n_steps": int(len(metrics.steps(kc)))} if metric == "rise_time_s" else {}
-        ctx.metric(metric, v, name, n=R, **spread, **extra, **label)
+    K = np.asarray(fitted[0])[:, common]
+    _score_realizations(ctx, p, name, t[common], k[common], K, label)
     if ctx.seed == 0:                       # the mean estimate and the truth, for the figures
-        step = max(1, int(round(first.fs / p.curve_rate)))
-        sel = np.flatnonzero(common)[::step]
-        ctx.curve("stiffness", t[sel], K.mean(axis=0)[::step], series="mean estimate", estimator=name,
-                  tuning=p.tuning)
-        ctx.curve("stiffness", t[sel], np.percentile(K, 5, axis=0)[::step], series="p05 over realizations",
-                  estimator=name, tuning=p.tuning)
-        ctx.curve("stiffness", t[sel], np.percentile(K, 95, axis=0)[::step], series="p95 over realizations",
-                  estimator=name, tuning=p.tuning)
-        ctx.curve("stiffness", t[sel], k[sel], series="truth", estimator=name, tuning=p.tuning)
+        _record_curves(ctx, p, name, first, k, K, common)
 
 
 @register("identifiability", CompareParams, tags=("generic",), share=_share)

@@ -105,7 +105,7 @@ def realizations(rows: pd.DataFrame) -> list[int]:
 
 
 # ----------------------------------------------------------------------------------- the full table
-def _nothing_to_tune(rows: pd.DataFrame) -> pd.DataFrame:
+def with_nothing_to_tune(rows: pd.DataFrame) -> pd.DataFrame:
     """Paper rows copied into the tuned column for the methods the study did not tune because they have
     no smoothing setting (reason 'nothing to tune'): the same fit, so the same scores."""
     if not (rows["tuning"] == "tuned").any():
@@ -145,7 +145,7 @@ def full_table(rows: pd.DataFrame, curves: pd.DataFrame | None = None) -> pd.Dat
     the percentile bootstrap of the median over realizations, or the study's ``p05``/``p95`` when they
     contain it), ``interval`` (which), ``n``, ``rank`` and ``ranked`` (methods ranked in the cell; ranks
     only among finite values of feasible cells on the primary backend), ``note`` (why not ranked)."""
-    rows = _nothing_to_tune(rows)
+    rows = with_nothing_to_tune(rows)
     ok = rows[(rows["status"] == "ok") & rows["metric"].isin(list(METRICS))
               & (rows["estimator"] != SCENARIO_ROWS)]
     recs = []
@@ -321,7 +321,7 @@ def settings_table(rows: pd.DataFrame) -> pd.DataFrame:
     """Method, tuning, settings (from the rows' ``settings`` column) and the scenarios that used them."""
     if "settings" not in rows.columns:
         return pd.DataFrame()
-    rows = _nothing_to_tune(rows)
+    rows = with_nothing_to_tune(rows)
     sel = rows[rows["settings"].notna() & (rows["settings"].astype(str) != "") & (rows["estimator"] != SCENARIO_ROWS)
                & ~rows["metric"].isin(FAILURES)]
     recs = []

@@ -18,7 +18,7 @@ What the cluster does to a run (tests/test_dask_faults.py):
 - a lost worker is survived: the scheduler runs its tasks again elsewhere (same numbers), and the report
   says how many workers took part and how many were lost (:meth:`DaskExecutor.describe`);
 - a lost scheduler is lost infrastructure, not failed cases: every pending future fails with
-  :class:`~benchmarks.harness.pool.ExecutorLost`, on which the runner stops the run with one line
+  :class:`~benchmarks.harness.workers.ExecutorLost`, on which the runner stops the run with one line
   ("lost the scheduler at ADDRESS after N of M cases; run again to resume"), keeps every finished case
   and records the run as interrupted. Workers store each case in the cache the moment it finishes
   (when the cache folder is theirs too, as on one machine or a shared file system), so a group of cases
@@ -36,7 +36,7 @@ import socket
 import struct
 import threading
 
-from jointbench.benchmarks.harness.pool import ExecutorLost, WorkerMismatch, identity_problem, worker_identity
+from jointbench.benchmarks.harness.workers import ExecutorLost, WorkerMismatch, identity_problem, worker_identity
 from jointbench.core.errors import ConfigError
 
 #: seconds to wait for a remote scheduler before giving up with a one-line error

@@ -192,7 +192,7 @@ def md_cell(text: Any) -> str:
 
 
 @functools.lru_cache(maxsize=1)
-def _env():
+def template_env():
     """The one Jinja2 environment of the process: each template compiled once (an environment per page or
     table compiled them again each time: the README's status block compiled its table macro 15 times,
     0.13 CPU-s; issue 22). Templates edited on disk are reloaded (Jinja2's ``auto_reload``)."""
@@ -210,7 +210,7 @@ def _env():
 
 def to_html(page: Page, template: str = "page.html.j2") -> str:
     """The page as one static HTML file (figures inline)."""
-    return _env().get_template(template).render(page=page)
+    return template_env().get_template(template).render(page=page)
 
 
 def _figure_links(page: Page, base: Path | None) -> dict[int, str]:
@@ -232,11 +232,11 @@ def _figure_links(page: Page, base: Path | None) -> dict[int, str]:
 def to_markdown(page: Page, base: Path | None = None) -> str:
     """The same page as markdown; figure files are linked relative to ``base`` (the page's folder)."""
     links = _figure_links(page, base)
-    text = _env().get_template("page.md.j2").render(page=page, link=lambda f: links.get(id(f), ""))
+    text = template_env().get_template("page.md.j2").render(page=page, link=lambda f: links.get(id(f), ""))
     return re.sub(r"\n{3,}", "\n\n", text).rstrip("\n") + "\n"
 
 
 def markdown_table(df: pd.DataFrame, empty: str = "no rows") -> str:
     """A frame as a markdown table (the template's own table: the one markdown table of the project)."""
-    module = _env().get_template("macros.md.j2").module
+    module = template_env().get_template("macros.md.j2").module
     return str(module.render_table(table("", df, empty=empty))).strip("\n") + "\n"

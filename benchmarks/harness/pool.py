@@ -29,7 +29,8 @@ import threading
 import time
 
 from jointbench.benchmarks.harness.case import one_blas_thread, run_group
-from jointbench.core.errors import ConfigError, JointBenchError
+from jointbench.benchmarks.harness.workers import WorkerMismatch, identity_problem, worker_identity
+from jointbench.core.errors import ConfigError
 
 #: the executors :func:`make_executor` builds (``jointbench run --executor``)
 EXECUTORS = ("process", "serial", "dask")
@@ -39,16 +40,6 @@ WATCHDOG_PERIOD_S = 0.5
 #: most worker processes per core a run may ask for (``--workers 10000`` is a typo, not a plan: a pool or
 #: a local Dask cluster of that size would exhaust the machine before it answered)
 MAX_WORKERS_PER_CORE = 4
-
-
-class ExecutorLost(RuntimeError):
-    """The executor can no longer run tasks (its Dask scheduler is gone): lost infrastructure, not a failed
-    case. The runner stops the run, keeps every finished case and says to run again to resume."""
-
-
-class WorkerMismatch(JointBenchError, RuntimeError):
-    """A worker runs other code or other numerical libraries than the run: its numbers would be cached
-    under this code's keys. Refused, in one line."""
 
 
 def _die_with(parent: int) -> None:
@@ -115,28 +106,6 @@ class InlineExecutor(cf.Executor):
                 raise
             fut.set_exception(exc)
         return fut
-
-
-def worker_identity() -> dict:
-    """What must be equal on every worker of a run: the code hash and the key environment (Python, numpy,
-    scipy versions) that cache keys are made of (:mod:`benchmarks.harness.fingerprint`)."""
-    from jointbench.benchmarks.harness.fingerprint import code_hash, key_environment
-
-    return {"code": code_hash(), "env": dict(key_environment())}
-
-
-def identity_problem(run: dict, worker: dict, who: str) -> str | None:
-    """One line saying how ``worker``'s identity differs from the run's, or None."""
-    if worker.get("code") != run.get("code"):
-        return (f"{who} runs other code (code hash {worker.get('code')}, the run's {run.get('code')}): install "
-                f"the same checkout on every worker")
-    theirs, mine = worker.get("env") or {}, run.get("env") or {}
-    diff = [f"{k} {theirs.get(k)} (the run's {mine.get(k)})" for k in sorted(set(mine) | set(theirs))
-            if theirs.get(k) != mine.get(k)]
-    if diff:
-        return (f"{who} runs other library versions: {', '.join(diff)}; install the same versions on every "
-                f"worker (they change the numbers)")
-    return None
 
 
 def _import_plugins(plugins: dict, who: str) -> None:

@@ -22,13 +22,9 @@ def _stat(rows: pd.DataFrame, metric: str, by: list[str], **eq) -> pd.DataFrame:
     return over_seeds(sel, by, [metric]).sort_values(by, ignore_index=True)
 
 
-@register("apparatus.servo")
-def servo(part, rows, curves, folder, checks) -> PartReport:
-    rows = _ok(rows)
-    ratio = _stat(rows, "servo_over_joint_stiffness", ["servo_stiffness"])
-    to_ratio = dict(zip(ratio["servo_stiffness"], ratio["median"]))
-    segs = sorted(rows["segment_s"].dropna().unique())
-    fig, (a, b, c) = new_figure(3, 1, figsize=(6.8, 10))
+def _servo_errors(a, b, rows: pd.DataFrame, to_ratio: dict, segs: list, k_true: float) -> None:
+    """Panels a and b: K-hat - K (% of K) against K_a / K with the measured angle (a) and the command (b) as
+    the input, beside the eqs. 3-8 prediction of each segment length."""
     colours = dict(zip(segs, ("k", "tab:blue", "tab:green", "tab:purple")))
     for seg in segs:
         for inp, ax in (("measured", a), ("command", b)):
@@ -40,9 +36,8 @@ def servo(part, rows, curves, folder, checks) -> PartReport:
                         color=colours[seg], ms=4, capsize=2, label=f"simulated, {seg:g} s segments")
             ax.plot(p["servo_stiffness"].map(to_ratio), p["median"], "-", color=colours[seg], lw=1,
                     label=f"eqs. 3-8 + {seg:g} s Welch window")
-        n = _stat(rows, "K_predicted_no_leakage", ["servo_stiffness"], input="measured", segment_s=segs[0],
-                  voluntary="present")
-        k_true = float(_stat(rows, "K_true", [], input="measured")["median"].iloc[0]) if len(rows) else np.nan
+    n = _stat(rows, "K_predicted_no_leakage", ["servo_stiffness"], input="measured", segment_s=segs[0],
+              voluntary="present")
     a.plot(n["servo_stiffness"].map(to_ratio), 100 * (n["median"] - k_true) / k_true, "r--", lw=1,
            label="eqs. 3-8 alone (voluntary torque only)")
     a.axhspan(-5, 5, color="0.92", zorder=0, label="within 5 % (reading R4)")
@@ -55,6 +50,11 @@ def servo(part, rows, curves, folder, checks) -> PartReport:
         ax.set_xscale("log")
         ax.set_xlabel("K_a / K")
         ax.legend(fontsize=7)
+
+
+def _servo_spectra(c, rows: pd.DataFrame, curves: pd.DataFrame, to_ratio: dict, segs: list) -> None:
+    """Panel c: the spectral estimate minus the limb's impedance at three K_a (the stiffest, 2000 and the
+    softest), with the servo mode of each, on the first seed."""
     shown = [k for k in sorted(to_ratio) if k in (max(to_ratio), 2000.0, min(to_ratio))]
     c0 = curves[(curves["curve"] == "real_error") & (curves["seed"] == curves["seed"].min())] \
         if len(curves) else curves
@@ -72,8 +72,10 @@ def servo(part, rows, curves, folder, checks) -> PartReport:
     c.set_title(f"Spectral estimate minus the limb's impedance, measured angle, {segs[0]:g} s segments "
                 f"(seed {int(c0['seed'].min()) if len(c0) else 0})")
     c.legend(fontsize=7, ncol=2)
-    fig.tight_layout()
-    name = save(fig, folder, "apparatus_servo.png")
+
+
+def _servo_table(rows: pd.DataFrame, to_ratio: dict, segs: list) -> pd.DataFrame:
+    """K-hat (median and range over seeds) and its prediction per K_a, input and segment length."""
     table = []
     for k in sorted(to_ratio, reverse=True):
         row = {"K_a (N·m/rad)": k, "K_a / K": to_ratio[k],
@@ -88,6 +90,12 @@ def servo(part, rows, curves, folder, checks) -> PartReport:
                 row[f"K-hat {inp}, {seg:g} s"] = median_range(m["median"], m["min"], m["max"], m["n"])
                 row[f"predicted {inp}, {seg:g} s"] = round(float(p["median"]), 3)
         table.append(row)
+    return pd.DataFrame(table)
+
+
+def _voluntary_table(rows: pd.DataFrame, to_ratio: dict, segs: list, k_true: float) -> list[dict]:
+    """What the voluntary torque does to K-hat (measured angle, the longest segments) per K_a, beside the
+    bias eqs. 3-8 predict from it; no rows unless the sweep runs with and without it."""
     tv = []
     both = set(rows["voluntary"].dropna()) >= {"present", "absent"}
     for k in sorted(to_ratio, reverse=True) if both else []:
@@ -99,6 +107,11 @@ def servo(part, rows, curves, folder, checks) -> PartReport:
                    voluntary="present").set_index("servo_stiffness").loc[k, "median"]
         tv.append({"K_a (N·m/rad)": k, "K-hat with T_v": on, "K-hat without T_v": off,
                    "difference": on - off, "eqs. 3-8 bias from T_v": pr - k_true})
+    return tv
+
+
+def _servo_text(rows: pd.DataFrame, tv: list[dict]) -> str:
+    """The largest median error per segment length, and the bias the voluntary torque alone would cause."""
     err = _stat(rows, "K_err_pct", ["servo_stiffness", "segment_s"], input="measured", voluntary="present")
     worst = err.loc[err.groupby("segment_s")["median"].apply(lambda v: v.abs().idxmax())]
     text = ("Largest median |K-hat - K| over the sweep with the measured angle as the input: "
@@ -107,14 +120,32 @@ def servo(part, rows, curves, folder, checks) -> PartReport:
     if tv:
         text += (" The voluntary torque alone (eqs. 3-6, no window) would bias K by "
                  f"{min(r['eqs. 3-8 bias from T_v'] for r in tv):+.3f} N·m/rad at most.")
+    return text
+
+
+@register("apparatus.servo")
+def servo(part, rows, curves, folder, checks) -> PartReport:
+    """The servo stiffness part: K-hat against K_a / K with its prediction, the spectral estimate, the
+    tables of K-hat and of what the voluntary torque does."""
+    rows = _ok(rows)
+    ratio = _stat(rows, "servo_over_joint_stiffness", ["servo_stiffness"])
+    to_ratio = dict(zip(ratio["servo_stiffness"], ratio["median"]))
+    segs = sorted(rows["segment_s"].dropna().unique())
+    k_true = float(_stat(rows, "K_true", [], input="measured")["median"].iloc[0]) if len(rows) else np.nan
+    fig, (a, b, c) = new_figure(3, 1, figsize=(6.8, 10))
+    _servo_errors(a, b, rows, to_ratio, segs, k_true)
+    _servo_spectra(c, rows, curves, to_ratio, segs)
+    fig.tight_layout()
+    name = save(fig, folder, "apparatus_servo.png")
+    tv = _voluntary_table(rows, to_ratio, segs, k_true)
     return PartReport(figures=[(name, "Servo stiffness: K-hat against K_a / K with its eqs. 3-8 prediction, "
                                       "measured angle (top) and command (middle) as the input; the spectral "
                                       "estimate at three K_a (bottom).")],
                       tables=[("K-hat (N·m/rad; median and range over seeds, voluntary torque present) and its "
-                               "prediction", pd.DataFrame(table))]
+                               "prediction", _servo_table(rows, to_ratio, segs))]
                       + ([(f"What the voluntary torque does (measured angle, {segs[-1]:g} s segments, "
                            "medians over the same seeds, i.e. the same commands)", pd.DataFrame(tv))] if tv else []),
-                      text=text)
+                      text=_servo_text(rows, tv))
 
 
 @register("apparatus.gravity")

@@ -231,6 +231,112 @@ def _skirt_bounds(ctx: Context, p: Table1Params, t: np.ndarray, truths: dict, la
                                interval=iname, truth=tname, fit=fit, **lab)
 
 
+@dataclasses.dataclass
+class _Reference:
+    """What every estimate of a case is scored against and drawn beside, on the analysis window."""
+
+    t: np.ndarray                    # time (s)
+    s: np.ndarray                    # the scored samples
+    lines: np.ndarray                # the excited lines (Hz)
+    H1: np.ndarray                   # the true frozen |G(j w_1, t)| at the lowest line (reading R5)
+    k_true: np.ndarray               # the intrinsic k(t)
+    steps: list[int]                 # samples where k jumps, inside the scored interval
+    record: bool                     # a curve seed: stiffness curves (and images) recorded
+    grid: np.ndarray | None          # the time grid of the seed-spread bands (None: off)
+    tg: np.ndarray | None            # the time grid of the |G(jw, t)| images (None: no image)
+
+    @property
+    def f1(self) -> float:
+        return float(self.lines[0])
+
+
+def _record_noise(ctx: Context, y: np.ndarray, y0: np.ndarray, s: np.ndarray) -> None:
+    """``noise_variance_ratio`` and ``snr_db_actual`` (standard definition) of the estimation trial's output
+    ``y`` (noise-free: ``y0``), over the scored samples ``s`` and the whole window (``..._window``)."""
+    for tag, m in (("", s), ("_window", np.ones_like(s))):
+        noise = y[m] - y0[m]
+        ratio = float(np.var(noise) / np.var(y0[m]))
+        ctx.metric("noise_variance_ratio" + tag, ratio)
+        ctx.metric("snr_db_actual" + tag, -10 * math.log10(ratio) if ratio > 0 else math.inf)
+
+
+def _reference(ctx: Context, p: Table1Params, exp: Any, trial: Any) -> _Reference:
+    """The truth of the estimation ``trial``, its curves recorded: the stiffness on the paper's time axis (0
+    at the start of the scored interval; curve seeds), on the grid of the seed-spread bands, and the
+    |G(jw, t)| image (curve seeds of the image variations)."""
+    t = trial.time
+    lines = np.asarray(exp.perturbation.lines, float)
+    H1 = frozen_stiffness(trial, float(lines[0]))
+    k_true = trial.truth.at("K", t, t)
+    record = ctx.seed in p.curve_seeds
+    every = slice(None, None, p.curve_every)
+    if record:
+        ctx.curve("stiffness", (t - p.score[0])[every], H1[every], series="truth")
+        ctx.curve("stiffness", (t - p.score[0])[every], k_true[every], series="k")
+    grid = None
+    if p.band_step > 0:
+        grid = np.arange(t[0], t[-1] + 1e-9, p.band_step)
+        ctx.curve("stiffness_grid", grid - p.score[0], np.interp(grid, t, H1), series="truth")
+    tg = None
+    if record and p.variation in p.image_variations:
+        tg = np.arange(t[0], t[-1] + 1e-9, p.image_step)
+        Gt = np.abs(trial.truth.frozen_response(lines, tg, t))
+        for j, f in enumerate(lines):
+            ctx.curve("tf_mag", tg - p.score[0], Gt[:, j], series="truth", freq_hz=float(f))
+    return _Reference(t, scored_mask(t, p.score), lines, H1, k_true, step_times(t, k_true, p.score, p.step_half),
+                      record, grid, tg)
+
+
+def _score_estimate(ctx: Context, p: Table1Params, ref: _Reference, name: str, est: Any, trials: tuple,
+                    lab: dict, first: bool) -> np.ndarray:
+    """Record the VAFs, RMSE_k and (square waves) the step metrics of estimate ``est`` (:func:`table1`);
+    ``trials``: the estimation and validation trials; ``first``: the case's first estimator (it also records
+    the truth's own ramp time). The estimated stiffness."""
+    est_trial, val_trial = trials
+    t, s = ref.t, ref.s
+    v = s if p.vaf_on == "scored" else np.ones_like(s)
+    y, y0, yv = est_trial.output, est_trial.truth.signals["torque"], val_trial.output
+    yhat = est.predict(est_trial.input)
+    yhat_v = yhat      # the validation trial's input is the estimation trial's (checked by table1)
+    for tag, m in (("", v), ("_window", np.ones_like(s))):
+        ctx.metric("vaf_self" + tag, vaf(y[m], yhat[m]), name, **lab)
+        ctx.metric("vaf_optim" + tag, vaf(y0[m], yhat[m]), name, **lab)
+        ctx.metric("vaf_val" + tag, vaf(yv[m], yhat_v[m]), name, **lab)
+    khat = np.asarray(est.stiffness(t), float)
+    ctx.metric("rmse_k", rmse(ref.H1[s], khat[s]), name, **lab)      # R5: against |G(j w_1, t)|, w_1 = 0.1 Hz
+    f_est = _lowest_line(est, ref.f1)
+    if not math.isclose(f_est, ref.f1, rel_tol=1e-6):   # its lowest line is another (R12: skirt N_p = 13, 0.9 Hz)
+        ctx.metric("rmse_k_own_line", rmse(frozen_stiffness(est_trial, f_est)[s], khat[s]), name,
+                   line_hz=f_est, **lab)
+    ctx.metric("rmse_k_intrinsic", rmse(ref.k_true[s], khat[s]), name, **lab)
+    steps, H1 = ref.steps, ref.H1
+    if steps:
+        ramps = [step_ramp_time(t, khat, H1, i, p.step_half) for i in steps]
+        caught = [step_captured(t, khat, H1, i, p.step_span, p.step_skip) for i in steps]
+        ctx.metric("step_ramp_time_s", float(np.median(ramps)), name, n_steps=len(steps), **lab)
+        ctx.metric("step_captured", float(np.median(caught)), name, n_steps=len(steps), **lab)
+        if first:
+            ctx.metric("step_ramp_time_s", float(np.median([step_ramp_time(t, H1, H1, i, p.step_half)
+                                                            for i in steps])), "truth",
+                       n_steps=len(steps), **lab)
+    return khat
+
+
+def _record_estimate(ctx: Context, p: Table1Params, ref: _Reference, name: str, est: Any, khat: np.ndarray) -> None:
+    """The estimate's curves beside the truth's (:func:`_reference`): its stiffness, on the band grid, and
+    its |G(jw, t)| image."""
+    if ref.record:
+        every = slice(None, None, p.curve_every)
+        ctx.curve("stiffness", (ref.t - p.score[0])[every], khat[every], series=name, estimator=name)
+    if ref.grid is not None:
+        ctx.curve("stiffness_grid", ref.grid - p.score[0], np.interp(ref.grid, ref.t, khat), series=name,
+                  estimator=name)
+    if ref.tg is not None:
+        G = np.abs(np.asarray(est.frequency_response(ref.lines, ref.tg)))
+        for j, f in enumerate(ref.lines):
+            ctx.curve("tf_mag", ref.tg - p.score[0], G[:, j], series=name, estimator=name, freq_hz=float(f))
+
+
 @register("vanderuit2018.table1", Table1Params, share=lambda p: p.variations[p.variation])
 def table1(ctx: Context) -> None:
     """Table I, Figs. 3-4: VAF_self, VAF_optim, VAF_val and RMSE_k of each estimator for one case.
@@ -255,74 +361,13 @@ def table1(ctx: Context) -> None:
     lab = variation_labels(exp.joint.k)
     est_trial = sims.simulate(exp, ctx.seed, name="estimation")
     val_trial = sims.simulate(exp, ctx.seed, name="validation", replicate=1)
-    truth = est_trial.truth
-    t = est_trial.time
-    s = scored_mask(t, p.score)
-    v = s if p.vaf_on == "scored" else np.ones_like(s)
-    y, y0, yv = est_trial.output, truth.signals["torque"], val_trial.output
     if not np.array_equal(est_trial.input, val_trial.input):
         raise RuntimeError("the validation trial's input differs from the estimation trial's")
-    for tag, m in (("", s), ("_window", np.ones_like(s))):
-        noise = y[m] - y0[m]
-        ratio = float(np.var(noise) / np.var(y0[m]))
-        ctx.metric("noise_variance_ratio" + tag, ratio)
-        ctx.metric("snr_db_actual" + tag, -10 * math.log10(ratio) if ratio > 0 else math.inf)
-
-    lines = np.asarray(exp.perturbation.lines, float)
-    f1 = float(lines[0])
-    H1 = frozen_stiffness(est_trial, f1)
-    k_true = truth.at("K", t, t)
-    steps = step_times(t, k_true, p.score, p.step_half)
-    paper_t = t - p.score[0]      # the paper's time axis: 0 at the start of the scored interval
-    record = ctx.seed in p.curve_seeds
-    every = slice(None, None, p.curve_every)
-    if record:
-        ctx.curve("stiffness", paper_t[every], H1[every], series="truth")
-        ctx.curve("stiffness", paper_t[every], k_true[every], series="k")
-    grid = None
-    if p.band_step > 0:
-        grid = np.arange(t[0], t[-1] + 1e-9, p.band_step)
-        ctx.curve("stiffness_grid", grid - p.score[0], np.interp(grid, t, H1), series="truth")
-    image = record and p.variation in p.image_variations
-    if image:
-        tg = np.arange(t[0], t[-1] + 1e-9, p.image_step)
-        Gt = np.abs(truth.frozen_response(lines, tg, t))
-        for j, f in enumerate(lines):
-            ctx.curve("tf_mag", tg - p.score[0], Gt[:, j], series="truth", freq_hz=float(f))
-
-    if record and not math.isfinite(p.snr_db) and p.bound_orders:
-        _skirt_bounds(ctx, p, t, {"frozen": H1, "intrinsic": k_true}, lab)
-
+    _record_noise(ctx, est_trial.output, est_trial.truth.signals["torque"], scored_mask(est_trial.time, p.score))
+    ref = _reference(ctx, p, exp, est_trial)
+    if ref.record and not math.isfinite(p.snr_db) and p.bound_orders:
+        _skirt_bounds(ctx, p, ref.t, {"frozen": ref.H1, "intrinsic": ref.k_true}, lab)
     for name, estimator in ests.items():
         est = estimator.fit(est_trial)
-        yhat = est.predict(est_trial.input)
-        yhat_v = yhat      # the validation trial's input is the estimation trial's (checked above)
-        for tag, m in (("", v), ("_window", np.ones_like(s))):
-            ctx.metric("vaf_self" + tag, vaf(y[m], yhat[m]), name, **lab)
-            ctx.metric("vaf_optim" + tag, vaf(y0[m], yhat[m]), name, **lab)
-            ctx.metric("vaf_val" + tag, vaf(yv[m], yhat_v[m]), name, **lab)
-        khat = np.asarray(est.stiffness(t), float)
-        ctx.metric("rmse_k", rmse(H1[s], khat[s]), name, **lab)      # R5: against |G(j w_1, t)|, w_1 = 0.1 Hz
-        f_est = _lowest_line(est, f1)
-        if not math.isclose(f_est, f1, rel_tol=1e-6):   # its lowest line is another (R12: skirt N_p = 13, 0.9 Hz)
-            ctx.metric("rmse_k_own_line", rmse(frozen_stiffness(est_trial, f_est)[s], khat[s]), name,
-                       line_hz=f_est, **lab)
-        ctx.metric("rmse_k_intrinsic", rmse(k_true[s], khat[s]), name, **lab)
-        if steps:
-            ramps = [step_ramp_time(t, khat, H1, i, p.step_half) for i in steps]
-            caught = [step_captured(t, khat, H1, i, p.step_span, p.step_skip) for i in steps]
-            ctx.metric("step_ramp_time_s", float(np.median(ramps)), name, n_steps=len(steps), **lab)
-            ctx.metric("step_captured", float(np.median(caught)), name, n_steps=len(steps), **lab)
-            if name == next(iter(ests)):
-                ctx.metric("step_ramp_time_s", float(np.median([step_ramp_time(t, H1, H1, i, p.step_half)
-                                                                for i in steps])), "truth",
-                           n_steps=len(steps), **lab)
-        if record:
-            ctx.curve("stiffness", paper_t[every], khat[every], series=name, estimator=name)
-        if grid is not None:
-            ctx.curve("stiffness_grid", grid - p.score[0], np.interp(grid, t, khat), series=name,
-                      estimator=name)
-        if image:
-            G = np.abs(np.asarray(est.frequency_response(lines, tg)))
-            for j, f in enumerate(lines):
-                ctx.curve("tf_mag", tg - p.score[0], G[:, j], series=name, estimator=name, freq_hz=float(f))
+        khat = _score_estimate(ctx, p, ref, name, est, (est_trial, val_trial), lab, first=name == next(iter(ests)))
+        _record_estimate(ctx, p, ref, name, est, khat)
