@@ -31,7 +31,7 @@ import dataclasses
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Mapping, Sequence
 
-from jointbench.core.errors import ConfigError
+from jointbench.core.errors import ConfigError, argument
 from jointbench.core.types import Trial
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -263,15 +263,22 @@ def simulate(config: Mapping[str, Any] | str | Any = None, seed: int = 0, *, bac
 @dataclasses.dataclass
 class StudyResult:
     """A finished run: ``rows`` (tidy: one per metric of every case), ``checks`` (one per published check),
-    ``failures`` (case id, error), and where it was written (``folder``, ``report``, history ``run_id``)."""
+    ``cases`` (case id, status, from the cache or computed, error), ``failures`` (the failed cases), and where
+    it was written (``folder``, ``report``, history ``run_id``). ``expected_failures``: the study says failed
+    cases are part of it."""
 
     study: str
     folder: Path
     rows: "pd.DataFrame"
     checks: "pd.DataFrame"
-    failures: "pd.DataFrame"
+    cases: "pd.DataFrame"
     run_id: int | None
     wall_s: float
+    expected_failures: bool = False
+
+    @property
+    def failures(self) -> "pd.DataFrame":
+        return self.cases.loc[self.cases["status"] != "ok", ["case_id", "error"]].reset_index(drop=True)
 
     @property
     def report(self) -> Path:
@@ -279,38 +286,47 @@ class StudyResult:
 
 
 def run(study: str | Path | Mapping[str, Any], *, parts: Sequence[str] | None = None, out: str | Path | None = None,
-        executor: str | Any = "process", workers: int | None = None, use_cache: bool = True,
-        overrides: Sequence[str] = (), backend: str | None = None, plugins: Sequence[str] = (),
-        progress: bool = False) -> StudyResult:
-    """Run a study as ``jointbench run`` does and return its rows and checks.
+        executor: str | Any = "process", workers: int | None = None, scheduler: str | None = None,
+        use_cache: bool = True, overrides: Sequence[str] = (), backend: str | None = None,
+        plugins: Sequence[str] = (), budget: float | None = None, confirm: bool = False, progress: bool = False,
+        record_as: str = "jointbench.api.run") -> StudyResult:
+    """Run a study and return its rows and checks (``jointbench run`` is this call).
 
-    ``study``: a shipped study's id, a study file's path, or a study as a mapping (the YAML's content; its
-    relative names are looked up in the current folder, then in the package), e.g. a comparison grid.
-    ``out``: the results folder (default ``./results``). ``executor``: ``process`` (a pool on this
-    machine), ``serial``, ``dask`` (a local cluster) or a ``concurrent.futures`` executor. ``overrides``:
-    ``PART.KEY=VALUE`` texts (``--set``). ``plugins``: outside estimator modules to import first.
+    ``study``: a shipped study's id, a study file's path (or its folder), or a study as a mapping (the YAML's
+    content; its relative names are looked up in the current folder, then in the package), e.g. a comparison
+    grid. ``out``: the results folder (default ``./results``). ``executor``: ``process`` (a pool of
+    ``workers`` processes on this machine), ``serial`` (this process), ``dask`` (a local cluster, or the one
+    at ``scheduler``) or a ``concurrent.futures`` executor. ``overrides``: ``PART.KEY=VALUE`` texts
+    (``--set``). ``plugins``: outside estimator modules to import first. ``budget``: refuse a comparison grid
+    estimated to take longer (minutes; default its config's), unless ``confirm``. ``record_as``: the command
+    the run history records.
     """
     import pandas as pd
 
-    from jointbench.core import plugins as _plugins
+    from jointbench.benchmarks.config import check_backend
     from jointbench.benchmarks.harness.pool import make_executor
     from jointbench.benchmarks.study import run_study
+    from jointbench.core import plugins as _plugins
 
     for ref in plugins:
-        _plugins.load(ref, "run: plugins")
+        _plugins.load(ref, argument("plugins"))
+    if backend is not None:
+        backend = check_backend(backend, argument("backend"))
     ref = dict(study) if isinstance(study, Mapping) else study
+    serial = executor == "serial"
     own = isinstance(executor, str)
-    exe = make_executor(executor, workers) if own else executor
+    exe = make_executor(executor, workers, scheduler) if own and not serial else (None if own else executor)
     try:
         r = run_study(ref, parts=list(parts) if parts else None, out_root=Path(out) if out else None,
-                      serial=executor == "serial", workers=workers, use_cache=use_cache, progress=progress,
-                      command="jointbench.api.run", executor=exe, backend=backend, overrides=tuple(overrides))
+                      serial=serial, workers=workers, use_cache=use_cache, progress=progress, command=record_as,
+                      executor=exe, backend=backend, overrides=tuple(overrides), budget_minutes=budget,
+                      confirm=confirm)
     finally:
         if own and exe is not None:
             exe.shutdown(wait=True)
-    failures = pd.DataFrame([{"case_id": f.case.case_id, "error": f.error} for f in r.failed],
-                            columns=["case_id", "error"])
-    return StudyResult(r.study.id, r.folder, r.rows, r.checks, failures, r.run_id, r.wall_s)
+    cases = pd.DataFrame([{"case_id": c.case.case_id, "status": c.status, "cached": bool(c.cached),
+                           "error": c.error} for c in r.results], columns=["case_id", "status", "cached", "error"])
+    return StudyResult(r.study.id, r.folder, r.rows, r.checks, cases, r.run_id, r.wall_s, r.study.expected_failures)
 
 
 # ------------------------------------------------------------------------------------------------ history

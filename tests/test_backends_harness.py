@@ -50,7 +50,7 @@ def test_bad_backend_or_model_is_one_line_naming_the_part(tmp_path, edit, messag
 def test_cli_rejects_an_unknown_backend(capsys):
     assert cli.main(["run", "westwick2012", "--backend", "bullet", "--parts", "fig2"]) == 2
     err = capsys.readouterr().err.strip()
-    assert err == ("jointbench: error: option --backend: unknown simulation backend 'bullet'; known: "
+    assert err == ("jointbench: error: --backend: unknown simulation backend 'bullet'; known: "
                    "analytic, lti, ltv, mujoco, stepping")
 
 

@@ -195,7 +195,7 @@ def test_partial_run_keeps_other_parts_from_cache(tmp_path):
 def test_run_options_as_one_object_or_as_keywords(tmp_path):
     """run_study takes its options as a RunOptions, as keywords (every caller before RunOptions), or both
     (the keywords replace the object's fields); an unknown option is refused before anything runs."""
-    from jointbench.api import history
+    from jointbench.api import History
     from jointbench.benchmarks.study import RunOptions
 
     opts = RunOptions(parts=["fig2"], out_root=tmp_path / "out", serial=True, progress=False)
@@ -208,7 +208,7 @@ def test_run_options_as_one_object_or_as_keywords(tmp_path):
     pd.testing.assert_frame_equal(first.rows[value], fresh.rows[value])
     with pytest.raises(TypeError, match="srial"):
         run_study("westwick2012", opts, srial=True)
-    assert len(history(tmp_path / "out")) == 3                    # the refused run is not recorded
+    assert len(History(tmp_path / "out").runs()) == 3                   # the refused run is not recorded
 
 
 def test_report_section_puts_a_part_under_interpretation():

@@ -6,7 +6,7 @@ import sys
 from pathlib import Path
 
 from jointbench.cli.common import budget_minutes, guarded, positive_int
-from jointbench.core.errors import JointBenchError
+from jointbench.core.errors import JointBenchError, worded_as
 
 
 def _command() -> str:
@@ -31,9 +31,6 @@ def _run(args) -> int:
     """``jointbench run STUDY [STUDY ...]``: one study, or several one after another (``--jobs 1``, the
     default) or side by side in forked processes (:mod:`jointbench.benchmarks.harness.side_by_side`)."""
     _plugins(args)
-    from jointbench.benchmarks.config import check_backend
-
-    backend = check_backend(args.backend, "option --backend") if args.backend else None
     if args.serial and args.executor not in (None, "serial"):
         raise JointBenchError(f"--serial and --executor {args.executor} contradict each other")
     studies = list(dict.fromkeys(args.study))
@@ -53,15 +50,15 @@ def _run(args) -> int:
         raise JointBenchError("--executor dask with --jobs > 1: one cluster serves the studies one after "
                               "another (--jobs 1)")
     if len(studies) == 1:
-        code = _run_one(args, studies[0], backend)
+        code = _run_one(args, studies[0])
     elif args.jobs == 1:
-        code = max(_run_one(args, study, backend) for study in studies)
+        code = max(_run_one(args, study) for study in studies)
     else:
         from jointbench.benchmarks.harness import side_by_side
 
         side_by_side.preload()
         code = max(side_by_side.run_forked(studies, args.jobs,
-                                           lambda study: guarded(lambda: _run_one(args, study, backend))))
+                                           lambda study: guarded(lambda: _run_one(args, study))))
     if args.write_readme and code == 0:       # what `jointbench status --write-readme` does, without its start-up
         from jointbench.benchmarks import status
 
@@ -70,39 +67,39 @@ def _run(args) -> int:
     return code
 
 
-def _run_one(args, study: str, backend: str | None) -> int:
-    """One study of ``jointbench run`` (``backend``: the checked ``--backend``); its summary printed in one
-    piece (studies side by side print theirs whole)."""
-    from jointbench.benchmarks.harness.pool import make_executor
-    from jointbench.benchmarks.study import run_study
+#: how ``jointbench run`` words the arguments of :func:`jointbench.api.run` in its messages
+RUN_FLAGS = {"backend": "--backend", "plugins": "--plugin", "executor": "--executor", "workers": "--workers",
+             "scheduler": "--scheduler", "budget": "--budget", "overrides": "--set", "parts": "--parts"}
 
-    executor = make_executor(args.executor or "process", args.workers, args.scheduler)
-    try:
-        run = run_study(study, parts=args.parts or None, out_root=_root(args), serial=args.serial,
-                        workers=args.workers, use_cache=not args.no_cache, progress=not args.quiet,
-                        command=_command(), backend=backend, executor=executor, overrides=args.set or (),
-                        budget_minutes=args.budget, confirm=args.yes)
-    finally:
-        if executor is not None:
-            executor.shutdown(wait=True)
+
+def _run_one(args, study: str) -> int:
+    """One study of ``jointbench run``, through :func:`jointbench.api.run`; its summary printed in one piece
+    (studies side by side print theirs whole)."""
+    from jointbench import api
     from jointbench.benchmarks.checks import headline
 
+    with worded_as(RUN_FLAGS):
+        run = api.run(study, parts=args.parts, out=_root(args), executor="serial" if args.serial else
+                      (args.executor or "process"), workers=args.workers, scheduler=args.scheduler,
+                      use_cache=not args.no_cache, overrides=args.set or (), backend=args.backend,
+                      budget=args.budget, confirm=args.yes, progress=not args.quiet, record_as=_command())
     comp = run.checks
     n_pass = int((comp["status"] == "pass").sum()) if len(comp) else 0
-    n_cached = sum(r.cached for r in run.results)
-    lines = [f"{run.study.id}: {len(run.results)} cases ({n_cached} from cache, {len(run.results) - n_cached} "
-             f"computed), {len(run.failed)} failed; {headline(comp)}"]
+    n_cached = int(run.cases["cached"].sum())
+    failed = len(run.failures)
+    lines = [f"{run.study}: {len(run.cases)} cases ({n_cached} from cache, {len(run.cases) - n_cached} "
+             f"computed), {failed} failed; {headline(comp)}"]
     lines += [f"  {r.status:4s}  {r.evidence:12s}  {r.check:18s} reproduced {r.reproduced:.5g}  "
               f"[{r.low:.5g}, {r.high:.5g}]" for r in comp.itertuples()]
     lines.append(f"wrote {run.folder}/report.md, checks.csv, cases.csv, cases.parquet; history run {run.run_id}")
     sys.stdout.write("\n".join(lines) + "\n")       # one write: under PYTHONUNBUFFERED print() makes two,
     sys.stdout.flush()                                # and a study side by side could land between them
-    if run.failed and not run.study.expected_failures:
-        print(f"jointbench: {len(run.failed)} of {len(run.results)} cases failed (tracebacks in "
+    if failed and not run.expected_failures:
+        print(f"jointbench: {failed} of {len(run.cases)} cases failed (tracebacks in "
               f"{run.folder / 'failures.log'}); exit 1 (a study whose failures are expected says "
               f"'expected_failures: true')", file=sys.stderr)
         return 1
-    if args.strict and (len(run.failed) or n_pass < len(comp)):
+    if args.strict and (failed or n_pass < len(comp)):
         return 1
     return 0
 
