@@ -14,7 +14,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from jointbench.estimators._kbr_solve import System, _stack, r_factor
+from jointbench.estimators._kbr_solve import System, r_factor
+
+
+def _stack(x: np.ndarray) -> np.ndarray:
+    """The real parts of ``x`` over its imaginary parts: each complex equation as two real ones."""
+    return np.concatenate([x.real, x.imag])
 
 
 def posterior(system: System, weights: np.ndarray) -> tuple[float, np.ndarray]:

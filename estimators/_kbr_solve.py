@@ -30,8 +30,6 @@ import scipy.linalg
 from scipy.linalg import lapack
 from scipy import signal as sps
 
-from jointbench.estimators._kbr_predict import DENSE_LIMIT, periodic_response  # noqa: F401 - used as ks.*
-
 
 # ------------------------------------------------------------------------------------ derivatives
 def differentiators(n: int, fs: float, f_pass: float, orders: int,
@@ -200,10 +198,6 @@ def equation_system(regressors: np.ndarray, y0: np.ndarray, mask: np.ndarray, Ph
     C = np.fft.rfft(X, axis=1)[:, band].T
     T = np.stack([g * np.fft.rfft(x[:, None] * Phi, axis=0)[band] for x, g in zip(X, gains)])
     return System(F0=F0, C=C, T=T, Phi=Phi, gains=np.asarray(gains, float))
-
-
-def _stack(x: np.ndarray) -> np.ndarray:
-    return np.concatenate([x.real, x.imag])
 
 
 def r_factor(A: np.ndarray) -> np.ndarray:

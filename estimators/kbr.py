@@ -8,7 +8,7 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-from jointbench.estimators import Estimator, _kbr_posterior as kp, _kbr_solve as ks, register
+from jointbench.estimators import Estimator, _kbr_posterior as kp, _kbr_predict as kpred, _kbr_solve as ks, register
 from jointbench.estimators._multisine_lines import multisine_bins
 from jointbench.core.errors import InputError
 from jointbench.core.estimate import Estimate, Intervals, Prediction
@@ -112,7 +112,7 @@ class KBREstimate(Estimate):
         du = ks.derivatives(u - u.mean(), self.derivative)
         r = np.sum(self.b * du, axis=0)
         Dp = ks.periodic_derivative_response(len(u), self.fs, len(self.a))
-        return ks.periodic_response(self.a, r, Dp)
+        return kpred.periodic_response(self.a, r, Dp)
 
     def prediction(self, trial, index: int = 0) -> Prediction:
         """:meth:`predict` against the torque low-passed like the fit's derivatives (the response ``G`` of
