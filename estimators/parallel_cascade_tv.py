@@ -145,7 +145,7 @@ class TVParallelCascade(EnsembleEstimator):
         if not keep:                                                # the intrinsic pathway alone, refitted
             cI = rx.solve_normal(GI, bI_alone, s.rcond).reshape(M, LI)
             tqI, tqR = np.einsum("trl,tm,ml->tr", XI, Ph, cI), np.zeros_like(Yv)
-        nl, h = rx.finish(a, h, V[first:last].ravel(), s, scale, offset) if keep else (None, None)
+        nl, h = rx.finish(a, h, s, scale, offset) if keep else (None, None)
         gain = np.zeros(n)
         gain[first:last] = g
         gain[:first], gain[last:] = g[0], g[-1]
