@@ -242,6 +242,8 @@ class ParallelCascade(Estimator):
     def _intrinsic(self, sv: np.ndarray, V: np.ndarray, b: np.ndarray, yy: float, N: int) -> tuple[np.ndarray, int]:
         """The intrinsic IRF from its normal equations (``G = V diag(sv^2) V^T``): the MDL pseudo-inverse of
         :func:`estimators._twosided.mdl_pseudo_inverse` in the singular basis, or least squares."""
+        # numerically null directions: the usual rank threshold, the number of lags times eps of the largest
+        # singular value (the MDL pseudo-inverse applies its own, stricter one)
         usable = sv > len(sv) * np.finfo(float).eps * sv.max()
         c = np.where(usable, (V.T @ b) / np.where(usable, sv, 1.0), 0.0)
         if self.settings.pseudo_inverse == "mdl":
