@@ -1,8 +1,9 @@
-"""Uncertainty, model choice and memory of the kernel-based regression (:mod:`estimators.kbr`).
+"""Noise, uncertainty, model choice and memory of the kernel-based regression (:mod:`estimators.kbr`).
 
-Pure functions on the :class:`estimators._kbr_solve.System` of a fit: the marginal likelihood of the
+Pure functions: the output noise's variance at the band bins and how it enters the equation error (the
+weights of the fit); on the :class:`estimators._kbr_solve.System` of a fit, the marginal likelihood of the
 kernel's width and scale (for ``sigma``/``gamma = auto``), the posterior covariance of the coefficients
-and the pointwise standard deviation of the stiffness, and the memory a fit plans to use.
+and the pointwise standard deviation of the stiffness; and the memory a fit plans to use.
 
 References
 ----------
@@ -14,7 +15,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from jointbench.estimators._kbr_solve import System, _stack, r_factor
+from jointbench.estimators._kbr_solve import System, r_factor
+
+
+def _stack(x: np.ndarray) -> np.ndarray:
+    """The real parts of ``x`` over its imaginary parts: each complex equation as two real ones."""
+    return np.concatenate([x.real, x.imag])
 
 
 def posterior(system: System, weights: np.ndarray) -> tuple[float, np.ndarray]:
@@ -96,3 +102,42 @@ def memory_bytes(n: int, orders: int, P: int, points: int, r: int, nk: int, line
               + 2 * P * nk * r + 3 * 2 * nk * (P * r + P + 1)  # T; stacked equations and QR
               + 200 * n + (P + 3) * n)                        # GMRES(200); the estimate's table
     return int(8 * floats + 150 * n * lines)
+
+
+# ------------------------------------------------------------------------------------------- noise
+def noise_variance(Y: np.ndarray, lines: np.ndarray, band: np.ndarray, guard: int, count: int) -> np.ndarray:
+    """Output noise variance ``E|V(k)|^2`` at the band bins from the non-excited bins.
+
+    The mean of ``|Y(j)|^2`` over the ``count`` non-excited bins ``j`` nearest to ``k`` (ties to the
+    lower bin), where bins within ``guard`` bins of an excited line (its skirt) and the DC and Nyquist
+    bins are left out.
+
+    References
+    ----------
+    van de Ruit et al. (2018), App. B: the noise variance of the measured spectra, there by their
+    ref. [52] (Lataire & Pintelon 2009), here by this local average.
+    """
+    nb = len(Y)
+    j = np.arange(1, nb - 1)
+    dist = np.min(np.abs(j[:, None] - lines[None, :]), axis=1)
+    j = j[dist > guard]
+    if len(j) < count:
+        raise ValueError(f"only {len(j)} non-excited bins are left for the noise estimate, {count} needed")
+    pos = np.searchsorted(j, band)
+    lo = np.clip(pos - count, 0, len(j) - 2 * count) if len(j) >= 2 * count else np.zeros_like(pos)
+    cand = lo[:, None] + np.arange(min(2 * count, len(j)))[None, :]
+    d = np.abs(j[cand] - band[:, None])
+    nearest = np.take_along_axis(cand, np.argsort(d, axis=1, kind="stable")[:, :count], axis=1)
+    return np.mean(np.abs(Y[j[nearest]]) ** 2, axis=1)
+
+
+def error_variance_factor(D: np.ndarray, a: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """``mean_t |D_0(k) + sum_n a_n(t) D_n(k)|^2`` over the kept samples: how the output noise enters ``E``.
+
+    ``D`` holds the band rows of the differentiator responses (orders ``0 ... Na``), ``a`` the
+    trajectories ``a_1 ... a_Na`` (``Na x N``).
+    """
+    keep = mask > 0
+    basis = np.vstack([np.ones(np.count_nonzero(keep)), a[:, keep]])
+    M = basis @ basis.T / basis.shape[1]          # second moments of (1, a_1(t), ..., a_Na(t))
+    return np.einsum("ik,ij,jk->k", D.conj(), M, D).real

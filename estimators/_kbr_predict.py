@@ -19,6 +19,15 @@ import scipy.linalg
 
 
 # -------------------------------------------------------------------------------------- prediction
+def periodic_derivative_response(n: int, fs: float, orders: int) -> np.ndarray:
+    """``(j w_k)^n`` on the ``rfft`` bins (Nyquist bin zero for odd ``n``): exact for periodic records."""
+    jw = 2j * np.pi * np.fft.rfftfreq(n, 1.0 / fs)
+    D = np.stack([jw ** k for k in range(orders + 1)])
+    if n % 2 == 0:
+        D[1::2, -1] = 0.0
+    return D
+
+
 #: longest record whose periodic solution may fall back on a dense solve (an n x n matrix, 128 MiB)
 DENSE_LIMIT = 4096
 
@@ -92,7 +101,7 @@ def periodic_response(a: np.ndarray, r: np.ndarray, Dp: np.ndarray) -> np.ndarra
     """Periodic solution ``y`` of ``y + sum_n a_n(t) y^(n) = r(t)`` on the record.
 
     Derivatives of ``y`` are the exact ones of a periodic band-limited signal (``Dp``, from
-    :func:`estimators._kbr_solve.periodic_derivative_response`). Solved by :func:`gmres` (restarted
+    :func:`periodic_derivative_response`). Solved by :func:`gmres` (restarted
     every 50 steps), right preconditioned with the time-invariant operator of the mean coefficients,
     which is diagonal in the DFT domain: ``y = M v``, and each step takes one ``rfft`` of ``v`` and one
     ``irfft`` of ``y`` and its derivatives. If it stalls short of 1e-12: a dense solve for records of at most

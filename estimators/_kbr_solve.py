@@ -30,8 +30,6 @@ import scipy.linalg
 from scipy.linalg import lapack
 from scipy import signal as sps
 
-from jointbench.estimators._kbr_predict import DENSE_LIMIT, periodic_response  # noqa: F401 - used as ks.*
-
 
 # ------------------------------------------------------------------------------------ derivatives
 def differentiators(n: int, fs: float, f_pass: float, orders: int,
@@ -97,15 +95,6 @@ def differentiators(n: int, fs: float, f_pass: float, orders: int,
 def derivatives(x: np.ndarray, D: np.ndarray) -> np.ndarray:
     """``D_n x`` for every row of ``D`` (shape ``(len(D), len(x))``)."""
     return np.fft.irfft(np.fft.rfft(x)[None, :] * D, len(x), axis=1)
-
-
-def periodic_derivative_response(n: int, fs: float, orders: int) -> np.ndarray:
-    """``(j w_k)^n`` on the ``rfft`` bins (Nyquist bin zero for odd ``n``): exact for periodic records."""
-    jw = 2j * np.pi * np.fft.rfftfreq(n, 1.0 / fs)
-    D = np.stack([jw ** k for k in range(orders + 1)])
-    if n % 2 == 0:
-        D[1::2, -1] = 0.0
-    return D
 
 
 # ----------------------------------------------------------------------------------------- kernel
@@ -200,10 +189,6 @@ def equation_system(regressors: np.ndarray, y0: np.ndarray, mask: np.ndarray, Ph
     C = np.fft.rfft(X, axis=1)[:, band].T
     T = np.stack([g * np.fft.rfft(x[:, None] * Phi, axis=0)[band] for x, g in zip(X, gains)])
     return System(F0=F0, C=C, T=T, Phi=Phi, gains=np.asarray(gains, float))
-
-
-def _stack(x: np.ndarray) -> np.ndarray:
-    return np.concatenate([x.real, x.imag])
 
 
 def r_factor(A: np.ndarray) -> np.ndarray:
@@ -326,24 +311,156 @@ def solve_weighted(system: System, weights: np.ndarray) -> tuple[np.ndarray, np.
     return x[:P], x[P:].reshape(P, r), float(res @ res + x[P:] @ x[P:])
 
 
-def error(system: System, c: np.ndarray, z: np.ndarray) -> np.ndarray:
-    """``E(k)`` on the band for constants ``c`` and feature weights ``z``."""
-    return system.F0 + system.C @ c + np.einsum("pkr,pr->k", system.T, z)
+#: most halvings of a Gauss-Newton step in :func:`step_length` before :func:`refine` gives up: the step is
+#: then 2^-30 (about 1e-9) of the Gauss-Newton step, and a direction that does not lower the cost that close
+#: to the current point is not a descent direction at working precision (the fits of tests/test_kbr.py
+#: halve at most twice)
+MAX_HALVINGS = 30
+#: the longest step :func:`step_length` tries, in Gauss-Newton steps: it doubles the step while the cost keeps
+#: falling (long curved valleys), up to this bound on how far the linearisation is trusted (the fits of
+#: tests/test_kbr.py go to 8 at most)
+MAX_STEP = 64.0
 
 
-def refine(system: System, Db: np.ndarray, mask: np.ndarray, sv2: np.ndarray, c: np.ndarray, z: np.ndarray,
-           iterations: int, tolerance: float) -> tuple[np.ndarray, np.ndarray, float, int]:
-    """Gauss-Newton minimisation of eq. B.1 itself, ``sum_k |E(k)|^2 / sigma_E^2(k, a) + sum ||z||^2``.
+class B1Cost:
+    """Eq. B.1 itself, ``sum_k |E(k)|^2 / sigma_E^2(k, a) + sum ||z||^2``, as a function of ``x = [c, z]``.
 
     ``sigma_E^2(k, a) = sv2(k) q_k(a)``, ``q_k = mean_t |A(k, t)|^2``, ``A(k, t) = D_0(k) + sum_n
     a_n(t) D_n(k)`` over the kept samples (``Db``: band rows of the responses of orders ``0 ... Na``;
-    ``a_n`` are the first ``Na`` coefficients). Each step linearises the residuals ``E / sigma_E``
-    (the derivative of ``q_k`` included) and solves the linear ridge problem for the new ``(c, z)``
-    with :func:`ridge_solve`. The residuals are first rotated by the unit phase ``conj(Abar)/|Abar|``
-    (``Abar = mean_t A``), which leaves the cost unchanged and makes them the output error
-    ``(Y - B/A U) / sqrt(sv2)`` when ``A`` is time-invariant. The step is halved until the cost
-    decreases, or doubled while it keeps decreasing (long curved valleys). Stops when the cost
-    decreases by less than ``tolerance * max(cost, 1)`` or after ``iterations`` steps.
+    ``a_n`` are the first ``Na`` coefficients). The arrays every evaluation shares are formed once here.
+
+    Parameters
+    ----------
+    system : System
+        The equation error of the fit.
+    Db : ndarray, complex (Na + 1, nk)
+        Band rows of the differentiator responses of orders ``0 ... Na``.
+    mask : ndarray (N,)
+        1 on the kept samples.
+    sv2 : ndarray (nk,)
+        ``(N_kept / N) sigma_V^2(k)`` on the band.
+
+    References
+    ----------
+    van de Ruit et al. (2018), eqs. 10 and B.1; App. B for ``sigma_E^2`` depending on the coefficients.
+    """
+
+    def __init__(self, system: System, Db: np.ndarray, mask: np.ndarray, sv2: np.ndarray):
+        self.system, self.Db, self.sv2 = system, Db, sv2
+        self.na = len(Db) - 1
+        self.P, self.nk, self.r = system.T.shape
+        self.nu = self.P + self.P * self.r
+        self.Pk = system.Phi[mask > 0]
+        self.nt = self.Pk.shape[0]
+        self.m = self.Pk.mean(axis=0)
+        self.rows = system.rows
+        self.Dn = Db[1:]                                   # (na, nk): D_1 ... D_Na
+        # A depends on the c_n and z_n of the a_n (n < na): the first na unknowns and the na r from P
+        self.DnR, self.DnI = np.ascontiguousarray(self.Dn.real), np.ascontiguousarray(self.Dn.imag)
+        self.gm = system.gains[:self.na, None] * self.m[None, :]
+        # q_k = sum_ij M_ij Re(conj(D_i(k)) D_j(k)) for the second moments M of (1, a_1(t), ..., a_Na(t))
+        self.DD = (Db.conj()[:, None, :] * Db[None, :, :]).real.reshape((self.na + 1) ** 2, self.nk)
+
+    def denominators(self, x: np.ndarray) -> np.ndarray:
+        """``a_n(t)`` on the kept samples for the unknowns ``x`` (``Na x N_kept``)."""
+        na, P, r = self.na, self.P, self.r
+        return x[:na, None] + self.system.gains[:na, None] * (x[P:P + na * r].reshape(na, r) @ self.Pk.T)
+
+    def parts(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+        """``a_n(t)``, ``q_k``, ``E(k)`` and the cost at ``x``."""
+        a = self.denominators(x)
+        basis = np.vstack([np.ones(self.nt), a])
+        q = (basis @ basis.T / self.nt).ravel() @ self.DD
+        E = self.system.F0 + x @ self.rows
+        P = self.P
+        return a, q, E, float(np.sum((E.real ** 2 + E.imag ** 2) / (self.sv2 * q)) + x[P:] @ x[P:])
+
+    def along(self, a: np.ndarray, q: np.ndarray, E: np.ndarray, x: np.ndarray, dx: np.ndarray):
+        """The cost at ``x + s dx`` as a function of ``s`` (``a, q, E`` of :meth:`parts` at ``x``): ``E`` is
+        affine in ``s``, ``q`` quadratic."""
+        nt, DD, sv2, P = self.nt, self.DD, self.sv2, self.P
+        dE = dx @ self.rows
+        da = self.denominators(dx)
+        basis, dbasis = np.vstack([np.ones(nt), a]), np.vstack([np.zeros(nt), da])
+        M1 = basis @ dbasis.T / nt
+        q1 = (M1 + M1.T).ravel() @ DD
+        q2 = (dbasis @ dbasis.T / nt).ravel() @ DD
+        z, dz = x[P:], dx[P:]
+
+        def cost(s):
+            Es = E + s * dE
+            return float(np.sum((Es.real ** 2 + Es.imag ** 2) / (sv2 * (q + s * (q1 + s * q2))))
+                         + (z + s * dz) @ (z + s * dz))
+        return cost
+
+    def linearise(self, x: np.ndarray, a: np.ndarray, q: np.ndarray, E: np.ndarray, Jt: np.ndarray) -> None:
+        """The Gauss-Newton model at ``x`` into ``Jt`` (complex, ``(nu + 1) x nk``): the Jacobian of the
+        rotated, whitened residuals (rows ``0 ... nu - 1``) and the right-hand side ``J x - w`` (row ``nu``)
+        whose least-squares solution is the next ``x``. The real and imaginary parts of each bin are two
+        equations, interleaved in the float view.
+
+        The residuals are rotated by the unit phase ``phi = conj(Abar)/|Abar|`` (``Abar = mean_t A``), which
+        leaves the cost unchanged: for a time-invariant ``A`` this is the output error
+        ``(Y - B/A U)/sqrt(sv2)``, so bins without input carry no spurious curvature into the model.
+        """
+        na, P, r, nu, nt, Dn = self.na, self.P, self.r, self.nu, self.nt, self.Dn
+        g = self.system.gains
+        Jv = Jt.view(float).reshape(nu + 1, self.nk, 2)   # (real, imaginary) of each entry
+        Abar = self.Db[0] + (a.mean(axis=1) @ Dn if na else 0.0)
+        absA = np.maximum(np.abs(Abar), 1e-300)
+        phi = Abar.conj() / absA
+        sd = np.sqrt(self.sv2 * q)
+        w = E * phi / sd                          # the rotated, whitened residuals
+        # J = (phi CT + E dphi - E phi dq / (2 q)) / sd. The last two terms only touch the columns of the
+        # a_n, where with w = E phi / sd they are -w (dq / (2 q) + 1j Im(phi dAbar) / |Abar|):
+        # dq/dc_n = 2 Re(conj(Abar) D_n) = 2 |Abar| Re(phi D_n), dq/dz_nj = 2 g_n Re(D_n conj(mean_t A Phi_j)),
+        # Im(phi dAbar/dz_nj) = g_n mean_t Phi_j Im(phi D_n)
+        np.multiply(self.rows, phi / sd, out=Jt[:nu])
+        if na:
+            APhi = np.outer(self.m, self.Db[0]) + (a @ self.Pk / nt).T @ Dn
+            v = phi * Dn
+            Xc = v.imag / absA
+            Rc = v.real * (absA / q)
+            Rz = (g[:na, None, None] / q) * (self.DnR[:, None, :] * APhi.real + self.DnI[:, None, :] * APhi.imag)
+            Xz = self.gm[:, :, None] * Xc[:, None, :]
+            wr, wi = w.real, w.imag
+            Jc, Jz = Jv[:na], Jv[P:P + na * r].reshape(na, r, self.nk, 2)
+            Jc[..., 0] -= wr * Rc - wi * Xc
+            Jc[..., 1] -= wr * Xc + wi * Rc
+            Jz[..., 0] -= wr * Rz - wi * Xz
+            Jz[..., 1] -= wr * Xz + wi * Rz
+        Jt[nu] = x @ Jt[:nu] - w
+
+
+def step_length(cost_at, cost: float) -> float | None:
+    """The step along a Gauss-Newton direction: 1, halved until the cost ``cost_at(step)`` is at most ``cost``
+    (at most :data:`MAX_HALVINGS` times; None when it never is), or doubled while it keeps decreasing (long
+    curved valleys, up to :data:`MAX_STEP`)."""
+    step = 1.0
+    for _ in range(MAX_HALVINGS):
+        trial = cost_at(step)
+        if trial <= cost:
+            break
+        step /= 2
+    else:
+        return None
+    while step >= 1.0 and step < MAX_STEP:
+        longer = cost_at(2 * step)
+        if longer >= trial:
+            break
+        step, trial = 2 * step, longer
+    return step
+
+
+def refine(cost: B1Cost, c: np.ndarray, z: np.ndarray, iterations: int,
+           tolerance: float) -> tuple[np.ndarray, np.ndarray, float, int]:
+    """Gauss-Newton minimisation of eq. B.1 itself (:class:`B1Cost`) from the constants ``c`` and feature
+    weights ``z``.
+
+    Each step linearises the residuals ``E / sigma_E`` (the derivative of ``q_k`` included,
+    :meth:`B1Cost.linearise`) and solves the linear ridge problem for the new ``(c, z)`` with
+    :func:`ridge_solve_stacked`; the step along it is :func:`step_length`'s. Stops when the cost decreases
+    by less than ``tolerance * max(cost, 1)``, when no step lowers it, or after ``iterations`` steps.
 
     Returns
     -------
@@ -359,136 +476,20 @@ def refine(system: System, Db: np.ndarray, mask: np.ndarray, sv2: np.ndarray, c:
     van de Ruit et al. (2018), eqs. 10 and B.1 (the estimator is their minimiser); App. B for
     ``sigma_E^2`` depending on the coefficients.
     """
-    na = len(Db) - 1
-    P, nk, r = system.T.shape
-    nu = P + P * r
-    keep = mask > 0
-    Pk = system.Phi[keep]
-    nt = Pk.shape[0]
-    g = system.gains
-    m = Pk.mean(axis=0)
-    CTt = system.rows
-    Dn = Db[1:]                                   # (na, nk): D_1 ... D_Na
-    # A depends on the c_n and z_n of the a_n (n < na): the first na unknowns and the na r from P
-    DnR, DnI = np.ascontiguousarray(Dn.real), np.ascontiguousarray(Dn.imag)
-    gm = g[:na, None] * m[None, :]
-    # q_k = sum_ij M_ij Re(conj(D_i(k)) D_j(k)) for the second moments M of (1, a_1(t), ..., a_Na(t))
-    DD = (Db.conj()[:, None, :] * Db[None, :, :]).real.reshape((na + 1) ** 2, nk)
-
-    def parts(x):
-        a = x[:na, None] + g[:na, None] * (x[P:P + na * r].reshape(na, r) @ Pk.T)   # a_n(t) on kept samples
-        basis = np.vstack([np.ones(nt), a])
-        q = (basis @ basis.T / nt).ravel() @ DD
-        E = system.F0 + x @ CTt
-        return a, q, E, float(np.sum((E.real ** 2 + E.imag ** 2) / (sv2 * q)) + x[P:] @ x[P:])
-
-    def along(a, q, E, x, dx):
-        """The cost at ``x + s dx`` as a function of ``s``: ``E`` is affine in ``s``, ``q`` quadratic."""
-        dE = dx @ CTt
-        da = dx[:na, None] + g[:na, None] * (dx[P:P + na * r].reshape(na, r) @ Pk.T)
-        basis, dbasis = np.vstack([np.ones(nt), a]), np.vstack([np.zeros(nt), da])
-        M1 = basis @ dbasis.T / nt
-        q1 = (M1 + M1.T).ravel() @ DD
-        q2 = (dbasis @ dbasis.T / nt).ravel() @ DD
-        z, dz = x[P:], dx[P:]
-
-        def cost(s):
-            Es = E + s * dE
-            return float(np.sum((Es.real ** 2 + Es.imag ** 2) / (sv2 * (q + s * (q1 + s * q2))))
-                         + (z + s * dz) @ (z + s * dz))
-        return cost
-
+    P, r = cost.P, cost.r
     x = np.concatenate([c, z.ravel()])
-    a, q, E, cost = parts(x)
-    # the Jacobian and right-hand side of the stacked real equations as complex rows (nu + 1, nk): the
-    # real and imaginary parts of each bin are two equations, interleaved in the float view
-    Jt = np.empty((nu + 1, nk), complex)
-    Jv = Jt.view(float).reshape(nu + 1, nk, 2)    # (real, imaginary) of each entry
+    a, q, E, value = cost.parts(x)
+    Jt = np.empty((cost.nu + 1, cost.nk), complex)
     done = 0
     for done in range(1, iterations + 1):
-        # residuals rotated by the unit phase phi = conj(Abar)/|Abar| (the cost is unchanged): for a
-        # time-invariant A this is the output error (Y - B/A U)/sqrt(sv2), so bins without input carry
-        # no spurious curvature into the Gauss-Newton model
-        Abar = Db[0] + (a.mean(axis=1) @ Dn if na else 0.0)
-        absA = np.maximum(np.abs(Abar), 1e-300)
-        phi = Abar.conj() / absA
-        sd = np.sqrt(sv2 * q)
-        w = E * phi / sd                          # the rotated, whitened residuals
-        # J = (phi CT + E dphi - E phi dq / (2 q)) / sd. The last two terms only touch the columns of the
-        # a_n, where with w = E phi / sd they are -w (dq / (2 q) + 1j Im(phi dAbar) / |Abar|):
-        # dq/dc_n = 2 Re(conj(Abar) D_n) = 2 |Abar| Re(phi D_n), dq/dz_nj = 2 g_n Re(D_n conj(mean_t A Phi_j)),
-        # Im(phi dAbar/dz_nj) = g_n mean_t Phi_j Im(phi D_n)
-        np.multiply(CTt, phi / sd, out=Jt[:nu])
-        if na:
-            APhi = np.outer(m, Db[0]) + (a @ Pk / nt).T @ Dn
-            v = phi * Dn
-            Xc = v.imag / absA
-            Rc = v.real * (absA / q)
-            Rz = (g[:na, None, None] / q) * (DnR[:, None, :] * APhi.real + DnI[:, None, :] * APhi.imag)
-            Xz = gm[:, :, None] * Xc[:, None, :]
-            wr, wi = w.real, w.imag
-            Jc, Jz = Jv[:na], Jv[P:P + na * r].reshape(na, r, nk, 2)
-            Jc[..., 0] -= wr * Rc - wi * Xc
-            Jc[..., 1] -= wr * Xc + wi * Rc
-            Jz[..., 0] -= wr * Rz - wi * Xz
-            Jz[..., 1] -= wr * Xz + wi * Rz
-        Jt[nu] = x @ Jt[:nu] - w
+        cost.linearise(x, a, q, E, Jt)
         dx = ridge_solve_stacked(Jt.view(float).T, P) - x
-        cost_at = along(a, q, E, x, dx)
-        step = 1.0
-        for _ in range(30):                       # halve until the cost decreases ...
-            trial = cost_at(step)
-            if trial <= cost:
-                break
-            step /= 2
-        else:
+        step = step_length(cost.along(a, q, E, x, dx), value)
+        if step is None:
             break
-        while step >= 1.0 and step < 64.0:       # ... or double while it keeps decreasing (long valleys)
-            longer = cost_at(2 * step)
-            if longer >= trial:
-                break
-            step, trial = 2 * step, longer
         x = x + step * dx
-        previous = cost
-        a, q, E, cost = parts(x)
-        if previous - cost <= tolerance * max(cost, 1.0):
+        previous = value
+        a, q, E, value = cost.parts(x)
+        if previous - value <= tolerance * max(value, 1.0):
             break
-    return x[:P], x[P:].reshape(P, r), cost, done
-
-
-def noise_variance(Y: np.ndarray, lines: np.ndarray, band: np.ndarray, guard: int, count: int) -> np.ndarray:
-    """Output noise variance ``E|V(k)|^2`` at the band bins from the non-excited bins.
-
-    The mean of ``|Y(j)|^2`` over the ``count`` non-excited bins ``j`` nearest to ``k`` (ties to the
-    lower bin), where bins within ``guard`` bins of an excited line (its skirt) and the DC and Nyquist
-    bins are left out.
-
-    References
-    ----------
-    van de Ruit et al. (2018), App. B: the noise variance of the measured spectra, there by their
-    ref. [52] (Lataire & Pintelon 2009), here by this local average.
-    """
-    nb = len(Y)
-    j = np.arange(1, nb - 1)
-    dist = np.min(np.abs(j[:, None] - lines[None, :]), axis=1)
-    j = j[dist > guard]
-    if len(j) < count:
-        raise ValueError(f"only {len(j)} non-excited bins are left for the noise estimate, {count} needed")
-    pos = np.searchsorted(j, band)
-    lo = np.clip(pos - count, 0, len(j) - 2 * count) if len(j) >= 2 * count else np.zeros_like(pos)
-    cand = lo[:, None] + np.arange(min(2 * count, len(j)))[None, :]
-    d = np.abs(j[cand] - band[:, None])
-    nearest = np.take_along_axis(cand, np.argsort(d, axis=1, kind="stable")[:, :count], axis=1)
-    return np.mean(np.abs(Y[j[nearest]]) ** 2, axis=1)
-
-
-def error_variance_factor(D: np.ndarray, a: np.ndarray, mask: np.ndarray) -> np.ndarray:
-    """``mean_t |D_0(k) + sum_n a_n(t) D_n(k)|^2`` over the kept samples: how the output noise enters ``E``.
-
-    ``D`` holds the band rows of the differentiator responses (orders ``0 ... Na``), ``a`` the
-    trajectories ``a_1 ... a_Na`` (``Na x N``).
-    """
-    keep = mask > 0
-    basis = np.vstack([np.ones(np.count_nonzero(keep)), a[:, keep]])
-    M = basis @ basis.T / basis.shape[1]          # second moments of (1, a_1(t), ..., a_Na(t))
-    return np.einsum("ik,ij,jk->k", D.conj(), M, D).real
+    return x[:P], x[P:].reshape(P, r), value, done

@@ -42,13 +42,29 @@ from jointbench.core.schema import param
 
 Nonlinearity = Literal["rectifier", "polynomial", "linear"]
 
+#: a delay bound within this many samples of a whole sample counts as that sample (:func:`delays`): the
+#: rounding of ``seconds x fs`` (``0.07 s x 100 Hz = 7.000000000000001``), far below any delay a setting means
+SAMPLE_ROUNDING = 1e-9
+#: :func:`solve_normal` leaves out the directions whose eigenvalue (of the unit-diagonal scaled matrix) is below
+#: this fraction of the largest: eigenvalues are computed to about ``eps`` (2.2e-16) times the largest, so below
+#: about 5000 ``eps`` a direction is rounding, not data (singular values of the scaled regressors below 1e-6 of
+#: the largest)
+RCOND = 1e-12
+#: most alternations of :func:`hammerstein` (``h_R`` given ``a``, ``a`` given ``h_R``): a bound on the work, not
+#: the stopping rule (the test suite's polynomial cascades stop by :data:`ALS_RTOL` after 5 ... 12)
+ALS_ITERATIONS = 100
+#: :func:`hammerstein` stops when one alternation lowers the residual by at most this fraction of it: about 5000
+#: times its rounding (``eps``, 2.2e-16), and far below what a VAF shows
+ALS_RTOL = 1e-12
+
 
 @dataclasses.dataclass(frozen=True)
 class ReflexSettings:
     """The reflex pathway and the parallel-cascade iteration (mixed into an estimator's settings)."""
 
-    delay: float | None = param(None, unit="s", ge=0, doc="reflex delay; none: the best of delay_min ... delay_max "
-                                                          "(every sample), by the total VAF")
+    delay: float | None = param(None, unit="s", ge=0, doc="reflex delay; none: the one of delay_min ... delay_max "
+                                                          "(every sample) of least minimum description length of "
+                                                          "the joint fit of both pathways")
     delay_min: float = param(0.02, unit="s", ge=0, doc="shortest delay tried")
     delay_max: float = param(0.1, unit="s", ge=0, doc="longest delay tried")
     reflex_window: float = param(0.5, unit="s", gt=0, doc="lag window of the reflex IRF, from lag 0 (zero before "
@@ -84,7 +100,7 @@ def delays(name: str, s: ReflexSettings, fs: float) -> tuple[np.ndarray, int]:
     else:
         if s.delay_min > s.delay_max:
             raise InputError(f"{name}: delay_min = {s.delay_min:g} s is above delay_max = {s.delay_max:g} s")
-        lo, hi = int(math.ceil(s.delay_min * fs - 1e-9)), int(math.floor(s.delay_max * fs + 1e-9))
+        lo, hi = int(math.ceil(s.delay_min * fs - SAMPLE_ROUNDING)), int(math.floor(s.delay_max * fs + SAMPLE_ROUNDING))
         longest = s.delay_max
         if hi < lo:
             raise InputError(f"{name}: no whole sample between delay_min = {s.delay_min:g} s and delay_max = "
@@ -139,7 +155,7 @@ def lag_matrix(x: np.ndarray, d: int, L: int) -> np.ndarray:
     return win[..., ::-1]
 
 
-def solve_normal(G: np.ndarray, b: np.ndarray, rcond: float = 1e-12) -> np.ndarray:
+def solve_normal(G: np.ndarray, b: np.ndarray, rcond: float = RCOND) -> np.ndarray:
     """``G c = b`` for a symmetric positive semidefinite ``G``: eigen-decomposition of the unit-diagonal
     scaled matrix, directions below ``rcond`` times the largest left out (minimum-norm solution)."""
     scale = np.sqrt(np.maximum(np.diag(G), 1e-300))
@@ -154,7 +170,8 @@ def hammerstein(G: np.ndarray, b: np.ndarray, p: int, L: int) -> tuple[np.ndarra
 
     The products ``c = a (x) h_R`` by least squares, their best rank-one approximation (SVD), then
     alternating least squares on ``h_R`` given ``a`` and ``a`` given ``h_R`` (each a small system formed
-    from ``G``: no pass over the data) until the residual stops falling. ``p = 1``: ``a = 1``."""
+    from ``G``: no pass over the data) until the residual stops falling (:data:`ALS_RTOL`, at most
+    :data:`ALS_ITERATIONS` alternations). ``p = 1``: ``a = 1``."""
     c = solve_normal(G, b)
     if p == 1:
         return np.ones(1), c
@@ -163,26 +180,31 @@ def hammerstein(G: np.ndarray, b: np.ndarray, p: int, L: int) -> tuple[np.ndarra
     G4 = G.reshape(p, L, p, L)
     B = b.reshape(p, L)
     prev = np.inf
-    for _ in range(100):
+    for _ in range(ALS_ITERATIONS):
         h = solve_normal(np.einsum("j,jkil,i->kl", a, G4, a), a @ B)
         a = solve_normal(np.einsum("k,jkil,l->ji", h, G4, h), B @ h)
         c = np.outer(a, h).ravel()
         rss_part = float(c @ G @ c - 2 * c @ b)          # the residual up to the constant y'y
-        if prev - rss_part <= 1e-12 * abs(rss_part):
+        if prev - rss_part <= ALS_RTOL * abs(rss_part):
             break
         prev = rss_part
     return a, h
 
 
-def finish(a: np.ndarray, h: np.ndarray, v: np.ndarray, s: ReflexSettings, scale: float,
-           offset_cols: np.ndarray) -> tuple[StaticNonlinearity, np.ndarray]:
-    """The fitted static nonlinearity (normalized: :func:`_normalized`) and the reflex IRF."""
+def finish(a: np.ndarray, h: np.ndarray, s: ReflexSettings, scale: float,
+           offset_cols: np.ndarray | None = None) -> tuple[StaticNonlinearity, np.ndarray]:
+    """The fitted static nonlinearity (normalized: :func:`_normalized`) and the reflex IRF.
+
+    ``offset_cols`` is the mean of each basis function over the fitted rows, removed from the pathway's
+    input; None: none removed (the time-varying pathway, whose gain carries the mean,
+    :mod:`estimators.parallel_cascade_tv`)."""
+    offset_cols = np.zeros(len(a)) if offset_cols is None else offset_cols
     if len(a) > 1:
-        a, h = _normalized(a, h, v, s, scale, offset_cols)
+        a, h = _normalized(a, h, s, scale, offset_cols)
     return StaticNonlinearity(s, a, scale, float(offset_cols @ a)), h
 
 
-def _normalized(a: np.ndarray, h: np.ndarray, v: np.ndarray, s: ReflexSettings, scale: float,
+def _normalized(a: np.ndarray, h: np.ndarray, s: ReflexSettings, scale: float,
                 offset: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Resolve the cascade's scale: N spans as much over -v_max ... v_max as a half-wave rectifier does
     (v_max; so that h_R carries the pathway's gain, in N·m per rad/s, as with the rectifier), and h_R

@@ -9,6 +9,7 @@ from numpy.lib.stride_tricks import sliding_window_view
 from scipy import signal as sps
 
 from jointbench.estimators import register
+from jointbench.estimators.spectral import significance, taper_spread
 from jointbench.estimators._tvirf import EnsembleEstimator, centred, fill_invalid
 from jointbench.core.ensemble import Ensemble
 from jointbench.core.errors import InputError
@@ -25,25 +26,6 @@ MAIN_LOBE = 2
 _KNOTS_AT_ONCE = 32
 #: numbers (window samples x realizations x windows) transformed at once: bounds memory at about 100 MB
 _CHUNK_NUMBERS = 4_000_000
-
-
-def significance(n_avg: float) -> float:
-    """Squared coherence exceeded with probability 0.05 under zero coherence for ``n_avg`` averages,
-    ``1 - 0.05^(1/(n_avg - 1))`` (Carter, Knapp & Nuttall 1973); 1 for a single average."""
-    return 1.0 if n_avg <= 1 else 1.0 - 0.05 ** (1.0 / (n_avg - 1.0))
-
-
-def taper_spread(taper: np.ndarray, fs: float) -> float:
-    """Second moment ``sigma_w^2`` (rad^2/s^2) of the taper's spectral window ``|W(w)|^2``:
-    ``int |w'(t)|^2 dt / int w(t)^2 dt``, by differences (``4 pi^2 / (3 T^2)`` for a Hann window of ``T`` s).
-
-    The ensemble cross-spectrum of a window is the ``|W|^2``-weighted average of ``H`` around each bin
-    (for an input spectrum flat across the spectral window), so a quadratic term ``-I w^2`` comes out as
-    ``-I (w^2 + sigma_w^2)``: the resolution bias of spectral estimates, ``H'' B_e^2``-type (Bendat &
-    Piersol 2010, Sec. 8.5.1), here exact because the impedance is a polynomial of degree two in ``w``.
-    """
-    d = np.diff(np.asarray(taper, float)) * fs
-    return float(d @ d / fs) / float(taper @ taper / fs)
 
 
 def ibk_fit(w: np.ndarray, H: np.ndarray, g2: np.ndarray,
@@ -296,6 +278,49 @@ class EnsembleSpectral(EnsembleEstimator):
         s = self.settings
         fs, n, R = ens.fs, ens.n, ens.size
         W = int(round(s.window * fs))
+        f_all, in_range, need = self._grid(ens, W)
+        step, starts, P = self._windows(ens, W)
+        U, Y = centred(self.name, ens, s.remove_mean)
+        excited, band = self._input_band(ens, U, W, f_all, in_range, need)
+        suu, syy, suy = self._spectra(U, Y, W, starts, excited, s)
+        if P:
+            suu, syy, suy = (_moving_sum(x, 2 * P + 1) for x in (suu, syy, suy))
+            starts = starts[P:len(starts) - P]
+        H, coh = frf_and_coherence(suu, syy, suy)
+        n_avg = R * (1.0 + 4.0 * s.pool / s.window)
+        sig = self._coherent(ens, coh, band[excited], n_avg, need)
+        used = excited.copy()                     # on the window's grid: the frequencies kept (excited, coherent)
+        used[excited] = sig
+        H, coh, suu, in_band = H[:, sig], coh[:, sig], suu[:, sig], band[excited][sig]
+        freq = f_all[used]
+        # windows without input (e.g. a quiet start): interpolated from their neighbours, not valid
+        power = suu[:, in_band].sum(axis=1)
+        good = power > 1e-6 * np.median(power)
+        params, k0, ok = self._stiffness(H[:, in_band], coh[:, in_band], 2 * np.pi * freq[in_band], W, fs)
+        good &= ok
+        if good.sum() < 1:
+            raise InputError(f"{self.name}: no window of '{ens.name}' has input enough to fit; the input is "
+                             f"nearly zero")
+        centres = starts + W // 2
+        H, coh, k0 = (_from_good_windows(x, good) for x in (H, coh, k0))
+        params = {k: _from_good_windows(v, good) for k, v in params.items()}
+        h, filled = _between_centres(self._irfs(H, k0, used, W), centres, n)   # lags -W/2 ... W/2 - 1
+        lags = np.fft.fftshift(np.fft.fftfreq(W, 1.0 / W)).round().astype(int)
+        info = {"realizations": R, "window_samples": W, "windows": len(centres), "step_samples": step,
+                "pooled_windows": 2 * P + 1, "frequencies": f"{len(freq)} ({freq[0]:g} ... {freq[-1]:g} Hz)",
+                "fitted": f"{int(in_band.sum())} frequencies ({freq[in_band][0]:g} ... {freq[in_band][-1]:g} Hz)",
+                "significant_coherence": f"{int(sig.sum())} of {int(excited.sum())} excited frequencies (95 %, "
+                                         f"{n_avg:.3g} averages)",
+                "stiffness_from": "K of the I-B-K fit" if s.stiffness == "ibk" else f"|H({freq[in_band][0]:g} Hz)|"}
+        return EnsembleSpectralEstimate(lags=lags, h=fill_invalid(h, filled), fs=fs, time=ens.time,
+                                        valid=_valid(centres, good, n), estimator=self.name, info=info, freq=freq,
+                                        centres=centres, H=H, coherence=coh, params=params, fitted=in_band)
+
+    def _grid(self, ens: Ensemble, W: int) -> tuple[np.ndarray, np.ndarray, int]:
+        """The window's frequency grid, its bins in ``fmin ... fmax`` (0 Hz and the Nyquist bin excluded) and
+        how many the stiffness needs; :class:`InputError` for too few realizations, a window too short or
+        longer than the records, or too few bins in the band."""
+        s, fs, n, R = self.settings, ens.fs, ens.n, ens.size
         if R < 2:
             raise InputError(f"{self.name}: ensemble '{ens.name}' has {R} realization; the ensemble spectra need "
                              f"at least 2 (with one the coherence is 1 by construction)")
@@ -312,21 +337,33 @@ class EnsembleSpectral(EnsembleEstimator):
                              f"(resolution {fs / W:g} Hz) lie in fmin ... fmax = {s.fmin:g} ... "
                              f"{s.fmax:g} Hz below the Nyquist frequency; need at least {need}: widen the band or "
                              f"lengthen 'window'")
-        in_range = band.copy()
+        return f_all, band, need
+
+    def _windows(self, ens: Ensemble, W: int) -> tuple[int, np.ndarray, int]:
+        """The step between windows (samples), the windows' first samples and the windows pooled on each side;
+        :class:`InputError` when the pool spans more windows than the record has."""
+        s, fs, n = self.settings, ens.fs, ens.n
         step = 1 if s.step is None else max(1, int(round(s.step * fs)))
         starts = np.arange(0, n - W + 1, step)
         P = int(round(s.pool * fs / step))                   # pooled windows on each side
         if len(starts) < 2 * P + 1:
             raise InputError(f"{self.name}: pool = {s.pool:g} s spans {2 * P + 1} windows, more than the {len(starts)} "
                              f"of the record; shorten 'pool'")
-        U, Y = centred(self.name, ens, s.remove_mean)
+        return step, starts, P
+
+    def _input_band(self, ens: Ensemble, U: np.ndarray, W: int, f_all: np.ndarray, in_range: np.ndarray,
+                    need: int) -> tuple[np.ndarray, np.ndarray]:
+        """The bins where the input has power (estimated and predicted), and those of ``in_range`` well inside
+        the input's band (fitted: :data:`INPUT_FLOOR`, :data:`MAIN_LOBE`); :class:`InputError` when fewer than
+        ``need`` bins are both."""
+        s, fs = self.settings, ens.fs
         # the band of the input: bins with power (mean over half-overlapping windows), relative to the largest
         p = self._input_power(U, W, s)
         excited = (f_all > 0) & (f_all < fs / 2) & (p > 1e-6 * p[1:].max())
         strong = p >= INPUT_FLOOR * p[1:].max()
         strong[0] = True            # 0 Hz is removed by the detrending, not missing; beyond 0 Hz: the mirror image
         lobe = sliding_window_view(np.pad(strong, MAIN_LOBE, mode="reflect"), 2 * MAIN_LOBE + 1).all(axis=1)
-        band &= strong & lobe       # fitted: well inside the input's band (predicted: wherever it has power)
+        band = in_range & strong & lobe   # fitted: well inside the input's band (predicted: wherever it has power)
         if (excited & band).sum() < need:
             top = f_all[p > 1e-3 * p[1:].max()]
             where = f"{top.min():g} ... {top.max():g} Hz" if len(top) else "nowhere"
@@ -334,78 +371,33 @@ class EnsembleSpectral(EnsembleEstimator):
                              f"{int(in_range.sum())} frequencies in fmin ... fmax = {s.fmin:g} ... {s.fmax:g} Hz (its "
                              f"power lies {where}); need at least {need}: move the band to where the perturbation "
                              f"excites the joint")
-        suu, syy, suy = self._spectra(U, Y, W, starts, excited, s)
-        if P:
-            suu, syy, suy = (_moving_sum(x, 2 * P + 1) for x in (suu, syy, suy))
-            starts = starts[P:len(starts) - P]
-        tiny = np.finfo(float).tiny
-        live = suu > 1e-12 * suu.max()
-        H = np.where(live, suy / np.where(live, suu, 1.0), 0.0)
-        den = suu * syy
-        coh = np.clip(np.where(live & (den > tiny), np.abs(suy) ** 2 / np.where(den > tiny, den, 1.0), 0.0), 0.0, 1.0)
-        n_avg = R * (1.0 + 4.0 * s.pool / s.window)
+        return excited, band
+
+    def _coherent(self, ens: Ensemble, coh: np.ndarray, in_band: np.ndarray, n_avg: float, need: int) -> np.ndarray:
+        """The excited bins whose median squared coherence over the windows is significant (95 % for ``n_avg``
+        averages); :class:`InputError` when fewer than ``need`` of them are fitted (``in_band``)."""
+        s = self.settings
         crit = significance(n_avg)
         sig = np.median(coh, axis=0) > crit
-        in_band = band[excited]
         if (sig & in_band).sum() < need:
             raise InputError(f"{self.name}: the angle and torque of '{ens.name}' are coherent at "
                              f"{int((sig & in_band).sum())} of the {int(in_band.sum())} excited frequencies in "
                              f"{s.fmin:g} ... {s.fmax:g} Hz (median squared coherence above {crit:.2f}, the 95 % level "
                              f"of {n_avg:.3g} averages); need at least {need}")
-        used = excited.copy()                     # on the window's grid: the frequencies kept (excited, coherent)
-        used[excited] = sig
-        H, coh, suu, in_band = H[:, sig], coh[:, sig], suu[:, sig], in_band[sig]
-        freq = f_all[used]
-        # windows without input (e.g. a quiet start): interpolated from their neighbours, not valid
-        power = suu[:, in_band].sum(axis=1)
-        good = power > 1e-6 * np.median(power)
-        w = 2 * np.pi * freq[in_band]
-        params: dict[str, np.ndarray] = {}
+        return sig
+
+    def _stiffness(self, H: np.ndarray, coh: np.ndarray, w: np.ndarray, W: int,
+                   fs: float) -> tuple[dict[str, np.ndarray], np.ndarray, np.ndarray]:
+        """The stiffness of every window from its FRF ``H`` and squared coherence ``coh`` at the fitted
+        frequencies ``w`` (rad/s): ``I``, ``B``, ``K`` of the coherence-weighted fit and ``K``
+        (``stiffness = 'ibk'``), or ``|H|`` at the lowest (``'lowest'``: no parameters); and the windows where
+        it is determined."""
+        s = self.settings
         if s.stiffness == "ibk":
             spread = taper_spread(sps.get_window(s.taper, W), fs) if s.resolution == "corrected" else 0.0
-            I, B, K, ok = ibk_fit(w, H[:, in_band], coh[:, in_band], spread)
-            good &= ok
-            params = {"I": I, "B": B, "K": K}
-            k0 = K
-        else:
-            k0 = np.abs(H[:, np.flatnonzero(in_band)[0]])
-        if good.sum() < 1:
-            raise InputError(f"{self.name}: no window of '{ens.name}' has input enough to fit; the input is "
-                             f"nearly zero")
-        centres = starts + W // 2
-        idx = np.flatnonzero(good)
-        fix = lambda v: np.interp(np.arange(len(v)), idx, v[idx])      # noqa: E731 (bad windows from neighbours)
-        H = np.array([fix(H[:, j].real) + 1j * fix(H[:, j].imag) for j in range(H.shape[1])]).T
-        coh = np.array([fix(coh[:, j]) for j in range(coh.shape[1])]).T
-        params = {k: fix(v) for k, v in params.items()}
-        k0 = fix(k0)
-        h_c = self._irfs(H, k0, used, W)                              # (C, W), lags -W/2 ... W/2 - 1
-        lags = np.fft.fftshift(np.fft.fftfreq(W, 1.0 / W)).round().astype(int)
-        valid = np.zeros(n, bool)
-        valid[centres[idx[0]]:centres[idx[-1]] + 1] = True
-        nearest = np.clip(np.rint(np.interp(np.arange(n), centres, np.arange(len(centres)))).astype(int), 0,
-                          len(centres) - 1)
-        valid &= good[nearest]
-        h = np.zeros((W, n))
-        span = np.arange(centres[0], centres[-1] + 1)
-        if len(centres) == 1:
-            h[:, centres[0]] = h_c[0]
-        else:
-            pos = np.interp(span, centres, np.arange(len(centres), dtype=float))
-            i0 = np.minimum(np.floor(pos).astype(int), len(centres) - 2)
-            a = (pos - i0)[:, None]
-            h[:, span] = ((1 - a) * h_c[i0] + a * h_c[i0 + 1]).T
-        filled = np.zeros(n, bool)
-        filled[span] = True
-        info = {"realizations": R, "window_samples": W, "windows": len(centres), "step_samples": step,
-                "pooled_windows": 2 * P + 1, "frequencies": f"{len(freq)} ({freq[0]:g} ... {freq[-1]:g} Hz)",
-                "fitted": f"{int(in_band.sum())} frequencies ({freq[in_band][0]:g} ... {freq[in_band][-1]:g} Hz)",
-                "significant_coherence": f"{int(sig.sum())} of {int(excited.sum())} excited frequencies (95 %, "
-                                         f"{n_avg:.3g} averages)",
-                "stiffness_from": "K of the I-B-K fit" if s.stiffness == "ibk" else f"|H({freq[in_band][0]:g} Hz)|"}
-        return EnsembleSpectralEstimate(lags=lags, h=fill_invalid(h, filled), fs=fs, time=ens.time, valid=valid,
-                                        estimator=self.name, info=info, freq=freq, centres=centres, H=H,
-                                        coherence=coh, params=params, fitted=in_band)
+            I, B, K, ok = ibk_fit(w, H, coh, spread)
+            return {"I": I, "B": B, "K": K}, K, ok
+        return {}, np.abs(H[:, 0]), np.ones(len(H), bool)
 
     @staticmethod
     def _input_power(U, W, s) -> np.ndarray:
@@ -444,6 +436,59 @@ class EnsembleSpectral(EnsembleEstimator):
         grid[:, 0] = k0
         grid[:, powered] = H
         return np.fft.fftshift(np.fft.irfft(grid, W, axis=1), axes=1)
+
+
+def frf_and_coherence(suu: np.ndarray, syy: np.ndarray, suy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The H1 estimate ``S_uy / S_uu`` and the squared coherence ``|S_uy|^2 / (S_uu S_yy)`` (clipped to 0 ... 1)
+    from the windows' spectra; 0 at the bins whose input power is below ``1e-12`` of the largest."""
+    tiny = np.finfo(float).tiny
+    live = suu > 1e-12 * suu.max()
+    H = np.where(live, suy / np.where(live, suu, 1.0), 0.0)
+    den = suu * syy
+    coh = np.clip(np.where(live & (den > tiny), np.abs(suy) ** 2 / np.where(den > tiny, den, 1.0), 0.0), 0.0, 1.0)
+    return H, coh
+
+
+def _from_good_windows(x: np.ndarray, good: np.ndarray) -> np.ndarray:
+    """``x`` (windows along axis 0; 1-D, or 2-D real or complex) with the windows that are not ``good``
+    interpolated linearly from their good neighbours (held beyond the first and the last)."""
+    idx = np.flatnonzero(good)
+
+    def fix(v):
+        return np.interp(np.arange(len(v)), idx, v[idx])
+
+    if x.ndim == 1:
+        return fix(x)
+    if np.iscomplexobj(x):
+        return np.array([fix(x[:, j].real) + 1j * fix(x[:, j].imag) for j in range(x.shape[1])]).T
+    return np.array([fix(x[:, j]) for j in range(x.shape[1])]).T
+
+
+def _between_centres(h_c: np.ndarray, centres: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """The windows' IRFs ``h_c`` (one row per window) on the record's ``n`` samples, linear between the window
+    centres (lags x samples), and the samples so filled (the first to the last centre)."""
+    h = np.zeros((h_c.shape[1], n))
+    span = np.arange(centres[0], centres[-1] + 1)
+    if len(centres) == 1:
+        h[:, centres[0]] = h_c[0]
+    else:
+        pos = np.interp(span, centres, np.arange(len(centres), dtype=float))
+        i0 = np.minimum(np.floor(pos).astype(int), len(centres) - 2)
+        a = (pos - i0)[:, None]
+        h[:, span] = ((1 - a) * h_c[i0] + a * h_c[i0 + 1]).T
+    filled = np.zeros(n, bool)
+    filled[span] = True
+    return h, filled
+
+
+def _valid(centres: np.ndarray, good: np.ndarray, n: int) -> np.ndarray:
+    """The samples from the first to the last good window's centre whose nearest window is good."""
+    idx = np.flatnonzero(good)
+    valid = np.zeros(n, bool)
+    valid[centres[idx[0]]:centres[idx[-1]] + 1] = True
+    nearest = np.clip(np.rint(np.interp(np.arange(n), centres, np.arange(len(centres)))).astype(int), 0,
+                      len(centres) - 1)
+    return valid & good[nearest]
 
 
 def _moving_sum(x: np.ndarray, width: int) -> np.ndarray:

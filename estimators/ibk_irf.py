@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 import dataclasses
-from typing import Literal
+from typing import Literal, NamedTuple
 
 import numpy as np
 import scipy.linalg
@@ -169,49 +169,15 @@ class IBKIRF(Estimator):
         if n <= m1 + m2:
             raise InputError(f"{self.name}: differentiator_length N = {n} samples is not longer than the lag "
                              f"range M1+M2+1 = {m1 + m2 + 1} samples; the lags would wrap around")
-        periodic = (dd.h2(n, fs), dd.h1(n, fs), dd.h0(n))
-        h = irf.h
         if s.bandlimit is not None and not s.bandlimit < fs / 2:
             raise InputError(f"{self.name}: bandlimit = {s.bandlimit:g} Hz must be below the Nyquist "
                              f"frequency {fs / 2:g} Hz")
         projected = fit.directions is not None and fit.kept < fit.n_lags
-        if projected:
-            # the pseudo-inverse IRF holds the true IRF's part in the kept directions only: so must the model
-            pairs = input_output(self.name, trials, s.remove_mean)
-            edges = "zero" if s.irf_method == "corr" else (s.edges or "valid")
-            c, Wr = kept_derivative_irfs(pairs, m1, m2, edges, fit.directions)
-            cols = [c[:, 0] * fs ** 2, c[:, 1] * fs, c[:, 2]]
-            if s.bandlimit is not None:
-                cols = [bandlimit_fb(c, fs, s.bandlimit, s.bandlimit_order) for c in cols]
-        elif s.bandlimit is not None:
-            cols = [_bandlimited(p, m1, m2, fs, s.bandlimit, s.bandlimit_order) for p in periodic]
-            Wr = None
-        else:
-            cols = [dd.two_sided(p, m1, m2)[1] for p in periodic]
-            Wr = None
-        if s.bandlimit is not None:
-            h = bandlimit_fb(h, fs, s.bandlimit, s.bandlimit_order)
-            F = np.column_stack([bandlimit_fb(e, fs, s.bandlimit, s.bandlimit_order) for e in np.eye(len(h))])
-        else:
-            F = np.eye(len(h))
-        A = np.column_stack(cols)
-        if Wr is not None:             # residuals weighted as the torque weighs them (see kept_derivative_irfs)
-            A, hw, F = Wr @ A, Wr @ h, Wr @ F
-        else:
-            hw = h
-        scale = np.linalg.norm(A, axis=0)
-        scale[scale == 0] = 1.0
-        sv = np.linalg.svd(A / scale, compute_uv=False)
+        cols, Wr = self._columns(trials, fit, n, m1, m2, projected)
+        h, F = self._filtered(irf.h, fs)
+        ls = LeastSquares.of(np.column_stack(cols), h, F, Wr)
         band = band_of_trials(self.name, trials)
-        if len(sv) < 3 or sv[-1] <= CONDITION * sv[0]:     # (weighted: one row per kept direction)
-            where = f"the input's band {band.lo:g} ... {band.hi:g} Hz" if band else "the angle"
-            raise InputError(f"{self.name}: {where} and the lags -{m1} ... {m2} ({s.lag_before:g} s, "
-                             f"{s.lag_after:g} s) leave {fit.kept} of {fit.n_lags} lag directions, too few to "
-                             f"separate I, B and K; lengthen lag_before/lag_after or broaden the perturbation")
-        x, _, rank, _ = scipy.linalg.lstsq(A / scale, hw)
-        if rank < 3:
-            raise InputError(f"{self.name}: {m1 + m2 + 1} lag(s) cannot separate I, B and K; lengthen the lags")
-        I, B, K = (float(v) for v in x / scale)
+        I, B, K = self._solve(ls, band, fit, m1, m2)
         label = irf.estimator if s.bandlimit is None else f"{irf.estimator}, band-limited to {s.bandlimit:g} Hz"
         basis = IRFEstimate(lags=irf.lags, h=h, fs=fs, time=irf.time, estimator=label)
         top = fs / 2 if s.bandlimit is None else s.bandlimit
@@ -226,15 +192,107 @@ class IBKIRF(Estimator):
         est.fit_info = info
         if fit.cov is None:
             return est
-        G = (np.linalg.pinv(A / scale) / scale[:, None]) @ F       # x = G h_raw
-        cov = G @ fit.cov @ G.T
-        q = t_quantile(fit.dof)
-        se = np.sqrt(np.maximum(np.diag(cov), 0.0))
-        bounds = {k: (v - q * e, v + q * e) for k, v, e in zip("IBK", (I, B, K), se)}
-        bounds["stiffness"] = bounds["K"]
-        Fh = F if Wr is None else np.linalg.pinv(Wr) @ F            # the band-limited IRF's own filter
-        se_h = np.sqrt(np.maximum(np.diag(Fh @ fit.cov @ Fh.T), 0.0))
-        basis.with_intervals(Intervals(level=LEVEL, method=irf_intervals(fit).method, response={
-            "h": (h - q * se_h, h + q * se_h)}))
-        return est.with_intervals(Intervals(level=LEVEL, method=irf_intervals(fit).method, bounds=bounds,
-                                            pointwise=False))
+        return _with_intervals(est, ls, fit)
+
+    def _columns(self, trials: list[Trial], fit, n: int, m1: int, m2: int,
+                 projected: bool) -> tuple[list[np.ndarray], np.ndarray | None]:
+        """The model's columns ``h2, h1, h0`` on the lags ``-m1 ... m2`` (band-limited as the IRF) and the
+        weights of the residuals: the pseudo-inverse IRFs of the angle's exact derivatives and the torque's
+        weights when the IRF holds only its kept lag directions (``projected``, :func:`kept_derivative_irfs`),
+        else the differentiators of an ``n``-point record (weights None)."""
+        s = self.settings
+        fs = trials[0].fs
+        if projected:
+            # the pseudo-inverse IRF holds the true IRF's part in the kept directions only: so must the model
+            pairs = input_output(self.name, trials, s.remove_mean)
+            edges = "zero" if s.irf_method == "corr" else (s.edges or "valid")
+            c, Wr = kept_derivative_irfs(pairs, m1, m2, edges, fit.directions)
+            cols = [c[:, 0] * fs ** 2, c[:, 1] * fs, c[:, 2]]
+            if s.bandlimit is not None:
+                cols = [bandlimit_fb(c, fs, s.bandlimit, s.bandlimit_order) for c in cols]
+            return cols, Wr
+        periodic = (dd.h2(n, fs), dd.h1(n, fs), dd.h0(n))
+        if s.bandlimit is not None:
+            return [_bandlimited(p, m1, m2, fs, s.bandlimit, s.bandlimit_order) for p in periodic], None
+        return [dd.two_sided(p, m1, m2)[1] for p in periodic], None
+
+    def _filtered(self, h: np.ndarray, fs: float) -> tuple[np.ndarray, np.ndarray]:
+        """The IRF ``h`` band-limited (``bandlimit``; unchanged without) and the filter as a matrix ``F``."""
+        s = self.settings
+        if s.bandlimit is None:
+            return h, np.eye(len(h))
+        F = np.column_stack([bandlimit_fb(e, fs, s.bandlimit, s.bandlimit_order) for e in np.eye(len(h))])
+        return bandlimit_fb(h, fs, s.bandlimit, s.bandlimit_order), F
+
+    def _solve(self, ls: LeastSquares, band, fit, m1: int, m2: int) -> tuple[float, float, float]:
+        """``I``, ``B``, ``K`` by least squares; :class:`InputError` when the columns cannot separate them (their
+        scaled singular values below :data:`CONDITION`, or a rank below 3)."""
+        s = self.settings
+        sv = np.linalg.svd(ls.A / ls.scale, compute_uv=False)
+        if len(sv) < 3 or sv[-1] <= CONDITION * sv[0]:     # (weighted: one row per kept direction)
+            where = f"the input's band {band.lo:g} ... {band.hi:g} Hz" if band else "the angle"
+            raise InputError(f"{self.name}: {where} and the lags -{m1} ... {m2} ({s.lag_before:g} s, "
+                             f"{s.lag_after:g} s) leave {fit.kept} of {fit.n_lags} lag directions, too few to "
+                             f"separate I, B and K; lengthen lag_before/lag_after or broaden the perturbation")
+        x, _, rank, _ = scipy.linalg.lstsq(ls.A / ls.scale, ls.hw)
+        if rank < 3:
+            raise InputError(f"{self.name}: {m1 + m2 + 1} lag(s) cannot separate I, B and K; lengthen the lags")
+        I, B, K = (float(v) for v in x / ls.scale)
+        return I, B, K
+
+
+class LeastSquares(NamedTuple):
+    """The least-squares problem of ``I``, ``B``, ``K`` (:meth:`IBKIRF._solve`), weighted when ``Wr`` is set.
+
+    Attributes
+    ----------
+    A : ndarray (rows, 3)
+        The columns ``h2, h1, h0`` (times ``Wr``).
+    hw : ndarray
+        The band-limited IRF they fit (times ``Wr``).
+    F : ndarray
+        The band-limiting filter from the raw IRF to ``hw`` (times ``Wr``).
+    Wr : ndarray or None
+        The residuals' weights (:func:`kept_derivative_irfs`), or None.
+    h : ndarray
+        The band-limited IRF itself.
+    scale : ndarray (3,)
+        The norms of ``A``'s columns (zero ones as 1).
+    """
+
+    A: np.ndarray
+    hw: np.ndarray
+    F: np.ndarray
+    Wr: np.ndarray | None
+    h: np.ndarray
+    scale: np.ndarray
+
+    @classmethod
+    def of(cls, A: np.ndarray, h: np.ndarray, F: np.ndarray, Wr: np.ndarray | None) -> "LeastSquares":
+        """Columns ``A``, IRF ``h`` and filter ``F``, weighted by ``Wr`` (residuals weighted as the torque weighs
+        them, see :func:`kept_derivative_irfs`) when it is not None."""
+        hw = h
+        if Wr is not None:
+            A, hw, F = Wr @ A, Wr @ h, Wr @ F
+        scale = np.linalg.norm(A, axis=0)
+        scale[scale == 0] = 1.0
+        return cls(A=A, hw=hw, F=F, Wr=Wr, h=h, scale=scale)
+
+
+def _with_intervals(est: ParametricEstimate, ls: LeastSquares, fit) -> ParametricEstimate:
+    """``est`` with the intervals of ``I``, ``B``, ``K`` (and its basis with the band-limited IRF's): linear in
+    the IRF, ``x = G h_raw``, so their covariance is ``G Cov(h) G^T`` (t quantiles)."""
+    I, B, K = est.I, est.B, est.K
+    G = (np.linalg.pinv(ls.A / ls.scale) / ls.scale[:, None]) @ ls.F       # x = G h_raw
+    cov = G @ fit.cov @ G.T
+    q = t_quantile(fit.dof)
+    se = np.sqrt(np.maximum(np.diag(cov), 0.0))
+    bounds = {k: (v - q * e, v + q * e) for k, v, e in zip("IBK", (I, B, K), se)}
+    bounds["stiffness"] = bounds["K"]
+    Fh = ls.F if ls.Wr is None else np.linalg.pinv(ls.Wr) @ ls.F            # the band-limited IRF's own filter
+    se_h = np.sqrt(np.maximum(np.diag(Fh @ fit.cov @ Fh.T), 0.0))
+    h = ls.h
+    est.basis.with_intervals(Intervals(level=LEVEL, method=irf_intervals(fit).method, response={
+        "h": (h - q * se_h, h + q * se_h)}))
+    return est.with_intervals(Intervals(level=LEVEL, method=irf_intervals(fit).method, bounds=bounds,
+                                        pointwise=False))

@@ -8,7 +8,7 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-from jointbench.estimators import Estimator, _kbr_posterior as kp, _kbr_solve as ks, register
+from jointbench.estimators import Estimator, _kbr_posterior as kp, _kbr_predict as kpred, _kbr_solve as ks, register
 from jointbench.estimators._multisine_lines import multisine_bins
 from jointbench.core.errors import InputError
 from jointbench.core.estimate import Estimate, Intervals, Prediction
@@ -111,8 +111,8 @@ class KBREstimate(Estimate):
                              f"got shape {u.shape}")
         du = ks.derivatives(u - u.mean(), self.derivative)
         r = np.sum(self.b * du, axis=0)
-        Dp = ks.periodic_derivative_response(len(u), self.fs, len(self.a))
-        return ks.periodic_response(self.a, r, Dp)
+        Dp = kpred.periodic_derivative_response(len(u), self.fs, len(self.a))
+        return kpred.periodic_response(self.a, r, Dp)
 
     def prediction(self, trial, index: int = 0) -> Prediction:
         """:meth:`predict` against the torque low-passed like the fit's derivatives (the response ``G`` of
@@ -386,7 +386,7 @@ class KBR(Estimator):
         Phi = ks.kernel_features(trial.time, s.sigma, s.eig_threshold, s.max_rank, points)
         Y = np.fft.rfft(y)
         try:
-            sv2 = ks.noise_variance(Y, lines, band, int(round(s.noise_guard / df)), s.noise_bins)
+            sv2 = kp.noise_variance(Y, lines, band, int(round(s.noise_guard / df)), s.noise_bins)
         except ValueError as exc:
             raise InputError(f"{where}: {exc} (settings 'noise_guard', 'noise_bins')") from None
         sv2 = np.maximum(sv2, 1e-16 * np.mean(np.abs(Y[in_band]) ** 2)) * mask.sum() / n
@@ -449,11 +449,12 @@ class KBR(Estimator):
             costs.append(cost)
             if it >= 2 and abs(costs[-1] - costs[-2]) <= s.tolerance * max(costs[-1], 1.0):
                 break
-            weights = 1.0 / (pb.sv2 * ks.error_variance_factor(Db, coef[:s.na], pb.mask))
+            weights = 1.0 / (pb.sv2 * kp.error_variance_factor(Db, coef[:s.na], pb.mask))
         converged = len(costs) >= 3 and abs(costs[-1] - costs[-2]) <= s.tolerance * max(costs[-1], 1.0)
         steps = 0
         if s.refine:
-            c, z, cost, steps = ks.refine(system, Db, pb.mask, pb.sv2, c, z, s.refine_iterations, s.tolerance)
+            c, z, cost, steps = ks.refine(ks.B1Cost(system, Db, pb.mask, pb.sv2), c, z, s.refine_iterations,
+                                          s.tolerance)
             coef = system.trajectories(c, z)
         df = pb.df
         neg2, cov = kp.posterior(system, used)
@@ -471,7 +472,7 @@ class KBR(Estimator):
             """The linearised posterior band of ``|H(j w_1, t)|`` at the minimiser of eq. B.1, at its noise
             weights (``sigma_E^2`` of its own ``a_n``)."""
             rows = np.unique(np.linspace(0, trial.n - 1, min(trial.n, self.BAND_POINTS)).astype(int))
-            w2 = 1.0 / (pb.sv2 * ks.error_variance_factor(Db, coef2[:s.na], pb.mask))
+            w2 = 1.0 / (pb.sv2 * kp.error_variance_factor(Db, coef2[:s.na], pb.mask))
             _, cov2 = kp.posterior(system, w2)
             sd2 = np.interp(np.arange(trial.n), rows, kp.stiffness_sd(system, cov2, coef2, s.na, est.f1, rows))
             q = float(stats.norm.ppf(0.5 + self.LEVEL / 2))
@@ -487,7 +488,7 @@ class KBR(Estimator):
             # is a band of precision around a biased centre, not an interval of the truth (16 of 20 seeds
             # missed, tests/test_interval_coverage.py). The interval is that of the minimiser of eq. B.1
             # (Gauss-Newton from the relaxation, as refine: true), widened to hold the relaxation's estimate.
-            c2, z2, _, _ = ks.refine(system, Db, pb.mask, pb.sv2, c, z, s.refine_iterations, s.tolerance)
+            c2, z2, _, _ = ks.refine(ks.B1Cost(system, Db, pb.mask, pb.sv2), c, z, s.refine_iterations, s.tolerance)
             coef2 = system.trajectories(c2, z2)
             k2 = dataclasses.replace(est, a=coef2[:s.na], b=coef2[s.na:]).stiffness(trial.time)
             lo, hi = refined_band(coef2, k2)

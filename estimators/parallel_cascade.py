@@ -2,18 +2,28 @@
 from __future__ import annotations
 
 import dataclasses
+from typing import NamedTuple
 
 import numpy as np
 
 from jointbench.estimators import Estimator, register
 from jointbench.estimators import _reflex as rx
 from jointbench.estimators._twosided import (LagSettings, check_lengths, estimate_irf, fit_irf, irf_intervals,
-                                             lag_samples,
-                                                mdl_pseudo_inverse)
+                                             lag_samples, mdl_pseudo_inverse)
 from jointbench.core.estimate import IRFEstimate, Prediction
 from jointbench.core.errors import InputError
 from jointbench.core.schema import param
 from jointbench.core.types import Trial
+
+
+class CascadeFit(NamedTuple):
+    """The parallel-cascade iteration's result at one delay (:meth:`ParallelCascade._iterate`)."""
+
+    a: np.ndarray              #: the static nonlinearity's coefficients (before :func:`estimators._reflex.finish`)
+    h: np.ndarray              #: the reflex IRF
+    iterations: int
+    rss_intrinsic: float       #: the residual of the intrinsic IRF alone (the first iteration's), on the same rows
+    kept_intrinsic: int        #: the directions that intrinsic IRF kept (its MDL parameters)
 
 
 @dataclasses.dataclass(eq=False)
@@ -150,10 +160,45 @@ class ParallelCascade(Estimator):
                              f"past the lags for {LI + p * L} unknowns ({LI} intrinsic lags, {p} x {L} reflex); use a "
                              f"longer record, shorter lags or a shorter reflex_window")
         ne = rx.NormalEquations.build(u, v, y, rows, m1, m2, cands, W, s, scale)
-        scan = rx.NormalEquations.build(u, v, y, rows, m1, m2, cands, W, rx.scan_settings(s), scale)
-        d = int(cands[0]) if len(cands) == 1 else scan.best_delay(cands)
+        if len(cands) == 1:
+            d = int(cands[0])
+        else:       # the delay is found with the scan's nonlinearity: for a polynomial pathway, the rectifier
+            ss = rx.scan_settings(s)
+            scan = ne if ss is s else rx.NormalEquations.build(u, v, y, rows, m1, m2, cands, W, ss, scale)
+            d = scan.best_delay(cands)
         L = ne.length(d)
-        # the parallel-cascade iteration, on the normal equations of the delay's two pathways
+        cascade = self._iterate(ne, d, p, N)
+        nl, h = rx.finish(cascade.a, cascade.h, s, scale, ne.offset)
+        tqR = rx.lag_matrix(nl(v) - nl.offset, d, L) @ h
+        seg = slice(first - m2, last + m1)        # the intrinsic IRF of the reflex-corrected torque, its rows
+        part = tr.replace(angle=tr.angle[seg], torque=(y - tqR)[seg], time=tr.time[seg], truth=None, channels={})
+        fit = fit_irf(self.name, [part], s, "ls", "valid")
+        tqI = np.convolve(u, fit.h)[m1:m1 + n]
+        rss = float(np.sum((y - tqI - tqR)[rows] ** 2))
+        k_R = L + (p - 1 if p > 1 else 0)
+        keep = (s.keep_reflex == "always"
+                or rx.mdl(rss, fit.kept + k_R, N) < rx.mdl(cascade.rss_intrinsic, cascade.kept_intrinsic, N))
+        info = {"reflex_delay": f"{d / fs * 1e3:g} ms" + ("" if len(cands) == 1 else
+                                                           f" (best of {len(cands)}: {cands[0] / fs * 1e3:g} ... "
+                                                           f"{cands[-1] / fs * 1e3:g} ms)"),
+                "iterations": cascade.iterations, "nonlinearity": nl.describe()}
+        if not keep:
+            return self._intrinsic_alone(tr, u, y, d, info)
+        info["reflex"] = "kept (MDL)" if s.keep_reflex == "mdl" else "kept (keep_reflex = always)"
+        est = ParallelCascadeEstimate(lags=np.arange(-m1, m2 + 1), h=fit.h, fs=fs, time=tr.time, estimator=self.name,
+                                      reflex_h=h, reflex_delay=d, nonlinearity=nl, rows=(first, last),
+                                      vaf_total=rx.vaf(y[rows], (tqI + tqR)[rows]),
+                                      vaf_intrinsic=rx.vaf(y[rows], tqI[rows]), vaf_reflex=rx.vaf(y[rows], tqR[rows]))
+        est.fit_info = {**fit.info, **info}
+        return est.with_intervals(lambda: irf_intervals(fit))
+
+    def _iterate(self, ne: rx.NormalEquations, d: int, p: int, N: int) -> CascadeFit:
+        """The parallel-cascade iteration at delay ``d`` on the normal equations ``ne`` of both pathways: the
+        intrinsic IRF fitted to the torque minus the reflex pathway's output (zero at first), the Hammerstein
+        cascade to the torque minus the intrinsic output, until the total VAF improves by less than
+        ``tolerance`` percentage points (or ``max_iter``)."""
+        s = self.settings
+        L = ne.length(d)
         I, R = ne.intrinsic_cols, ne.reflex_cols(d)
         GII, GIR, GRR = ne.G[np.ix_(I, I)], ne.G[np.ix_(I, R)], ne.G[np.ix_(R, R)]
         bI, bR = ne.b[I], ne.b[R]
@@ -161,7 +206,7 @@ class ParallelCascade(Estimator):
         lam, V = lam[::-1], V[:, ::-1]
         sv = np.sqrt(np.maximum(lam, 0.0))
         cR = np.zeros(len(R))
-        best, it, rss_I, kept_I = -np.inf, 0, None, LI
+        best, it, rss_I, kept_I = -np.inf, 0, None, len(I)
         for it in range(1, s.max_iter + 1):
             b_eff = bI - GIR @ cR
             yy_eff = ne.yy - 2 * cR @ bR + cR @ GRR @ cR
@@ -176,40 +221,29 @@ class ParallelCascade(Estimator):
             if total - best < s.tolerance:
                 break
             best = total
-        nl, h = rx.finish(a, h, v, s, scale, ne.offset)
-        tqR = rx.lag_matrix(nl(v) - nl.offset, d, L) @ h
-        seg = slice(first - m2, last + m1)        # the intrinsic IRF of the reflex-corrected torque, its rows
-        part = tr.replace(angle=tr.angle[seg], torque=(y - tqR)[seg], time=tr.time[seg], truth=None, channels={})
-        fit = fit_irf(self.name, [part], s, "ls", "valid")
-        tqI = np.convolve(u, fit.h)[m1:m1 + n]
-        rss = float(np.sum((y - tqI - tqR)[rows] ** 2))
-        k_R = L + (p - 1 if p > 1 else 0)
-        keep = s.keep_reflex == "always" or rx.mdl(rss, fit.kept + k_R, N) < rx.mdl(rss_I, kept_I, N)
-        info = {"reflex_delay": f"{d / fs * 1e3:g} ms" + ("" if len(cands) == 1 else
-                                                           f" (best of {len(cands)}: {cands[0] / fs * 1e3:g} ... "
-                                                           f"{cands[-1] / fs * 1e3:g} ms)"),
-                "iterations": it, "nonlinearity": nl.describe()}
-        if not keep:
-            irf = estimate_irf(self.name, [tr], s, "ls", "valid", self.name)
-            info["reflex"] = "not kept: it does not lower the MDL against the intrinsic IRF alone"
-            tqI = irf.predict(u)
-            sl = slice(m2, n - m1)
-            est = ParallelCascadeEstimate(lags=irf.lags, h=irf.h, fs=fs, time=tr.time, estimator=self.name,
-                                          rows=(m2, n - m1), vaf_total=rx.vaf(y[sl], tqI[sl]),
-                                          vaf_intrinsic=rx.vaf(y[sl], tqI[sl]), vaf_reflex=0.0, reflex_delay=d)
-            est.fit_info = {**irf.fit_info, **info}
-            return est.with_intervals(irf._intervals)
-        info["reflex"] = "kept (MDL)" if s.keep_reflex == "mdl" else "kept (keep_reflex = always)"
-        est = ParallelCascadeEstimate(lags=np.arange(-m1, m2 + 1), h=fit.h, fs=fs, time=tr.time, estimator=self.name,
-                                      reflex_h=h, reflex_delay=d, nonlinearity=nl, rows=(first, last),
-                                      vaf_total=rx.vaf(y[rows], (tqI + tqR)[rows]),
-                                      vaf_intrinsic=rx.vaf(y[rows], tqI[rows]), vaf_reflex=rx.vaf(y[rows], tqR[rows]))
-        est.fit_info = {**fit.info, **info}
-        return est.with_intervals(lambda: irf_intervals(fit))
+        return CascadeFit(a=a, h=h, iterations=it, rss_intrinsic=rss_I, kept_intrinsic=kept_I)
+
+    def _intrinsic_alone(self, tr: Trial, u: np.ndarray, y: np.ndarray, d: int, info: dict) -> ParallelCascadeEstimate:
+        """The estimate without the reflex pathway: the two-sided IRF of the whole record (``irf2_ls`` with the
+        same lags), reflex VAF 0."""
+        s = self.settings
+        n = tr.n
+        m1, m2 = lag_samples(s, tr.fs)
+        irf = estimate_irf(self.name, [tr], s, "ls", "valid", self.name)
+        info["reflex"] = "not kept: it does not lower the MDL against the intrinsic IRF alone"
+        tqI = irf.predict(u)
+        sl = slice(m2, n - m1)
+        est = ParallelCascadeEstimate(lags=irf.lags, h=irf.h, fs=tr.fs, time=tr.time, estimator=self.name,
+                                      rows=(m2, n - m1), vaf_total=rx.vaf(y[sl], tqI[sl]),
+                                      vaf_intrinsic=rx.vaf(y[sl], tqI[sl]), vaf_reflex=0.0, reflex_delay=d)
+        est.fit_info = {**irf.fit_info, **info}
+        return est.with_intervals(lambda: irf.intervals)
 
     def _intrinsic(self, sv: np.ndarray, V: np.ndarray, b: np.ndarray, yy: float, N: int) -> tuple[np.ndarray, int]:
         """The intrinsic IRF from its normal equations (``G = V diag(sv^2) V^T``): the MDL pseudo-inverse of
         :func:`estimators._twosided.mdl_pseudo_inverse` in the singular basis, or least squares."""
+        # numerically null directions: the usual rank threshold, the number of lags times eps of the largest
+        # singular value (the MDL pseudo-inverse applies its own, stricter one)
         usable = sv > len(sv) * np.finfo(float).eps * sv.max()
         c = np.where(usable, (V.T @ b) / np.where(usable, sv, 1.0), 0.0)
         if self.settings.pseudo_inverse == "mdl":

@@ -155,6 +155,25 @@ def effective_averages(trials: list[Trial], s: WelchSettings) -> float:
     return K / factor
 
 
+def significance(n_avg: float) -> float:
+    """Squared coherence exceeded with probability 0.05 under zero coherence for ``n_avg`` averages,
+    ``1 - 0.05^(1/(n_avg - 1))`` (Carter, Knapp & Nuttall 1973); 1 for a single average."""
+    return 1.0 if n_avg <= 1 else 1.0 - 0.05 ** (1.0 / (n_avg - 1.0))
+
+
+def taper_spread(taper: np.ndarray, fs: float) -> float:
+    """Second moment ``sigma_w^2`` (rad^2/s^2) of the taper's spectral window ``|W(w)|^2``:
+    ``int |w'(t)|^2 dt / int w(t)^2 dt``, by differences (``4 pi^2 / (3 T^2)`` for a Hann window of ``T`` s).
+
+    The ensemble cross-spectrum of a window is the ``|W|^2``-weighted average of ``H`` around each bin
+    (for an input spectrum flat across the spectral window), so a quadratic term ``-I w^2`` comes out as
+    ``-I (w^2 + sigma_w^2)``: the resolution bias of spectral estimates, ``H'' B_e^2``-type (Bendat &
+    Piersol 2010, Sec. 8.5.1), here exact because the impedance is a polynomial of degree two in ``w``.
+    """
+    d = np.diff(np.asarray(taper, float)) * fs
+    return float(d @ d / fs) / float(taper @ taper / fs)
+
+
 def frf_band(H: np.ndarray, coh: np.ndarray, n_avg: float, level: float = LEVEL) -> dict[str, tuple]:
     """Confidence band of ``H`` from the squared coherence: a circle of radius ``r`` around ``H``.
 

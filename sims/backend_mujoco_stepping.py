@@ -26,12 +26,8 @@ from __future__ import annotations
 import numpy as np
 
 from jointbench.core.errors import ConfigError
+from jointbench.sims.backend_stepping import GROW_WITHIN, MAX_ITER, TOL, WINDOW   # the same windows and iteration
 from jointbench.sims.reflex_stretch import ReflexStepper
-
-#: longest window (steps) without a reflex delay bounding it
-WINDOW = 256
-TOL = 1e-10
-MAX_ITER = 40
 
 
 def rollout_nonlinear(mujoco, model, data, s0: np.ndarray, ctrl: np.ndarray, exp, vol_column: int):
@@ -98,7 +94,7 @@ def rollout_nonlinear(mujoco, model, data, s0: np.ndarray, ctrl: np.ndarray, exp
             R[k0 + 1:k0 + W] = guess
             if k0 + W < n:
                 R[k0 + W] = float(remainder(st[-1:, 1], st[-1:, 1 + nq])[0])
-            if it <= 2:
+            if it + 1 <= GROW_WITHIN:
                 width = min(w_max, 2 * width)
         start = st[-1].copy()
         k0 += W

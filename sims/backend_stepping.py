@@ -32,7 +32,8 @@ exponential quadrature with a linearly interpolated nonlinearity; Sec. 5: iterat
 """
 from __future__ import annotations
 
-from typing import ClassVar
+import dataclasses
+from typing import Callable, ClassVar
 
 import numpy as np
 from jointbench.core.lazy import scipy_signal as sps
@@ -45,9 +46,18 @@ from jointbench.sims.reflex_stretch import ReflexStepper
 
 #: longest window (steps) when no reflex delay bounds it
 WINDOW = 256
-#: the iteration of the joint's remainder stops when its largest change is below this fraction of its size
+#: the iteration of the joint's remainder stops when its largest change is below this fraction of (1 N.m plus) its
+#: largest value: about 5e5 times the rounding of the remainder (``eps``, 2.2e-16), so a converged window solves
+#: the implicit scheme to about ten digits, far below the scheme's own error (the tests bound it at 1e-3 relative
+#: at 1 kHz)
 TOL = 1e-10
+#: most Picard iterations in a window before it is halved: a bound on the work, not the stopping rule (the test
+#: suite's position-dependent joints converge within 14); a window that needs more converges too slowly, and the
+#: iteration contracts faster on a shorter window
 MAX_ITER = 40
+#: a window that converges within this many iterations lets the next one double (up to the longest window): the
+#: contraction is then strong enough for a longer window
+GROW_WITHIN = 3
 
 
 def _recursion(E, v0: np.ndarray, v1: np.ndarray, x0: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
@@ -122,69 +132,128 @@ class SteppingBackend(Backend):
         if d.shape != tv.shape or d.ndim != 1 or len(d) < 2:
             raise ValueError(f"drive and voluntary torque must be 1-D of equal length >= 2, got {d.shape}, {tv.shape}")
         c = apparatus.coupling(joint)
-        h = 1.0 / fs
-        n = len(d)
-        t, Im, p, q, E, (J1_01, J1_11, J2_01, J2_11) = step_weights(joint, c, n, h)
-        # v_k = a w_k + b w_k+1 per state component (backend ltv: columns 1 of J1 and J2 / I)
-        a0, b0 = (J1_01 - J2_01 / h) / Im, J2_01 / h / Im
-        a1, b1 = (J1_11 - J2_11 / h) / Im, J2_11 / h / Im
+        lin = LinearSteps.of(joint, c, len(d), 1.0 / fs)
         w_lin, d_dot = c.drive_input(d, fs)
-        w_lin = w_lin + tv
-        theta, vel = np.empty(n), np.empty(n)
-        theta[0], vel[0] = float(x0[0]), float(x0[1])
         remainder = getattr(joint, "remainder", None) if getattr(joint, "nonlinear", False) else None
-        R = np.zeros(n)
-        if remainder is not None:
-            R[0] = float(remainder(theta[:1], vel[:1])[0])
-        refl = _stepper(reflex, fs, n, vel[0])
-        w_max = min(WINDOW, refl.lookahead) if refl is not None else WINDOW
-        constant = bool(np.all(p == p[0]) and np.all(q == q[0]) and np.all(Im == Im[0]))
-        recursion = _recursion_constant if constant else _recursion
-        width = w_max
-        k0 = 0
-        while k0 < n - 1:
-            W = min(width, n - 1 - k0)
-            if refl is not None:
-                refl.advance(k0 + W + 1, vel)        # needs the velocity up to k0 + W - d <= k0: known
-                Tr = refl.torque[k0:k0 + W + 1]
-            else:
-                Tr = 0.0
-            sl = slice(k0, k0 + W)
-            Ek = tuple(e[sl] for e in E)
-            slope = R[k0] - R[k0 - 1] if k0 >= 1 else 0.0
-            guess = R[k0] + slope * np.arange(1, W + 1)
-            converged = remainder is None
-            for it in range(MAX_ITER if remainder is not None else 1):
-                w = w_lin[k0:k0 + W + 1] - Tr - np.concatenate([[R[k0]], guess])
-                xs, ys = recursion(Ek, a0[sl] * w[:-1] + b0[sl] * w[1:], a1[sl] * w[:-1] + b1[sl] * w[1:],
-                                   (theta[k0], vel[k0]))
-                if remainder is None:
-                    break
-                new = remainder(xs[1:], ys[1:])
-                change = float(np.max(np.abs(new - guess)))
-                if not np.isfinite(change):
-                    break
-                if change <= TOL * (1.0 + float(np.max(np.abs(new)))):
-                    converged = True
-                    break
-                guess = new
-            if not converged:
-                if W == 1:
-                    raise ConfigError(f"backend 'stepping': the joint's angle-dependent torque does not converge "
-                                      f"within one step at t = {k0 * h:.4g} s; raise fs_sim")
-                width = max(1, W // 2)
-                continue
-            theta[k0 + 1:k0 + W + 1], vel[k0 + 1:k0 + W + 1] = xs[1:], ys[1:]
-            if remainder is not None:
-                R[k0 + 1:k0 + W + 1] = guess
-                if it <= 2:
-                    width = min(w_max, 2 * width)
-            k0 += W
-        Tr_all = refl.torque if refl is not None else np.zeros(n)
-        I, B, K = joint.coefficients_at(t)
+        march = _March(lin, w_lin + tv, x0, remainder, reflex, fs)
+        march.run()
+        theta, vel, R = march.theta, march.vel, march.R
+        Tr_all = march.refl.torque if march.refl is not None else np.zeros(len(d))
+        I, B, K = joint.coefficients_at(lin.t)
         t_a = c.torque(d, d_dot, theta, vel)
         acc = (t_a + tv - B * vel - K * theta - R - Tr_all) / I
         intrinsic = I * acc + B * vel + K * theta + R
-        parts = {"intrinsic_torque": intrinsic, "reflex_torque": Tr_all} if refl is not None else {}
+        parts = {"intrinsic_torque": intrinsic, "reflex_torque": Tr_all} if march.refl is not None else {}
         return Response(angle=theta, velocity=vel, acceleration=acc, torque_measured=t_a,
                         torque_impedance=intrinsic + Tr_all, torque_parts=parts)
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class LinearSteps:
+    """The exact steps of the linear part (backend ``ltv``'s exponential midpoint rule), every input held
+    linearly between samples: ``x_k+1 = E_k x_k + v_k`` with ``v_k = a_k w_k + b_k w_k+1`` per state
+    component (``a0, b0`` for the angle, ``a1, b1`` for the velocity; backend ltv: columns 1 of J1 and J2 / I).
+
+    Attributes
+    ----------
+    t : ndarray
+        The sample times.
+    E : tuple of ndarray
+        The transitions' four components, per step.
+    a0, b0, a1, b1 : ndarray
+        The input weights, per step.
+    recursion : callable
+        :func:`_recursion_constant` for a time-invariant linear part, else :func:`_recursion`.
+    """
+
+    t: np.ndarray
+    E: tuple
+    a0: np.ndarray
+    b0: np.ndarray
+    a1: np.ndarray
+    b1: np.ndarray
+    recursion: Callable
+
+    @classmethod
+    def of(cls, joint, coupling, n: int, h: float) -> "LinearSteps":
+        """The steps of ``n`` samples at step ``h`` (:func:`sims.backend_ltv.step_weights`)."""
+        t, Im, p, q, E, (J1_01, J1_11, J2_01, J2_11) = step_weights(joint, coupling, n, h)
+        constant = bool(np.all(p == p[0]) and np.all(q == q[0]) and np.all(Im == Im[0]))
+        return cls(t=t, E=E, a0=(J1_01 - J2_01 / h) / Im, b0=J2_01 / h / Im, a1=(J1_11 - J2_11 / h) / Im,
+                   b1=J2_11 / h / Im, recursion=_recursion_constant if constant else _recursion)
+
+    def states(self, k0: int, w: np.ndarray, x0: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
+        """Angle and velocity at the samples ``k0 ... k0 + W`` from the state ``x0`` at ``k0``, for the input
+        ``w`` at the same samples (``W + 1`` of them)."""
+        sl = slice(k0, k0 + len(w) - 1)
+        Ek = tuple(e[sl] for e in self.E)
+        v0 = self.a0[sl] * w[:-1] + self.b0[sl] * w[1:]
+        v1 = self.a1[sl] * w[:-1] + self.b1[sl] * w[1:]
+        return self.recursion(Ek, v0, v1, x0)
+
+
+class _March:
+    """The integration of one record, window by window (module docstring): the exact linear steps, the known
+    input, the reflex pathway's stepper, and the states and the joint's remainder so far."""
+
+    def __init__(self, lin: LinearSteps, w_lin: np.ndarray, x0: tuple[float, float], remainder, reflex, fs: float):
+        n = len(w_lin)
+        self.lin, self.w_lin, self.remainder, self.h = lin, w_lin, remainder, 1.0 / fs
+        self.theta, self.vel = np.empty(n), np.empty(n)
+        self.theta[0], self.vel[0] = float(x0[0]), float(x0[1])
+        self.R = np.zeros(n)
+        if remainder is not None:
+            self.R[0] = float(remainder(self.theta[:1], self.vel[:1])[0])
+        self.refl = _stepper(reflex, fs, n, self.vel[0])
+
+    def run(self) -> None:
+        """Every window, from the longest (:data:`WINDOW`, at most the reflex delay) down: a window whose remainder
+        does not converge is halved (:class:`ConfigError` at one step), one that converges quickly lets the next
+        one double (:data:`GROW_WITHIN`)."""
+        n = len(self.w_lin)
+        w_max = min(WINDOW, self.refl.lookahead) if self.refl is not None else WINDOW
+        width, k0 = w_max, 0
+        while k0 < n - 1:
+            W = min(width, n - 1 - k0)
+            if self.refl is not None:
+                self.refl.advance(k0 + W + 1, self.vel)   # needs the velocity up to k0 + W - d <= k0: known
+                w_in = self.w_lin[k0:k0 + W + 1] - self.refl.torque[k0:k0 + W + 1]
+            else:
+                w_in = self.w_lin[k0:k0 + W + 1]
+            done = self.window(k0, w_in)
+            if done is None:
+                if W == 1:
+                    raise ConfigError(f"backend 'stepping': the joint's angle-dependent torque does not converge "
+                                      f"within one step at t = {k0 * self.h:.4g} s; raise fs_sim")
+                width = max(1, W // 2)
+                continue
+            xs, ys, guess, iterations = done
+            self.theta[k0 + 1:k0 + W + 1], self.vel[k0 + 1:k0 + W + 1] = xs[1:], ys[1:]
+            if self.remainder is not None:
+                self.R[k0 + 1:k0 + W + 1] = guess
+                if iterations <= GROW_WITHIN:
+                    width = min(w_max, 2 * width)
+            k0 += W
+
+    def window(self, k0: int, w_in: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, int] | None:
+        """Angle and velocity at the samples ``k0 ... k0 + W`` for the known input ``w_in`` there, with the joint's
+        remainder at ``k0 + 1 ... k0 + W`` iterated to convergence (Picard, from its linear extrapolation; at most
+        :data:`MAX_ITER` iterations, until :data:`TOL`): ``(angle, velocity, remainder, iterations)``, or None
+        when it does not converge."""
+        R, W = self.R, len(w_in) - 1
+        x0 = (self.theta[k0], self.vel[k0])
+        slope = R[k0] - R[k0 - 1] if k0 >= 1 else 0.0
+        guess = R[k0] + slope * np.arange(1, W + 1)
+        if self.remainder is None:
+            xs, ys = self.lin.states(k0, w_in - np.concatenate([[R[k0]], guess]), x0)
+            return xs, ys, guess, 1
+        for it in range(MAX_ITER):
+            xs, ys = self.lin.states(k0, w_in - np.concatenate([[R[k0]], guess]), x0)
+            new = self.remainder(xs[1:], ys[1:])
+            change = float(np.max(np.abs(new - guess)))
+            if not np.isfinite(change):
+                return None
+            if change <= TOL * (1.0 + float(np.max(np.abs(new)))):
+                return xs, ys, guess, it + 1
+            guess = new
+        return None

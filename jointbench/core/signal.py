@@ -193,10 +193,31 @@ def find_gate(x: np.ndarray, fs: float, window_s: float = 0.25, quiet_ratio: flo
     w = max(4, int(round(window_s * fs)))
     if n < 8 * w:
         return None
+    perturbed = _perturbed_span(x, w, quiet_ratio)
+    if perturbed is None:
+        return None
+    a, b, sb = perturbed
+    head, tail = x[:max(a, 0)], x[min(b, n):]
+    on = _edge(x, head, sb, max(0, a - w), min(n, a + 2 * w), True) if len(head) >= 2 * w else 0
+    off = _edge(x, tail, sb, max(0, b - 2 * w), min(n, b + w), False) if len(tail) >= 2 * w else n
+    period = _period(x[on:off] - np.mean(x[on:off]))
+    gate = _whole_periods(x, on, off, period, w) if period else None
+    return Gate(on=on, off=off, period=None, start=on, stop=off) if gate is None else gate
+
+
+def _moving_sd(x: np.ndarray, w: int) -> np.ndarray:
+    """The standard deviation of every window of ``w`` samples (window ``k``: samples ``k ... k + w - 1``)."""
     c1 = np.concatenate([[0.0], np.cumsum(x - np.median(x))])
     c2 = np.concatenate([[0.0], np.cumsum((x - np.median(x)) ** 2)])
     m = (c1[w:] - c1[:-w]) / w
-    sd = np.sqrt(np.maximum((c2[w:] - c2[:-w]) / w - m * m, 0.0))   # window k covers samples k ... k + w - 1
+    return np.sqrt(np.maximum((c2[w:] - c2[:-w]) / w - m * m, 0.0))
+
+
+def _perturbed_span(x: np.ndarray, w: int, quiet_ratio: float) -> tuple[int, int, float] | None:
+    """The perturbed samples ``a ... b - 1`` (windows whose standard deviation is above 0.2 of its 90th
+    percentile) and their standard deviation, when a part of at least two windows before or after them is quiet
+    (standard deviation below ``quiet_ratio`` times theirs) and every such part is; else None."""
+    sd = _moving_sd(x, w)
     level = np.percentile(sd, 90)
     if not level > 0:
         return None
@@ -204,7 +225,7 @@ def find_gate(x: np.ndarray, fs: float, window_s: float = 0.25, quiet_ratio: flo
     if active.size == 0:
         return None
     a, b = int(active[0]), int(active[-1]) + w           # perturbed samples within a ... b
-    head, tail = x[:max(a, 0)], x[min(b, n):]
+    head, tail = x[:max(a, 0)], x[min(b, len(x)):]
     body = x[a:b]
     quiet = [p for p in (head, tail) if len(p) >= 2 * w]
     if not quiet or len(body) < 4 * w:
@@ -212,54 +233,69 @@ def find_gate(x: np.ndarray, fs: float, window_s: float = 0.25, quiet_ratio: flo
     sb = float(np.std(body))
     if any(float(np.std(p)) > quiet_ratio * sb for p in quiet):
         return None
+    return a, b, sb
 
-    def edge(part: np.ndarray, lo: int, hi: int, forward: bool) -> int:
-        ref = part if len(part) >= 2 else body[:2]
-        base, noise = float(np.median(ref)), float(np.std(ref))
-        thr = max(5.0 * noise, 1e-6 * sb)
-        seg = x[lo:hi]
-        out = np.flatnonzero(np.abs(seg - base) > thr)
-        if out.size == 0:
-            return lo if forward else hi
-        return lo + int(out[0]) if forward else lo + int(out[-1]) + 1
 
-    on = edge(head, max(0, a - w), min(n, a + 2 * w), True) if len(head) >= 2 * w else 0
-    off = edge(tail, max(0, b - 2 * w), min(n, b + w), False) if len(tail) >= 2 * w else n
-    span = x[on:off] - np.mean(x[on:off])
+def _edge(x: np.ndarray, quiet: np.ndarray, sb: float, lo: int, hi: int, forward: bool) -> int:
+    """The first sample of ``x[lo:hi]`` leaving the level of the ``quiet`` part by more than five times its noise
+    (at least 1e-6 of the perturbation's standard deviation ``sb``), ``forward``; else the sample after the last
+    one. ``lo`` (``hi``) when none does."""
+    base, noise = float(np.median(quiet)), float(np.std(quiet))
+    thr = max(5.0 * noise, 1e-6 * sb)
+    out = np.flatnonzero(np.abs(x[lo:hi] - base) > thr)
+    if out.size == 0:
+        return lo if forward else hi
+    return lo + int(out[0]) if forward else lo + int(out[-1]) + 1
+
+
+def _period(span: np.ndarray) -> int | None:
+    """The period (samples) of a repeating ``span`` (mean removed): the peak of the first lobe of its
+    autocorrelation (unbiased) above 0.9 past its first zero crossing, within half the span; else None."""
     L = len(span)
     nfft = 1 << int(np.ceil(np.log2(2 * L)))
     S = np.fft.rfft(span, nfft)
     r = np.fft.irfft(np.abs(S) ** 2, nfft)[:L]
     lag = np.arange(L)
     norm = r / np.maximum(r[0], 1e-300) * L / np.maximum(L - lag, 1)
-    period = None
     neg = np.flatnonzero(norm[1:L // 2] < 0)
-    if neg.size:
-        k0 = int(neg[0]) + 1
-        hits = np.flatnonzero(norm[k0:L // 2 + 1] > 0.9)
-        if hits.size:
-            k = k0 + int(hits[0])
-            # the peak of the first lobe above 0.9
-            stop = k
-            while stop + 1 < len(norm) and norm[stop + 1] >= norm[stop]:
-                stop += 1
-            period = int(stop)
-    if period:
-        whole = int((off - on + 0.02 * period) // period)
-        if whole >= 1:
-            span_n = whole * period
-            start = on + ((off - on) - span_n) // 2
-            if (off - on) - span_n < 2 * w:
-                # (about) whole periods only, and the onset may be blurred (filtered records): take the
-                # start near it whose window leaks least power off the harmonics of the period
-                reach = min(w, 16)
-                cand = np.arange(max(0, on - reach), min(n - span_n, on + reach) + 1)
-                if cand.size and whole >= 2:
-                    off_harm = np.arange(span_n // 2 + 1) % whole != 0
-                    leak = [float(np.sum(np.abs(np.fft.rfft(x[c:c + span_n] - np.mean(x[c:c + span_n])))[off_harm]
-                                         ** 2))
-                            for c in cand]
-                    start = int(cand[int(np.argmin(leak))])
-            start = min(max(start, 0), n - span_n)
-            return Gate(on=on, off=off, period=period, start=start, stop=start + span_n)
-    return Gate(on=on, off=off, period=None, start=on, stop=off)
+    if not neg.size:
+        return None
+    k0 = int(neg[0]) + 1
+    hits = np.flatnonzero(norm[k0:L // 2 + 1] > 0.9)
+    if not hits.size:
+        return None
+    stop = k0 + int(hits[0])
+    while stop + 1 < len(norm) and norm[stop + 1] >= norm[stop]:
+        stop += 1
+    return int(stop)
+
+
+def _whole_periods(x: np.ndarray, on: int, off: int, period: int, w: int) -> Gate | None:
+    """The gate of the longest span of whole periods inside ``on ... off`` (centred; within 2 % of a period),
+    None when not one fits. When the perturbation lasts (about) whole periods only, the start near the onset
+    whose span leaks least power off the harmonics of the period (:func:`_least_leaking_start`)."""
+    n = len(x)
+    whole = int((off - on + 0.02 * period) // period)
+    if whole < 1:
+        return None
+    span_n = whole * period
+    start = on + ((off - on) - span_n) // 2
+    if (off - on) - span_n < 2 * w:
+        # (about) whole periods only, and the onset may be blurred (filtered records)
+        best = _least_leaking_start(x, on, span_n, whole, w)
+        start = start if best is None else best
+    start = min(max(start, 0), n - span_n)
+    return Gate(on=on, off=off, period=period, start=start, stop=start + span_n)
+
+
+def _least_leaking_start(x: np.ndarray, on: int, span_n: int, whole: int, w: int) -> int | None:
+    """Of the starts within ``min(w, 16)`` samples of ``on``, the one whose ``span_n`` samples (``whole``
+    periods) put the least power off the harmonics of the period; None without candidates or with one period."""
+    reach = min(w, 16)
+    cand = np.arange(max(0, on - reach), min(len(x) - span_n, on + reach) + 1)
+    if not (cand.size and whole >= 2):
+        return None
+    off_harm = np.arange(span_n // 2 + 1) % whole != 0
+    leak = [float(np.sum(np.abs(np.fft.rfft(x[c:c + span_n] - np.mean(x[c:c + span_n])))[off_harm] ** 2))
+            for c in cand]
+    return int(cand[int(np.argmin(leak))])
