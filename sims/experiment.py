@@ -22,7 +22,7 @@ from typing import Any, Callable, Literal, Mapping
 import numpy as np
 
 from jointbench.core.errors import ConfigError, Incompatible
-from jointbench.core.schema import param, parse
+from jointbench.core.schema import Problems, param, parse, parse_tagged, tagged
 from jointbench.core.signal import decimate, decimate_fft
 from jointbench.core.types import Trial
 from jointbench.sims import BACKENDS, JOINTS, PERTURBATIONS, REFLEXES
@@ -36,12 +36,6 @@ from jointbench.sims.sensors import Sensor, Sensors
 from jointbench.sims.voluntary import Voluntary
 from jointbench.sims._channels import (  # noqa: F401 - STREAMS re-exported
     STREAMS, _detrend_linear, _measure, _streams, _unit_noise)
-
-#: the keys of an experiment block, in the order they are listed in messages
-EXPERIMENT_KEYS = ("joint", "apparatus", "perturbation", "voluntary", "sensors", "fs_sim", "duration",
-                   "acquisition", "gravity")
-
-
 
 @dataclasses.dataclass(frozen=True)
 class Acquisition:
@@ -72,33 +66,37 @@ class Acquisition:
     decimation: Literal["fir", "fft"] = "fir"
 
 
-@dataclasses.dataclass(frozen=True)
-class _Timing:
+def _joint_and_reflex(value: Any, where: str, key: str) -> tuple[Any, Any]:
+    """The joint model ``{model: ..., ...}`` and the reflex pathway its ``reflex`` key may hold (any joint
+    model takes one; ``{pathway: stretch, ...}``, stretch by default), or None; the errors of both at once."""
+    has_reflex = isinstance(value, Mapping) and "reflex" in value
+    joint = {k: v for k, v in value.items() if k != "reflex"} if has_reflex else value
+    problems, out = Problems(), [None, None]
+    with problems.catch():
+        out[0] = parse_tagged(joint, "model", JOINTS, "joint model", f"{where}: {key}")
+    if has_reflex:
+        with problems.catch():
+            out[1] = parse_tagged(value["reflex"], "pathway", REFLEXES, "reflex pathway", f"{where}: {key}: reflex",
+                                  default="stretch")
+    problems.raise_all()
+    return out[0], out[1]
+
+
+@dataclasses.dataclass(frozen=True, kw_only=True)
+class _ExperimentSpec:
+    """The experiment block of a study config, as written (:meth:`Experiment.from_mapping`)."""
+
+    joint: tuple = param(parser=_joint_and_reflex, doc="joint model {model: ..., reflex: {...}}")
+    apparatus: Any = param(default_factory=PositionServo,
+                           parser=tagged("kind", APPARATUS_KINDS, "apparatus", default="position_servo"),
+                           doc="{kind: position_servo | torque_drive | handle, ...}")
+    perturbation: Any = param(parser=tagged("kind", PERTURBATIONS, "perturbation"), doc="{kind: ..., ...}")
+    voluntary: Voluntary = param(default_factory=Voluntary, doc="voluntary torque")
+    sensors: Sensors = param(default_factory=Sensors, doc="sensor models {angle: ..., torque: ...}")
     fs_sim: float = param(unit="Hz", gt=0, doc="simulation rate")
     duration: float = param(unit="s", gt=0, doc="simulated record length")
-
-
-def _parse_tagged(data: Any, tag: str, known: list[str], lookup: Callable[[str], type], what: str,
-                  where: str, default: str | None = None) -> Any:
-    """Parse ``{tag: name, **settings}``: ``name`` picks a class whose settings dataclass parses the rest.
-
-    The class is its own settings dataclass, or has a ``Settings`` attribute, in which case the result is
-    ``cls(settings)``.
-    """
-    if data is None and default is not None:
-        data = {}
-    if not isinstance(data, Mapping):
-        raise ConfigError(f"{where}: expected a mapping with key '{tag}' (one of: {', '.join(known)}), "
-                          f"got {data!r}")
-    name = data.get(tag, default)
-    if name is None:
-        raise ConfigError(f"{where}: missing key '{tag}'; known {what}s: {', '.join(known)}")
-    if not isinstance(name, str) or name not in known:
-        raise ConfigError(f"{where}: key '{tag}': unknown {what} {name!r}; known: {', '.join(known)}")
-    cls = lookup(name)
-    settings_cls = getattr(cls, "Settings", cls)
-    settings = parse(settings_cls, {k: v for k, v in data.items() if k != tag}, where)
-    return settings if settings_cls is cls else cls(settings)
+    acquisition: Acquisition = param(default_factory=Acquisition, doc="detrend, decimation, trim")
+    gravity: Gravity | None = param(None, doc="gravity on the limb segment")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -179,35 +177,11 @@ class Experiment:
             Unknown or missing key, wrong unit or type, impossible value; the message names ``where``,
             the section and the key.
         """
-        if not isinstance(mapping, Mapping):
-            raise ConfigError(f"{where}: expected a mapping of settings, got {mapping!r}")
-        unknown = sorted(set(mapping) - set(EXPERIMENT_KEYS), key=str)
-        if unknown:
-            raise ConfigError(f"{where}: unknown key {unknown[0]!r}; allowed: {', '.join(EXPERIMENT_KEYS)}")
-        for key in ("joint", "perturbation", "fs_sim", "duration"):
-            if key not in mapping:
-                raise ConfigError(f"{where}: missing required key {key!r}")
-        timing = parse(_Timing, {k: mapping[k] for k in ("fs_sim", "duration")}, where)
-        joint, reflex = mapping["joint"], None
-        if isinstance(joint, Mapping) and "reflex" in joint:   # a reflex pathway on any joint model
-            joint = {k: v for k, v in joint.items() if k != "reflex"}
-            reflex = _parse_tagged(mapping["joint"]["reflex"], "pathway", REFLEXES.names(), REFLEXES.get,
-                                   "reflex pathway", f"{where}: joint: reflex", default="stretch")
-        return cls(
-            joint=_parse_tagged(joint, "model", JOINTS.names(), JOINTS.get, "joint model",
-                                f"{where}: joint"),
-            reflex=reflex,
-            perturbation=_parse_tagged(mapping["perturbation"], "kind", PERTURBATIONS.names(),
-                                       PERTURBATIONS.get, "perturbation", f"{where}: perturbation"),
-            apparatus=_parse_tagged(mapping.get("apparatus"), "kind", list(APPARATUS_KINDS),
-                                    APPARATUS_KINDS.__getitem__, "apparatus", f"{where}: apparatus",
-                                    default="position_servo"),
-            voluntary=parse(Voluntary, mapping.get("voluntary"), f"{where}: voluntary"),
-            sensors=parse(Sensors, mapping.get("sensors"), f"{where}: sensors"),
-            acquisition=parse(Acquisition, mapping.get("acquisition"), f"{where}: acquisition"),
-            gravity=(parse(Gravity, mapping["gravity"], f"{where}: gravity")
-                     if mapping.get("gravity") is not None else None),
-            fs_sim=timing.fs_sim, duration=timing.duration, backend=backend, where=where)
+        spec = parse(_ExperimentSpec, mapping, where)
+        joint, reflex = spec.joint
+        return cls(joint=joint, reflex=reflex, perturbation=spec.perturbation, apparatus=spec.apparatus,
+                   voluntary=spec.voluntary, sensors=spec.sensors, acquisition=spec.acquisition, gravity=spec.gravity,
+                   fs_sim=spec.fs_sim, duration=spec.duration, backend=backend, where=where)
 
     # ----------------------------------------------------------------------------------- derived sizes
     @property

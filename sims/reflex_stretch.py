@@ -45,7 +45,7 @@ import numpy as np
 from jointbench.core.lazy import scipy_signal as sps
 
 from jointbench.core.errors import ConfigError
-from jointbench.core.schema import param
+from jointbench.core.schema import number, param
 from jointbench.sims import REFLEXES
 from jointbench.sims.profile import parse_profile
 
@@ -87,9 +87,7 @@ class StretchReflex:
             raise ConfigError("missing required key 'gain' (N.m.s/rad; 0 for a pathway without torque)")
         gain = self.gain
         if isinstance(gain, str):         # a constant with its unit, e.g. '5 N.m.s/rad'
-            from jointbench.core.schema import _number
-
-            gain = _number(gain, "N.m.s/rad", "reflex", "gain", False)
+            gain = number(gain, "N.m.s/rad", "reflex", "gain")
         object.__setattr__(self, "gain", parse_profile(gain, "key 'gain'"))
         if not self.gain.minimum >= 0:
             raise ConfigError(f"key 'gain': the profile reaches {self.gain.minimum:g}; a reflex gain must stay >= 0 "

@@ -228,9 +228,9 @@ def parse_grid(data: Mapping, experiment: Mapping | None, part_estimators: Mappi
         if v == NATIVE:
             fs.append(v)
             continue
-        from jointbench.core.schema import _number   # the unit-aware number reader of every config value
+        from jointbench.core.schema import number   # the unit-aware number reader of every config value
 
-        x = _number(v, "Hz", f"{where}: grid", f"fs[{i}]", False)
+        x = number(v, "Hz", f"{where}: grid", f"fs[{i}]", False)
         if not x > 0:
             raise ConfigError(f"{where}: grid.fs[{i}]: expected '{NATIVE}' or a rate > 0 Hz, got {v!r}")
         fs.append(float(x))
@@ -351,8 +351,9 @@ def expand_grid(study_id: str, part, backend: str | None = None) -> tuple[list[d
                 built[key] = str(exc)
             except ConfigError as exc:   # an invalid config: an error before anything runs
                 labels = ", ".join(f"{a}={v}" for a, v in combo.items() if a != "estimator")
-                raise ConfigError(f"{part.where}: the combination {labels}: "
-                                  f"{str(exc).removeprefix('the experiment: ')}") from None
+                raise ConfigError("\n".join(f"{part.where}: the combination {labels}: "
+                                            f"{line.removeprefix('the experiment: ')}"
+                                            for line in str(exc).splitlines())) from None
         exp = built[key]
         settings = {**grid.settings[est], **(sc.estimators.get(est) or {})}
         tuned = combo.get("tuning") == "tuned"
