@@ -123,12 +123,12 @@ class StretchReflex:
     def activation(self, fs: float) -> tuple[np.ndarray, np.ndarray]:
         """``(b, a)`` of the activation low-pass discretized exactly for an input held linearly between
         samples (first-order hold; :func:`sims.backend_lti.foh`), in powers of z^-1."""
-        from jointbench.sims.backend_lti import _transfer_coefficients, foh
+        from jointbench.sims.backend_lti import transfer_coefficients, foh
 
         w = 2.0 * math.pi * self.frequency
         A = np.array([[0.0, 1.0], [-w * w, -2.0 * self.damping_ratio * w]])
         B = np.array([[0.0], [w * w]])
-        num, den = _transfer_coefficients(*foh(A, B, 1.0 / fs))
+        num, den = transfer_coefficients(*foh(A, B, 1.0 / fs))
         return num[0, 0], den
 
     def torque(self, velocity: np.ndarray, fs: float, t0: float = 0.0, v_before: float = 0.0) -> np.ndarray:
