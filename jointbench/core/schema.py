@@ -136,6 +136,16 @@ def number(value: Any, unit: str | None, where: str, key: str, integer: bool = F
     return float(value)
 
 
+def boolean(value: Any, where: str, key: str) -> bool:
+    """A yes/no value: ``True``/``False``, or the text ``true``/``yes``/``1`` or ``false``/``no``/``0`` (any
+    case, e.g. from ``--set``); the one reading of a flag in the project."""
+    if isinstance(value, bool):
+        return value
+    if isinstance(value, str) and value.strip().lower() in ("true", "false", "yes", "no", "1", "0"):
+        return value.strip().lower() in ("true", "yes", "1")
+    raise error(where, key, f"expected true or false, got {value!r}")
+
+
 def _convert(tp: Any, value: Any, meta: Mapping[str, Any], where: str, key: str) -> Any:
     origin = typing.get_origin(tp)
     args = typing.get_args(tp)
@@ -169,11 +179,7 @@ def _convert(tp: Any, value: Any, meta: Mapping[str, Any], where: str, key: str)
                 raise error(where, key, f"must be {text} {b}{u}, got {x}{u}")
         return x
     if tp is bool:
-        if isinstance(value, bool):
-            return value
-        if isinstance(value, str) and value.lower() in ("true", "false", "yes", "no", "1", "0"):
-            return value.lower() in ("true", "yes", "1")
-        raise error(where, key, f"expected true or false, got {value!r}")
+        return boolean(value, where, key)
     if tp is str:
         if not isinstance(value, str):
             raise error(where, key, f"expected text, got {value!r}")
