@@ -344,7 +344,7 @@ def load_study(path: str | Path | Mapping, overrides=()) -> Study:
         data = load_yaml(path)
     problems, spec, parts, plugin_specs = Problems(), None, {}, ()
     with problems.catch():
-        spec = parse(StudyFile, data, str(path))
+        spec = parse(StudyFile, data, str(path), document=True)
     roots = search_roots(path)
     parts_data = data.get("parts") if isinstance(data, Mapping) else None
     if isinstance(parts_data, Mapping) and (spec is not None or "plugins" not in data):   # their errors too

@@ -121,7 +121,7 @@ def load_config(path: Path = DEFAULT_CONFIG) -> NightlyConfig:
     """Parse the nightly config strictly (every error names the file and key, all of them at once)."""
     path = Path(path)
     data = load_yaml(path)
-    spec = parse(NightlyFile, data, str(path))
+    spec = parse(NightlyFile, data, str(path), document=True)
     timing = spec.timing or _Timing()
     thresholds = tuple(Threshold(t.metric, t.abs or 0.0, t.rel or 0.0) for t in spec.thresholds)
     return NightlyConfig(

@@ -205,7 +205,7 @@ class PublishedFile:
 
 def load_checks(path: Path, parts: Mapping[str, Any]) -> tuple[Check, ...]:
     """The checks of published-values file ``path`` on ``parts``, strictly (every error of the file at once)."""
-    spec = parse(PublishedFile, load_yaml(path), str(path))
+    spec = parse(PublishedFile, load_yaml(path), str(path), document=True)
     problems, out, seen = Problems(), [], set()
     for i, c in enumerate(spec.checks):
         where = f"{path}: check {c['id']}" if "id" in c else f"{path}: checks[{i}]"

@@ -139,10 +139,10 @@ class _Outer:
 
 def test_every_error_of_nested_specs_is_listed_one_per_line():
     with pytest.raises(ConfigError) as exc:
-        parse(_Outer, {"nme": "x", "inner": {"n": 0, "m": 1}, "items": [{"n": 2}, {"n": "two"}], "mode": "perhaps"},
+        parse(_Outer, {"title": "x", "inner": {"n": 0, "m": 1}, "items": [{"n": 2}, {"n": "two"}], "mode": "perhaps"},
               "f.yaml")
     assert str(exc.value).splitlines() == [
-        "f.yaml: unknown key 'nme'; allowed: name, inner, items, mode",     # unknown keys, then field by field
+        "f.yaml: unknown key 'title'; allowed: name, inner, items, mode",   # unknown keys, then field by field
         "f.yaml: missing required key 'name'",
         "f.yaml: inner: unknown key 'm'; allowed: n",
         "f.yaml: inner: key 'n': must be >= 1, got 0",
@@ -211,9 +211,25 @@ def test_an_experiment_with_several_bad_keys_reports_all_of_them():
                                  "perturbation": {"kind": "nope"}, "fs_sim": "1 kHz", "duraton": 2}, "exp")
     assert str(exc.value).splitlines() == [
         "exp: unknown key 'duraton'; allowed: joint, apparatus, perturbation, voluntary, sensors, fs_sim, duration, "
-        "acquisition, gravity",
+        "acquisition, gravity (a misspelt 'duration', which is missing?)",
         "exp: joint: unknown key 'Q'; allowed: I, B, K",
         f"exp: perturbation: key 'kind': unknown perturbation 'nope'; known: "
         f"{', '.join(__import__('jointbench.sims', fromlist=['PERTURBATIONS']).PERTURBATIONS.names())}",
-        "exp: missing required key 'duration'",
     ]
+
+
+def test_a_misspelt_required_key_is_one_error_and_an_empty_file_one_line(tmp_path):
+    with pytest.raises(ConfigError) as exc:
+        parse(_Outer, {"nmae": "x"}, "f.yaml")
+    assert str(exc.value) == ("f.yaml: unknown key 'nmae'; allowed: name, inner, items, mode "
+                              "(a misspelt 'name', which is missing?)")
+    with pytest.raises(ConfigError) as exc:             # not a misspelling of a missing key: two errors
+        parse(_Outer, {"colour": "x"}, "f.yaml")
+    assert str(exc.value).splitlines() == ["f.yaml: unknown key 'colour'; allowed: name, inner, items, mode",
+                                           "f.yaml: missing required key 'name'"]
+    empty = tmp_path / "empty.yaml"
+    empty.write_text("")
+    for load in (load_study, load_config):
+        with pytest.raises(ConfigError) as exc:
+            load(empty)
+        assert str(exc.value) == f"{empty}: the file is empty; expected a mapping of settings"

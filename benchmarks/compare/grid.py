@@ -106,11 +106,22 @@ class _GridAxes(AxisValues):
     estimator: tuple[Any, ...] = param(doc="the estimators compared")
 
 
+def _axes(value: Any, where: str, key: str) -> _GridAxes:
+    """The grid's axes: each a non-empty list of values, each value listed once."""
+    if isinstance(value, Mapping):
+        for axis, values in value.items():
+            if not isinstance(values, list) or not values:
+                raise ConfigError(f"{where}: grid.{axis}: expected a non-empty list of values, got {values!r}")
+            if len({json.dumps(v, sort_keys=True, default=str) for v in values}) != len(values):
+                raise ConfigError(f"{where}: grid.{axis}: a value is listed twice in {values}")
+    return parse(_GridAxes, value, f"{where}: {key}")
+
+
 @dataclasses.dataclass(frozen=True, kw_only=True)
 class GridSpec:
     """The keys of a part with a comparison grid, as written (the module docstring)."""
 
-    grid: _GridAxes = param(doc="axis -> the values it takes (every axis but estimator is optional)")
+    grid: _GridAxes = param(parser=_axes, doc="axis -> the values it takes (every axis but estimator is optional)")
     scenarios: dict[str, _ScenarioSpec] = param(default_factory=dict, doc="name -> an experiment and its scoring")
     variations: dict[str, dict] = param(default_factory=dict, doc="name -> a relative stiffness variation")
     perturbations: dict[str, dict] = param(default_factory=dict, doc="name -> a perturbation {kind: ...}")
@@ -193,13 +204,7 @@ def _known_estimators(names, where: str) -> None:
 def _check_names(axes: Mapping[str, tuple], scenarios: Mapping, spec: GridSpec, part_estimators: Mapping,
                  where: str) -> None:
     """Every value of the axes that name things (scenario, estimator, variation, perturbation) is defined
-    (or ``native``), each listed once; the perturbations name known kinds; a variation axis has the levels
-    of every scenario."""
-    for axis, values in axes.items():
-        if not values:
-            raise ConfigError(f"{where}: grid.{axis}: expected a non-empty list of values, got {list(values)!r}")
-        if len({json.dumps(v, sort_keys=True, default=str) for v in values}) != len(values):
-            raise ConfigError(f"{where}: grid.{axis}: a value is listed twice in {list(values)}")
+    (or ``native``); the perturbations name known kinds; a variation axis has the levels of every scenario."""
     _names("scenario", axes["scenario"], scenarios, where, "scenario", native=False)
     _names("estimator", axes["estimator"], estimators.REGISTRY.names(), where, "estimator", native=False)
     # settings of an estimator not on the axis are kept (an axis shortened by --set)

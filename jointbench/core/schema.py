@@ -17,6 +17,7 @@ from __future__ import annotations
 import collections.abc
 import contextlib
 import dataclasses
+import difflib
 import functools
 import inspect
 import math
@@ -235,7 +236,7 @@ def _hints(cls: type) -> dict[str, Any]:
     return typing.get_type_hints(cls)
 
 
-def parse(cls: type, data: Mapping[str, Any] | None, where: str) -> Any:
+def parse(cls: type, data: Mapping[str, Any] | None, where: str, document: bool = False) -> Any:
     """Build dataclass ``cls`` from ``data``, strictly.
 
     Parameters
@@ -243,30 +244,40 @@ def parse(cls: type, data: Mapping[str, Any] | None, where: str) -> Any:
     cls : dataclass type
         Target type; fields made with :func:`param` carry units and bounds.
     data : mapping or None
-        Values by field name; ``None`` means all defaults.
+        Values by field name; ``None`` means all defaults (but an empty file when ``document``).
     where : str
         Where the values came from (file and section), prefixed to every error message.
+    document : bool
+        ``data`` is a whole file (``None``: the file is empty, an error).
 
     Raises
     ------
     ConfigError
         Every unknown key, missing key and bad value of ``data`` and of the mappings nested in it, one per
-        line (one error: its message alone); then an error of ``cls``'s own checks (``__post_init__``).
+        line (one error: its message alone; a misspelt required key is one error, the unknown key, saying
+        which it resembles); then an error of ``cls``'s own checks (``__post_init__``).
     """
+    if data is None and document:
+        raise ConfigError(f"{where}: the file is empty; expected a mapping of settings")
     data = {} if data is None else data
     if not isinstance(data, Mapping):
         raise ConfigError(f"{where}: expected a mapping of settings, got {data!r}")
     fields = {f.name: f for f in dataclasses.fields(cls) if f.init}
-    problems = Problems()
+    missing = [name for name, f in fields.items() if name not in data and f.default is dataclasses.MISSING
+               and f.default_factory is dataclasses.MISSING]
+    problems, meant = Problems(), {}
     for key in sorted((k for k in data if k not in fields), key=str):
-        problems.add(ConfigError(f"{where}: unknown key {key!r}; allowed: {', '.join(fields)}"))
+        close = difflib.get_close_matches(str(key), [m for m in missing if m not in meant.values()], 1, 0.75)
+        hint = f" (a misspelt {close[0]!r}, which is missing?)" if close else ""
+        meant.update({key: close[0]} if close else {})
+        problems.add(ConfigError(f"{where}: unknown key {key!r}; allowed: {', '.join(fields)}{hint}"))
     hints = _hints(cls)
     kwargs = {}
     for name, f in fields.items():
         if name in data:
             with problems.catch():
                 kwargs[name] = _field(hints[name], data[name], f.metadata, where, name)
-        elif f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING:
+        elif name in missing and name not in meant.values():
             problems.add(ConfigError(f"{where}: missing required key {name!r}"))
     problems.raise_all()
     try:
