@@ -12,7 +12,7 @@ here is ever written: results go to ``./results`` or ``--out`` (:func:`benchmark
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Sequence
 
 from jointbench.core.errors import ConfigError
 
@@ -99,22 +99,17 @@ def find_file(ref: str | Path, roots: Sequence[Path], where: str, key: str) -> P
                       f"(looked in {', '.join(str(r) for r in roots)})")
 
 
-def load_plugins(value: Any, where: str, roots: Sequence[Path]) -> tuple[str, ...]:
-    """Import a study's ``plugins`` (module names, or ``.py`` files and package folders beside the study) so
-    that their estimators are registered; returns their specs (:func:`jointbench.core.plugins.load`). A bare
-    name is an installed module when one is importable, else a package folder or ``<name>.py`` beside the
-    study."""
-    from jointbench.core import plugins
-
-    if value is None:
-        return ()
-    if not isinstance(value, list) or not all(isinstance(v, str) and v.strip() for v in value):
-        raise ConfigError(f"{where}: key 'plugins': expected a list of module names or paths to .py files, "
-                          f"got {value!r}")
+def load_plugins(refs: Sequence[str], where: str, roots: Sequence[Path]) -> tuple[str, ...]:
+    """Import a study's ``plugins`` (module names, or ``.py`` files and package folders beside the study, as
+    parsed by :class:`benchmarks.config.StudyFile`) so that their estimators are registered; returns their
+    specs (:func:`jointbench.core.plugins.load`). A bare name is an installed module when one is importable,
+    else a package folder or ``<name>.py`` beside the study."""
     import importlib.util
 
+    from jointbench.core import plugins
+
     out = []
-    for ref in value:
+    for ref in refs:
         if ref.endswith(".py") or "/" in ref:
             ref = str(next((r / ref for r in roots if (r / ref).exists()), Path(ref)))
         elif importlib.util.find_spec(ref.split(".")[0]) is None:     # not installed: a folder or file beside

@@ -19,10 +19,10 @@ is true) a part's compute time grew beyond ``timing.grow_factor``.
 from __future__ import annotations
 
 import dataclasses
-import math
 from pathlib import Path
+from typing import Any
 
-from jointbench.benchmarks.config import _check_keys, _load_yaml
+from jointbench.benchmarks.config import load_yaml
 from jointbench.benchmarks.locate import CONFIGS, STUDIES, STUDY_FILE, study_ids
 from jointbench.benchmarks.harness import fingerprint
 from jointbench.benchmarks.harness import outputs
@@ -31,12 +31,9 @@ from jointbench.benchmarks.harness.history import History
 from jointbench.benchmarks.harness.nightly_pages import write_pages
 from jointbench.core.errors import ConfigError, JointBenchError
 from jointbench.core.files import sweep_stale_temps
+from jointbench.core.schema import error, param, parse
 
 DEFAULT_CONFIG = CONFIGS / "nightly.yaml"
-_KEYS = {"studies": True, "exclude": False, "use_cache": False, "thresholds": True, "timing": False,
-         "key_checks": False, "wall_clock": False}
-_TIMING_KEYS = {"grow_factor": False, "min_seconds": False, "regression": False}
-_THRESHOLD_KEYS = {"metric": True, "abs": False, "rel": False}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -49,73 +46,88 @@ class NightlyConfig:
     text_hash: str
 
 
-def _number(v, where: str, key: str, low: float = 0.0) -> float:
-    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < low:
-        raise ConfigError(f"{where}: key {key!r}: expected a number >= {low:g}, got {v!r}")
-    return float(v)
+@dataclasses.dataclass(frozen=True)
+class _Threshold:
+    """One rule of ``thresholds``: a metric drifted when it moved by more than ``abs`` and ``rel``."""
+
+    metric: str = param(doc="a metric name pattern such as 'vaf*' ('*': every other metric)")
+    abs: float | None = param(None, ge=0, doc="absolute change allowed")
+    rel: float | None = param(None, ge=0, doc="relative change allowed")
+
+    def __post_init__(self):
+        if not self.metric:
+            raise ConfigError("key 'metric': expected a name pattern such as 'vaf*'")
+        if self.abs is None and self.rel is None:
+            raise ConfigError("give 'abs', 'rel' or both")
 
 
-def load_config(path: Path = DEFAULT_CONFIG) -> NightlyConfig:
-    """Parse the nightly config strictly (every error names the file and key)."""
-    path = Path(path)
-    data = _load_yaml(path)
-    _check_keys(data, _KEYS, str(path))
-    studies = data["studies"]
-    exclude = data.get("exclude") or []
-    if not isinstance(exclude, list) or not all(isinstance(s, str) for s in exclude):
-        raise ConfigError(f"{path}: key 'exclude': expected a list of study ids (left out of 'all')")
-    if studies == "all":
-        studies = [s for s in study_ids() if s not in exclude]
-    if not isinstance(studies, list) or not studies or not all(isinstance(s, str) and s for s in studies):
-        raise ConfigError(f"{path}: key 'studies': expected 'all' or a non-empty list of study ids or paths")
-    if len(set(studies)) != len(studies):
-        raise ConfigError(f"{path}: key 'studies': a study is listed twice")
+@dataclasses.dataclass(frozen=True)
+class _Timing:
+    """When a part's compute time counts as grown."""
+
+    grow_factor: float = param(Rules.grow_factor, ge=1, doc="grown when it takes this many times as long")
+    min_seconds: float = param(Rules.min_seconds, ge=0, doc="parts faster than this are not compared")
+    regression: bool = param(False, doc="a grown compute time is a regression")
+
+
+def _studies(value: Any, where: str, key: str) -> str | tuple[str, ...]:
+    if value == "all":
+        return value
+    if not isinstance(value, list) or not value or not all(isinstance(s, str) and s for s in value):
+        raise error(where, key, "expected 'all' or a non-empty list of study ids or paths")
+    if len(set(value)) != len(value):
+        raise error(where, key, "a study is listed twice")
+    return tuple(value)
+
+
+@dataclasses.dataclass(frozen=True, kw_only=True)
+class NightlyFile:
+    """``configs/nightly.yaml`` as written (:func:`load_config`)."""
+
+    studies: str | tuple[str, ...] = param(parser=_studies, doc="'all' or the study ids or paths run")
+    exclude: tuple[str, ...] | None = param((), doc="study ids left out of 'all'")
+    use_cache: bool = param(False, doc="read the cache (false: every case recomputed)")
+    thresholds: tuple[_Threshold, ...] = param(doc="what counts as a drift, the last rule metric '*'")
+    timing: _Timing | None = param(default_factory=_Timing, doc="when a compute time counts as grown")
+    key_checks: dict[str, tuple[str, ...]] | None = param(None, doc="study -> the check ids shown first")
+    wall_clock: tuple[str, ...] = param(Rules.wall_clock, doc="metrics that are wall-clock times (patterns)")
+
+    def __post_init__(self):
+        if not self.thresholds:
+            raise ConfigError("key 'thresholds': expected a non-empty list of {metric, abs, rel}")
+        if self.thresholds[-1].metric != "*":
+            raise ConfigError("key 'thresholds': the last rule must be metric '*' (the default)")
+        if not all(self.wall_clock):
+            raise ConfigError(f"key 'wall_clock': expected a list of metric names (patterns) that are wall-clock "
+                              f"times, e.g. [fit_time_s], got {list(self.wall_clock)!r}")
+
+
+def _resolved_studies(spec: NightlyFile, path: Path) -> tuple[str, ...]:
+    """The studies of the nightly: ids, or paths made absolute (a relative path is relative to the config);
+    a study that does not exist is a config error before anything runs, not a study that 'could not run'."""
+    studies = [s for s in study_ids() if s not in (spec.exclude or ())] if spec.studies == "all" else spec.studies
     resolved = []
-    for s in studies:          # a relative path is relative to the nightly config
+    for s in studies:
         p = Path(s)
         resolved.append(str(p if p.is_absolute() or not p.suffix else (path.parent / p).resolve()))
         where = Path(resolved[-1]) if p.suffix else STUDIES / s / STUDY_FILE
-        if not where.is_file():    # a config error before anything runs, not a study that 'could not run'
-            known = ", ".join(study_ids())
-            raise ConfigError(f"{path}: key 'studies': no study {s!r} ({where} not found); known: {known}")
-    use_cache = data.get("use_cache", False)
-    if not isinstance(use_cache, bool):
-        raise ConfigError(f"{path}: key 'use_cache': expected true or false, got {use_cache!r}")
-    rules = data["thresholds"]
-    if not isinstance(rules, list) or not rules:
-        raise ConfigError(f"{path}: key 'thresholds': expected a non-empty list of {{metric, abs, rel}}")
-    thresholds = []
-    for i, r in enumerate(rules):
-        where = f"{path}: thresholds[{i}]"
-        _check_keys(r, _THRESHOLD_KEYS, where)
-        if not isinstance(r["metric"], str) or not r["metric"]:
-            raise ConfigError(f"{where}: key 'metric': expected a name pattern such as 'vaf*'")
-        if "abs" not in r and "rel" not in r:
-            raise ConfigError(f"{where}: give 'abs', 'rel' or both")
-        thresholds.append(Threshold(r["metric"], _number(r.get("abs", 0.0), where, "abs"),
-                                    _number(r.get("rel", 0.0), where, "rel")))
-    if thresholds[-1].metric != "*":
-        raise ConfigError(f"{path}: key 'thresholds': the last rule must be metric '*' (the default)")
-    timing = data.get("timing") or {}
-    _check_keys(timing, _TIMING_KEYS, f"{path}: timing")
-    regression = timing.get("regression", False)
-    if not isinstance(regression, bool):
-        raise ConfigError(f"{path}: timing: key 'regression': expected true or false, got {regression!r}")
-    wall_clock = data.get("wall_clock", list(Rules.wall_clock))
-    if not isinstance(wall_clock, list) or not all(isinstance(w, str) and w for w in wall_clock):
-        raise ConfigError(f"{path}: key 'wall_clock': expected a list of metric names (patterns) that are "
-                          f"wall-clock times, e.g. [fit_time_s]")
-    key_checks = data.get("key_checks") or {}
-    if not isinstance(key_checks, dict) or not all(isinstance(v, list) and all(isinstance(c, str) for c in v)
-                                                   for v in key_checks.values()):
-        raise ConfigError(f"{path}: key 'key_checks': expected a mapping study -> list of check ids")
+        if not where.is_file():
+            raise ConfigError(f"{path}: key 'studies': no study {s!r} ({where} not found); "
+                              f"known: {', '.join(study_ids())}")
+    return tuple(resolved)
+
+
+def load_config(path: Path = DEFAULT_CONFIG) -> NightlyConfig:
+    """Parse the nightly config strictly (every error names the file and key, all of them at once)."""
+    path = Path(path)
+    data = load_yaml(path)
+    spec = parse(NightlyFile, data, str(path), document=True)
+    timing = spec.timing or _Timing()
+    thresholds = tuple(Threshold(t.metric, t.abs or 0.0, t.rel or 0.0) for t in spec.thresholds)
     return NightlyConfig(
-        path=path, studies=tuple(resolved), use_cache=use_cache,
-        rules=Rules(tuple(thresholds), _number(timing.get("grow_factor", 1.5), f"{path}: timing", "grow_factor", 1.0),
-                    _number(timing.get("min_seconds", 5.0), f"{path}: timing", "min_seconds"), regression,
-                    tuple(wall_clock)),
-        key_checks={str(k): tuple(v) for k, v in key_checks.items()},
-        text_hash=fingerprint.sha(data, 16))
+        path=path, studies=_resolved_studies(spec, path), use_cache=spec.use_cache,
+        rules=Rules(thresholds, timing.grow_factor, timing.min_seconds, timing.regression, spec.wall_clock),
+        key_checks=dict(spec.key_checks or {}), text_hash=fingerprint.sha(data, 16))
 
 
 @dataclasses.dataclass

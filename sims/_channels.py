@@ -19,7 +19,7 @@ from jointbench.sims.sensors import Sensor
 STREAMS = ("perturbation", "voluntary", "angle_noise", "torque_noise")
 
 
-def _detrend_linear(x: np.ndarray) -> np.ndarray:
+def detrend_linear(x: np.ndarray) -> np.ndarray:
     """Remove the least-squares straight line along axis 0 (closed form; same as
     ``scipy.signal.detrend(x, axis=0, type="linear")`` to rounding, and much faster)."""
     t = np.arange(len(x)) - (len(x) - 1) / 2.0
@@ -28,14 +28,14 @@ def _detrend_linear(x: np.ndarray) -> np.ndarray:
     return x - x.mean(axis=0) - np.multiply.outer(t, slope)
 
 
-def _measure(sensor: Sensor, filtered: np.ndarray, clean: np.ndarray,
-             unit_noise: Callable[[], tuple[np.ndarray, np.ndarray]],
-             acquire: Callable[[np.ndarray], np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+def measure(sensor: Sensor, filtered: np.ndarray, clean: np.ndarray,
+            unit_noise: Callable[[], tuple[np.ndarray, np.ndarray]],
+            acquire: Callable[[np.ndarray], np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
     """One channel after its analog filter: (measured, noise-free measured), both acquired.
 
     ``clean`` is ``acquire(filtered)`` (computed once per response, filter and acquisition: see
     :func:`sims.reuse.lookup_sensed`); ``unit_noise()`` gives the channel's unit-variance noise at the
-    simulation rate and acquired (:func:`_unit_noise`). The noise is scaled so that its rms (or the SNR) is
+    simulation rate and acquired (:func:`unit_noise`). The noise is scaled so that its rms (or the SNR) is
     exact in the acquired record; quantization acts before acquisition.
     """
     if not sensor.noisy:
@@ -49,8 +49,8 @@ def _measure(sensor: Sensor, filtered: np.ndarray, clean: np.ndarray,
     return clean + gain * w_acq, clean  # acquisition is linear: the same as acquiring filtered + gain * w
 
 
-def _unit_noise(sensor: Sensor, n: int, rng: np.random.Generator, acquire: Callable[[np.ndarray], np.ndarray],
-                fs_sim: float) -> tuple[np.ndarray, np.ndarray]:
+def unit_noise(sensor: Sensor, n: int, rng: np.random.Generator, acquire: Callable[[np.ndarray], np.ndarray],
+               fs_sim: float) -> tuple[np.ndarray, np.ndarray]:
     """A channel's unit noise: white at the simulation rate, drawn from the channel's own stream (coloured
     by the sensor's ``noise_filter`` if any), and the same after acquisition."""
     w = rng.standard_normal(n)
@@ -59,8 +59,8 @@ def _unit_noise(sensor: Sensor, n: int, rng: np.random.Generator, acquire: Calla
     return w, acquire(w)
 
 
-def _streams(seed: int | np.random.SeedSequence, replicate: int,
-             realization: int = 0) -> dict[str, np.random.Generator]:
+def streams(seed: int | np.random.SeedSequence, replicate: int,
+            realization: int = 0) -> dict[str, np.random.Generator]:
     """One generator per entry of :data:`STREAMS`; ``replicate`` > 0 redraws only the noise streams,
     ``realization`` > 0 every stream (a child slot of its own, far from the replicates')."""
     ss = seed if isinstance(seed, np.random.SeedSequence) else np.random.SeedSequence(seed)

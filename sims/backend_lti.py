@@ -74,7 +74,7 @@ def foh(A: np.ndarray, B: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray
     return E[:n, :n], P - Q, Q
 
 
-def _transfer_coefficients(Ad: np.ndarray, G0: np.ndarray, G1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def transfer_coefficients(Ad: np.ndarray, G0: np.ndarray, G1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Numerators ``num[i, j]`` (state i from input j) and the common denominator, in powers of z⁻¹.
 
     ``X(z) = adj(zI - Ad) (z G1 + G0) U(z) / det(zI - Ad)`` with adj(zI - Ad) = [[z - a11, a01],
@@ -143,7 +143,7 @@ class LTIBackend(Backend):
         w, d_dot = c.drive_input(d, fs)
         w = w + tv
         Ad, G0, G1 = foh(A, B, 1.0 / fs)
-        num, den = _transfer_coefficients(Ad, G0, G1)
+        num, den = transfer_coefficients(Ad, G0, G1)
         # x_i = num[i, 0](z) / den(z) w: the 3-tap numerators first, then the recursive part once for both
         V = np.multiply.outer(w, num[:, 0, 0])
         V[1:] += np.multiply.outer(w[:-1], num[:, 0, 1])

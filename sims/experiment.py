@@ -22,7 +22,7 @@ from typing import Any, Callable, Literal, Mapping
 import numpy as np
 
 from jointbench.core.errors import ConfigError, Incompatible
-from jointbench.core.schema import param, parse
+from jointbench.core.schema import Problems, param, parse, parse_tagged, tagged
 from jointbench.core.signal import decimate, decimate_fft
 from jointbench.core.types import Trial
 from jointbench.sims import BACKENDS, JOINTS, PERTURBATIONS, REFLEXES
@@ -35,13 +35,7 @@ from jointbench.sims.gravity import Gravity
 from jointbench.sims.sensors import Sensor, Sensors
 from jointbench.sims.voluntary import Voluntary
 from jointbench.sims._channels import (  # noqa: F401 - STREAMS re-exported
-    STREAMS, _detrend_linear, _measure, _streams, _unit_noise)
-
-#: the keys of an experiment block, in the order they are listed in messages
-EXPERIMENT_KEYS = ("joint", "apparatus", "perturbation", "voluntary", "sensors", "fs_sim", "duration",
-                   "acquisition", "gravity")
-
-
+    STREAMS, detrend_linear, measure, streams, unit_noise)
 
 @dataclasses.dataclass(frozen=True)
 class Acquisition:
@@ -72,33 +66,37 @@ class Acquisition:
     decimation: Literal["fir", "fft"] = "fir"
 
 
-@dataclasses.dataclass(frozen=True)
-class _Timing:
+def _joint_and_reflex(value: Any, where: str, key: str) -> tuple[Any, Any]:
+    """The joint model ``{model: ..., ...}`` and the reflex pathway its ``reflex`` key may hold (any joint
+    model takes one; ``{pathway: stretch, ...}``, stretch by default), or None; the errors of both at once."""
+    has_reflex = isinstance(value, Mapping) and "reflex" in value
+    joint = {k: v for k, v in value.items() if k != "reflex"} if has_reflex else value
+    problems, out = Problems(), [None, None]
+    with problems.catch():
+        out[0] = parse_tagged(joint, "model", JOINTS, "joint model", f"{where}: {key}")
+    if has_reflex:
+        with problems.catch():
+            out[1] = parse_tagged(value["reflex"], "pathway", REFLEXES, "reflex pathway", f"{where}: {key}: reflex",
+                                  default="stretch")
+    problems.raise_all()
+    return out[0], out[1]
+
+
+@dataclasses.dataclass(frozen=True, kw_only=True)
+class _ExperimentSpec:
+    """The experiment block of a study config, as written (:meth:`Experiment.from_mapping`)."""
+
+    joint: tuple = param(parser=_joint_and_reflex, doc="joint model {model: ..., reflex: {...}}")
+    apparatus: Any = param(default_factory=PositionServo,
+                           parser=tagged("kind", APPARATUS_KINDS, "apparatus", default="position_servo"),
+                           doc="{kind: position_servo | torque_drive | handle, ...}")
+    perturbation: Any = param(parser=tagged("kind", PERTURBATIONS, "perturbation"), doc="{kind: ..., ...}")
+    voluntary: Voluntary = param(default_factory=Voluntary, doc="voluntary torque")
+    sensors: Sensors = param(default_factory=Sensors, doc="sensor models {angle: ..., torque: ...}")
     fs_sim: float = param(unit="Hz", gt=0, doc="simulation rate")
     duration: float = param(unit="s", gt=0, doc="simulated record length")
-
-
-def _parse_tagged(data: Any, tag: str, known: list[str], lookup: Callable[[str], type], what: str,
-                  where: str, default: str | None = None) -> Any:
-    """Parse ``{tag: name, **settings}``: ``name`` picks a class whose settings dataclass parses the rest.
-
-    The class is its own settings dataclass, or has a ``Settings`` attribute, in which case the result is
-    ``cls(settings)``.
-    """
-    if data is None and default is not None:
-        data = {}
-    if not isinstance(data, Mapping):
-        raise ConfigError(f"{where}: expected a mapping with key '{tag}' (one of: {', '.join(known)}), "
-                          f"got {data!r}")
-    name = data.get(tag, default)
-    if name is None:
-        raise ConfigError(f"{where}: missing key '{tag}'; known {what}s: {', '.join(known)}")
-    if not isinstance(name, str) or name not in known:
-        raise ConfigError(f"{where}: key '{tag}': unknown {what} {name!r}; known: {', '.join(known)}")
-    cls = lookup(name)
-    settings_cls = getattr(cls, "Settings", cls)
-    settings = parse(settings_cls, {k: v for k, v in data.items() if k != tag}, where)
-    return settings if settings_cls is cls else cls(settings)
+    acquisition: Acquisition = param(default_factory=Acquisition, doc="detrend, decimation, trim")
+    gravity: Gravity | None = param(None, doc="gravity on the limb segment")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -179,35 +177,11 @@ class Experiment:
             Unknown or missing key, wrong unit or type, impossible value; the message names ``where``,
             the section and the key.
         """
-        if not isinstance(mapping, Mapping):
-            raise ConfigError(f"{where}: expected a mapping of settings, got {mapping!r}")
-        unknown = sorted(set(mapping) - set(EXPERIMENT_KEYS), key=str)
-        if unknown:
-            raise ConfigError(f"{where}: unknown key {unknown[0]!r}; allowed: {', '.join(EXPERIMENT_KEYS)}")
-        for key in ("joint", "perturbation", "fs_sim", "duration"):
-            if key not in mapping:
-                raise ConfigError(f"{where}: missing required key {key!r}")
-        timing = parse(_Timing, {k: mapping[k] for k in ("fs_sim", "duration")}, where)
-        joint, reflex = mapping["joint"], None
-        if isinstance(joint, Mapping) and "reflex" in joint:   # a reflex pathway on any joint model
-            joint = {k: v for k, v in joint.items() if k != "reflex"}
-            reflex = _parse_tagged(mapping["joint"]["reflex"], "pathway", REFLEXES.names(), REFLEXES.get,
-                                   "reflex pathway", f"{where}: joint: reflex", default="stretch")
-        return cls(
-            joint=_parse_tagged(joint, "model", JOINTS.names(), JOINTS.get, "joint model",
-                                f"{where}: joint"),
-            reflex=reflex,
-            perturbation=_parse_tagged(mapping["perturbation"], "kind", PERTURBATIONS.names(),
-                                       PERTURBATIONS.get, "perturbation", f"{where}: perturbation"),
-            apparatus=_parse_tagged(mapping.get("apparatus"), "kind", list(APPARATUS_KINDS),
-                                    APPARATUS_KINDS.__getitem__, "apparatus", f"{where}: apparatus",
-                                    default="position_servo"),
-            voluntary=parse(Voluntary, mapping.get("voluntary"), f"{where}: voluntary"),
-            sensors=parse(Sensors, mapping.get("sensors"), f"{where}: sensors"),
-            acquisition=parse(Acquisition, mapping.get("acquisition"), f"{where}: acquisition"),
-            gravity=(parse(Gravity, mapping["gravity"], f"{where}: gravity")
-                     if mapping.get("gravity") is not None else None),
-            fs_sim=timing.fs_sim, duration=timing.duration, backend=backend, where=where)
+        spec = parse(_ExperimentSpec, mapping, where)
+        joint, reflex = spec.joint
+        return cls(joint=joint, reflex=reflex, perturbation=spec.perturbation, apparatus=spec.apparatus,
+                   voluntary=spec.voluntary, sensors=spec.sensors, acquisition=spec.acquisition, gravity=spec.gravity,
+                   fs_sim=spec.fs_sim, duration=spec.duration, backend=backend, where=where)
 
     # ----------------------------------------------------------------------------------- derived sizes
     @property
@@ -309,7 +283,7 @@ class Experiment:
         """
         x = np.asarray(x, float)
         if self.acquisition.detrend:
-            x = _detrend_linear(x)
+            x = detrend_linear(x)
         if self.acquisition.decimation == "fft":
             x = decimate_fft(x, self.n_acquired)
         else:
@@ -373,7 +347,26 @@ def simulate(experiment: Experiment, seed: int | np.random.SeedSequence, backend
     Westwick & Perreault 2012, Fig. 1, eqs. 3-8 and Sec. IV; Xu & Hollerbach 1998, eq. 7; van de Ruit
     et al. 2018, eqs. 11-13.
     """
-    exp = experiment
+    exp, runner = _resolved(experiment, seed, backend, replicate, realization)
+    rng = streams(seed, replicate, realization)
+    t_start = time.perf_counter()
+    by_name = backend is None or isinstance(backend, str)    # a backend object has no name to key on
+    key = _reuse.response_key(exp, seed, realization, exp.backend) if by_name else None
+
+    def acquire() -> tuple[Trial, bool]:   # on the response, simulated or reused (sims.reuse)
+        (drive, tv, resp), reused = _reuse.lookup(key, lambda: _respond(exp, runner, rng))
+        return _measured(exp, drive, tv, resp, rng, key, replicate, name), reused
+
+    (trial, reused), whole = _reuse.lookup_trial(_reuse.trial_key(key, exp, replicate, name), acquire)
+    _backend._record(getattr(runner, "name", "") or type(runner).__name__, time.perf_counter() - t_start,
+                     reused or whole)
+    return trial
+
+
+def _resolved(exp: Experiment, seed: Any, backend: str | Any | None, replicate: int,
+              realization: int) -> tuple[Experiment, Any]:
+    """The experiment to simulate (on ``backend`` when it is given and not the experiment's, checked there)
+    and the backend that runs it; the arguments of :func:`simulate` checked."""
     if not isinstance(exp, Experiment):
         raise TypeError(f"simulate() needs an Experiment, got {type(exp).__name__}")
     if seed is None:
@@ -381,89 +374,92 @@ def simulate(experiment: Experiment, seed: int | np.random.SeedSequence, backend
     for key, v in (("replicate", replicate), ("realization", realization)):
         if isinstance(v, bool) or not isinstance(v, int) or v < 0:
             raise ValueError(f"simulate(): {key} must be a whole number >= 0, got {v!r}")
-    rng = _streams(seed, replicate, realization)
     if backend is not None and backend != exp.backend:
         if isinstance(backend, str):
             exp = dataclasses.replace(exp, backend=backend)   # validates: check() of that backend
         else:
             backend.check(exp)
-    runner = _backend.resolve(exp.backend if backend is None else backend)
-    t_start = time.perf_counter()
+    return exp, _backend.resolve(exp.backend if backend is None else backend)
 
+
+def _respond(exp: Experiment, runner: Any, rng: Mapping[str, np.random.Generator]) -> tuple:
+    """The half of a trial that sensors, noise and acquisition do not change: the drive, the voluntary
+    torque (with what holds an intended movement, and the trajectory, against the limb and gravity) and
+    the backend's response."""
     fs, n = exp.fs_sim, exp.n_sim
+    drive = exp.perturbation.generate(n, fs, rng["perturbation"])
+    tv = exp.voluntary.generate(n, fs, rng["voluntary"])
+    x0 = (0.0, 0.0)
+    if exp.voluntary.moving:
+        t = np.arange(n) / fs
+        pos, vel, acc = exp.voluntary.movement(t)
+        I, B, K = exp.joint.coefficients_at(t)
+        c = exp.apparatus.coupling(exp.joint)
+        tv = tv + I * acc + (B + c.b_a) * vel + (K + c.k_a) * pos
+        x0 = (float(pos[0]), float(vel[0]))
+    if exp.gravity is not None:   # the subject holds the intended trajectory against gravity
+        tv = tv - exp.gravity.torque(exp.voluntary.position(np.arange(n) / fs))
+    return drive, tv, runner.respond(exp, drive, tv, x0)
 
-    def respond():   # the half that sensors, noise and acquisition do not change (sims.reuse)
-        drive = exp.perturbation.generate(n, fs, rng["perturbation"])
-        tv = exp.voluntary.generate(n, fs, rng["voluntary"])
-        x0 = (0.0, 0.0)
-        if exp.voluntary.moving:
-            t = np.arange(n) / fs
-            pos, vel, acc = exp.voluntary.movement(t)
-            I, B, K = exp.joint.coefficients_at(t)
-            c = exp.apparatus.coupling(exp.joint)
-            tv = tv + I * acc + (B + c.b_a) * vel + (K + c.k_a) * pos
-            x0 = (float(pos[0]), float(vel[0]))
-        if exp.gravity is not None:   # the subject holds the intended trajectory against gravity
-            tv = tv - exp.gravity.torque(exp.voluntary.position(np.arange(n) / fs))
-        return drive, tv, runner.respond(exp, drive, tv, x0)
 
-    by_name = backend is None or isinstance(backend, str)    # a backend object has no name to key on
-    key = _reuse.response_key(exp, seed, realization, exp.backend) if by_name else None
+def _active(exp: Experiment) -> bool:
+    """Whether the truth's torque and voluntary torque are apart (a voluntary torque or gravity)."""
+    return exp.voluntary.active or exp.gravity is not None
 
-    def acquire() -> Trial:   # sensors, noise, acquisition and the truth, on the (maybe reused) response
-        (drive, tv, resp), reused = _reuse.lookup(key, respond)
-        parts = dict(resp.torque_parts)       # e.g. intrinsic and reflex torque: through the same filter
-        active = exp.voluntary.active or exp.gravity is not None
 
-        def sense() -> dict[str, np.ndarray]:   # the noise-free channels: sensor filters, then acquisition
-            if resp.angle_measured is not None:
-                angle_true = resp.angle_measured
-            else:
-                angle_true = drive if exp.apparatus.angle_is_drive else resp.angle
-            angle_filtered = exp.sensors.angle.filtered(angle_true, fs)
-            # one pass of the torque sensor's filter over the measured, impedance and voluntary torques
-            torques = exp.sensors.torque.filtered(np.column_stack([resp.torque_measured, resp.torque_impedance,
-                                                                   tv, *parts.values()]), fs)
-            out = {"angle_filtered": angle_filtered, "torque_filtered": torques[:, 0],
-                   "parts_filtered": torques[:, 3:],
-                   "angle": exp.acquire(angle_filtered), "torque": exp.acquire(torques[:, 0]),
-                   "truth_torques": exp.acquire(torques[:, 1:3] if active else torques[:, 1]),
-                   "command": exp.acquire(drive)}
-            if exp.voluntary.moving:
-                out["movement"] = exp.acquire(exp.voluntary.position(np.arange(n) / fs))
-            if resp.extra:
-                out["extra"] = exp.acquire(np.column_stack([resp.extra[k] for k in resp.extra]))
-            return out
+def _sensed(exp: Experiment, drive: np.ndarray, tv: np.ndarray, resp: Response) -> dict[str, np.ndarray]:
+    """The noise-free channels: the sensors' filters, then the acquisition."""
+    fs, n = exp.fs_sim, exp.n_sim
+    if resp.angle_measured is not None:
+        angle_true = resp.angle_measured
+    else:
+        angle_true = drive if exp.apparatus.angle_is_drive else resp.angle
+    angle_filtered = exp.sensors.angle.filtered(angle_true, fs)
+    # one pass of the torque sensor's filter over the measured, impedance and voluntary torques
+    torques = exp.sensors.torque.filtered(np.column_stack([resp.torque_measured, resp.torque_impedance,
+                                                           tv, *resp.torque_parts.values()]), fs)
+    out = {"angle_filtered": angle_filtered, "torque_filtered": torques[:, 0],
+           "parts_filtered": torques[:, 3:],
+           "angle": exp.acquire(angle_filtered), "torque": exp.acquire(torques[:, 0]),
+           "truth_torques": exp.acquire(torques[:, 1:3] if _active(exp) else torques[:, 1]),
+           "command": exp.acquire(drive)}
+    if exp.voluntary.moving:
+        out["movement"] = exp.acquire(exp.voluntary.position(np.arange(n) / fs))
+    if resp.extra:
+        out["extra"] = exp.acquire(np.column_stack([resp.extra[k] for k in resp.extra]))
+    return out
 
-        def unit_noise(sensor: Sensor, stream: str) -> Callable[[], tuple[np.ndarray, np.ndarray]]:
-            def draw():   # the same draw for every noise level of this seed, replicate and realization
-                return _unit_noise(sensor, n, rng[stream], exp.acquire, fs)
-            return lambda: _reuse.lookup_noise(_reuse.noise_key(key, exp, stream, sensor.noise_filter, replicate),
-                                               draw)[0]
 
-        sensed, _ = _reuse.lookup_sensed(_reuse.sensed_key(key, exp), sense)
-        angle, angle_clean = _measure(exp.sensors.angle, sensed["angle_filtered"], sensed["angle"],
-                                      unit_noise(exp.sensors.angle, "angle_noise"), exp.acquire)
-        torque, _ = _measure(exp.sensors.torque, sensed["torque_filtered"], sensed["torque"],
-                             unit_noise(exp.sensors.torque, "torque_noise"), exp.acquire)
-        truth_torques = sensed["truth_torques"]
-        signals = {
-            "angle": angle_clean,
-            "torque": np.ascontiguousarray(truth_torques[:, 0]) if active else truth_torques,
-            "command": sensed["command"],
-            "voluntary": np.ascontiguousarray(truth_torques[:, 1]) if active else np.zeros(len(angle)),
-        }
-        if exp.voluntary.moving:
-            signals["movement"] = sensed["movement"]
-        if resp.extra:
-            acquired = sensed["extra"]
-            signals.update({k: np.ascontiguousarray(acquired[:, i]) for i, k in enumerate(resp.extra)})
-        signals.update(_truth.part_signals(exp, list(parts), sensed["parts_filtered"]))   # reflex, scheduling variable
-        return Trial.from_arrays(angle, torque, exp.fs, imposed=exp.apparatus.imposed,
-                                 truth=_truth.truth(exp, signals, resp.angle), name=name), reused
+def _noise(exp: Experiment, sensor: Sensor, stream: str, rng: Mapping[str, np.random.Generator], key: Any,
+           replicate: int) -> Callable[[], tuple[np.ndarray, np.ndarray]]:
+    """The unit noise of a channel, drawn once for every noise level of this seed, replicate and
+    realization (:mod:`sims.reuse`)."""
+    def draw():
+        return unit_noise(sensor, exp.n_sim, rng[stream], exp.acquire, exp.fs_sim)
+    return lambda: _reuse.lookup_noise(_reuse.noise_key(key, exp, stream, sensor.noise_filter, replicate), draw)[0]
 
-    (trial, reused), whole = _reuse.lookup_trial(_reuse.trial_key(key, exp, replicate, name), acquire)
-    _backend._record(getattr(runner, "name", "") or type(runner).__name__, time.perf_counter() - t_start,
-                     reused or whole)
-    return trial
 
+def _measured(exp: Experiment, drive: np.ndarray, tv: np.ndarray, resp: Response,
+              rng: Mapping[str, np.random.Generator], key: Any, replicate: int, name: str) -> Trial:
+    """The trial of a response: sensors, noise, acquisition and the truth."""
+    sensed, _ = _reuse.lookup_sensed(_reuse.sensed_key(key, exp), lambda: _sensed(exp, drive, tv, resp))
+    angle, angle_clean = measure(exp.sensors.angle, sensed["angle_filtered"], sensed["angle"],
+                                  _noise(exp, exp.sensors.angle, "angle_noise", rng, key, replicate), exp.acquire)
+    torque, _ = measure(exp.sensors.torque, sensed["torque_filtered"], sensed["torque"],
+                         _noise(exp, exp.sensors.torque, "torque_noise", rng, key, replicate), exp.acquire)
+    truth_torques = sensed["truth_torques"]
+    active = _active(exp)
+    signals = {
+        "angle": angle_clean,
+        "torque": np.ascontiguousarray(truth_torques[:, 0]) if active else truth_torques,
+        "command": sensed["command"],
+        "voluntary": np.ascontiguousarray(truth_torques[:, 1]) if active else np.zeros(len(angle)),
+    }
+    if exp.voluntary.moving:
+        signals["movement"] = sensed["movement"]
+    if resp.extra:
+        acquired = sensed["extra"]
+        signals.update({k: np.ascontiguousarray(acquired[:, i]) for i, k in enumerate(resp.extra)})
+    signals.update(_truth.part_signals(exp, list(resp.torque_parts), sensed["parts_filtered"]))   # reflex, scheduling
+    return Trial.from_arrays(angle, torque, exp.fs, imposed=exp.apparatus.imposed,
+                             truth=_truth.truth(exp, signals, resp.angle), name=name)

@@ -40,7 +40,7 @@ import numpy as np
 from numpy.polynomial import polynomial as P
 
 from jointbench.core.errors import ConfigError
-from jointbench.core.schema import param
+from jointbench.core.schema import param, parse
 from jointbench.sims import JOINTS
 
 _GRID = 10001      # points on which a function's range is checked
@@ -70,25 +70,23 @@ class AngleFunction:
         if not isinstance(data, Mapping):
             raise ConfigError(f"key '{key}': expected a number, {{polynomial: [c0, c1, ...]}} or "
                               f"{{angle: [...], value: [...]}}, got {data!r}")
-        keys = set(data)
-        if keys == {"polynomial"}:
-            c = _numbers(data["polynomial"], f"{key}.polynomial")
+        spec = parse(_AngleSpec, data, f"key '{key}'")
+        if spec.polynomial is not None and spec.angle is None and spec.value is None:
             if angle_range is None:
                 raise ConfigError(f"key 'angle_range': a polynomial {key}(theta) needs the angle range (rad) it "
                                   f"holds over, e.g. angle_range: [-0.6, 0.4]")
-            return cls("polynomial", tuple(c), (), float(angle_range[0]), float(angle_range[1]))
-        if keys == {"angle", "value"}:
-            a = _numbers(data["angle"], f"{key}.angle")
-            v = _numbers(data["value"], f"{key}.value")
+            return cls("polynomial", spec.polynomial, (), float(angle_range[0]), float(angle_range[1]))
+        if spec.polynomial is None and spec.angle is not None and spec.value is not None:
+            a, v = np.asarray(spec.angle, float), spec.value
             if len(a) != len(v) or len(a) < 2:
                 raise ConfigError(f"key '{key}': a table needs as many angles as values (at least 2), got "
                                   f"{len(a)} and {len(v)}")
             if np.any(np.diff(a) <= 0):
                 raise ConfigError(f"key '{key}.angle': the angles must increase strictly, got {list(a)}")
             lo, hi = (a[0], a[-1]) if angle_range is None else angle_range
-            return cls("table", tuple(v), tuple(a), float(lo), float(hi))
+            return cls("table", v, tuple(a), float(lo), float(hi))
         raise ConfigError(f"key '{key}': expected {{polynomial: [...]}} or {{angle: [...], value: [...]}}, got keys "
-                          f"{sorted(keys)}")
+                          f"{sorted(data)}")
 
     @functools.cached_property
     def _integ(self) -> np.ndarray:
@@ -141,14 +139,22 @@ def _horner(x: np.ndarray, coef) -> np.ndarray:
     return y
 
 
-def _numbers(value: Any, key: str) -> np.ndarray:
-    if not isinstance(value, (list, tuple)) or not value or not all(
-            isinstance(v, (int, float)) and not isinstance(v, bool) for v in value):
-        raise ConfigError(f"key '{key}': expected a non-empty list of numbers, got {value!r}")
-    a = np.asarray(value, float)
-    if not np.all(np.isfinite(a)):
-        raise ConfigError(f"key '{key}': the numbers must be finite")
-    return a
+def _nonempty(value: tuple[float, ...] | None) -> None:
+    if value is not None and not value:
+        raise ConfigError("expected a non-empty list of numbers, got []")
+
+
+@dataclasses.dataclass(frozen=True)
+class _AngleSpec:
+    """A function of the joint angle as written: ``{polynomial: [...]}`` or ``{angle: [...], value: [...]}``."""
+
+    polynomial: tuple[float, ...] | None = param(None, doc="coefficients c0, c1, ... (ascending powers)")
+    angle: tuple[float, ...] | None = param(None, unit="rad", doc="table: increasing angles")
+    value: tuple[float, ...] | None = param(None, doc="table: the values at those angles")
+
+    def __post_init__(self):
+        for v in (self.polynomial, self.angle, self.value):
+            _nonempty(v)
 
 
 @JOINTS.register("position_dependent", tags=("lpv", "nonlinear"))

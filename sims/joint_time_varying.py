@@ -15,23 +15,8 @@ import numpy as np
 from jointbench.core.errors import ConfigError
 from jointbench.core.schema import param
 from jointbench.sims import JOINTS
-from jointbench.sims.profile import parse_profile
+from jointbench.sims.profile import parse_profile_fields, require_positive
 
-
-def _checked_profiles(obj: Any, names: tuple[str, ...]) -> None:
-    """Turn the named fields (numbers or ``{shape: ...}`` mappings) into profile objects, in place."""
-    for name in names:
-        v = getattr(obj, name)
-        if v is not None:
-            object.__setattr__(obj, name, parse_profile(v, f"key '{name}'"))
-
-
-def _positive(name: str, profile, strict: bool) -> None:
-    """Raise if ``profile`` ever goes to or below zero (``strict``) or below zero."""
-    low = profile.minimum
-    if not (low > 0 if strict else low >= 0):
-        raise ConfigError(f"key '{name}': the profile reaches {low:g}; it must stay "
-                          f"{'> 0' if strict else '>= 0'} at all times")
 
 @JOINTS.register("time_varying", tags=("ltv",))
 @dataclasses.dataclass(frozen=True)
@@ -73,10 +58,10 @@ class TimeVaryingJoint:
             raise ConfigError("give exactly one of 'B' (number or profile) and 'damping_ratio'")
         if not math.isfinite(self.I):
             raise ConfigError(f"key 'I': must be finite, got {self.I}")
-        _checked_profiles(self, ("K", "B"))
-        _positive("K", self.K, strict=True)
+        parse_profile_fields(self, ("K", "B"))
+        require_positive("K", self.K, strict=True)
         if self.B is not None:
-            _positive("B", self.B, strict=False)
+            require_positive("B", self.B, strict=False)
 
     @property
     def time_invariant(self) -> bool:

@@ -16,7 +16,7 @@ import numpy as np
 from jointbench.core.errors import ConfigError
 from jointbench.core.schema import param
 from jointbench.sims import JOINTS
-from jointbench.sims.joint_time_varying import _checked_profiles, _positive
+from jointbench.sims.profile import parse_profile_fields, require_positive
 
 
 @JOINTS.register("wrist_contact", tags=("ltv", "contact"))
@@ -57,8 +57,8 @@ class WristContactJoint:
         for name in ("I", "b", "b_c", "k_c"):
             if not math.isfinite(getattr(self, name)):
                 raise ConfigError(f"key '{name}': must be finite")
-        _checked_profiles(self, ("k",))
-        _positive("k", self.k, strict=True)
+        parse_profile_fields(self, ("k",))
+        require_positive("k", self.k, strict=True)
 
     @property
     def contact(self) -> tuple[float, float]:

@@ -23,7 +23,7 @@ from typing import Any, ClassVar, Mapping
 import numpy as np
 
 from jointbench.core.errors import ConfigError
-from jointbench.core.schema import param, parse
+from jointbench.core.schema import param, parse_tagged
 from jointbench.sims import PERTURBATIONS
 from jointbench.sims.profile import parse_profile
 
@@ -55,15 +55,10 @@ class Moving:
         object.__setattr__(self, "movement", parse_profile(self.movement, "key 'movement'"))
         p = self.perturbation
         if isinstance(p, Mapping):
-            kind = p.get("kind")
-            if kind not in PERTURBATIONS or kind == self.kind:
-                known = [k for k in PERTURBATIONS.names() if k != self.kind]
-                raise ConfigError(f"key 'perturbation': unknown perturbation kind {kind!r}; known: {', '.join(known)}")
-            cls = PERTURBATIONS.get(kind)
-            settings_cls = getattr(cls, "Settings", cls)
-            p = parse(settings_cls, {k: v for k, v in p.items() if k != "kind"}, f"key 'perturbation' ({kind})")
-            p = p if settings_cls is cls else cls(p)
-            object.__setattr__(self, "perturbation", p)
+            if p.get("kind") == self.kind:
+                raise ConfigError("key 'perturbation': a moving perturbation adds a random one, not another moving one")
+            object.__setattr__(self, "perturbation", parse_tagged(p, "kind", PERTURBATIONS, "perturbation",
+                                                                  "key 'perturbation'"))
         elif not hasattr(p, "generate"):
             raise ConfigError(f"key 'perturbation': expected a mapping {{kind: ...}}, got {p!r}")
 

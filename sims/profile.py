@@ -206,3 +206,19 @@ def parse_profile(data: Any, where: str) -> Any:
     rest = {k: v for k, v in data.items() if k != "shape"}
     return parse(PROFILES.get(shape), rest, f"{where} ({shape})")
 
+
+def parse_profile_fields(obj: Any, names: tuple[str, ...]) -> None:
+    """Turn the named fields of dataclass ``obj`` (numbers or ``{shape: ...}`` mappings) into profiles, in
+    place (a joint model's ``__post_init__``); errors name the key."""
+    for name in names:
+        v = getattr(obj, name)
+        if v is not None:
+            object.__setattr__(obj, name, parse_profile(v, f"key '{name}'"))
+
+
+def require_positive(name: str, profile: Any, strict: bool) -> None:
+    """Raise :class:`ConfigError` if ``profile`` ever goes to or below zero (``strict``) or below zero."""
+    low = profile.minimum
+    if not (low > 0 if strict else low >= 0):
+        raise ConfigError(f"key '{name}': the profile reaches {low:g}; it must stay "
+                          f"{'> 0' if strict else '>= 0'} at all times")

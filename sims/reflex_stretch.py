@@ -45,7 +45,7 @@ import numpy as np
 from jointbench.core.lazy import scipy_signal as sps
 
 from jointbench.core.errors import ConfigError
-from jointbench.core.schema import param
+from jointbench.core.schema import number, param
 from jointbench.sims import REFLEXES
 from jointbench.sims.profile import parse_profile
 
@@ -87,9 +87,7 @@ class StretchReflex:
             raise ConfigError("missing required key 'gain' (N.m.s/rad; 0 for a pathway without torque)")
         gain = self.gain
         if isinstance(gain, str):         # a constant with its unit, e.g. '5 N.m.s/rad'
-            from jointbench.core.schema import _number
-
-            gain = _number(gain, "N.m.s/rad", "reflex", "gain", False)
+            gain = number(gain, "N.m.s/rad", "reflex", "gain")
         object.__setattr__(self, "gain", parse_profile(gain, "key 'gain'"))
         if not self.gain.minimum >= 0:
             raise ConfigError(f"key 'gain': the profile reaches {self.gain.minimum:g}; a reflex gain must stay >= 0 "
@@ -125,12 +123,12 @@ class StretchReflex:
     def activation(self, fs: float) -> tuple[np.ndarray, np.ndarray]:
         """``(b, a)`` of the activation low-pass discretized exactly for an input held linearly between
         samples (first-order hold; :func:`sims.backend_lti.foh`), in powers of z^-1."""
-        from jointbench.sims.backend_lti import _transfer_coefficients, foh
+        from jointbench.sims.backend_lti import transfer_coefficients, foh
 
         w = 2.0 * math.pi * self.frequency
         A = np.array([[0.0, 1.0], [-w * w, -2.0 * self.damping_ratio * w]])
         B = np.array([[0.0], [w * w]])
-        num, den = _transfer_coefficients(*foh(A, B, 1.0 / fs))
+        num, den = transfer_coefficients(*foh(A, B, 1.0 / fs))
         return num[0, 0], den
 
     def torque(self, velocity: np.ndarray, fs: float, t0: float = 0.0, v_before: float = 0.0) -> np.ndarray:

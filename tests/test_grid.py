@@ -77,13 +77,14 @@ def test_an_estimator_that_refuses_the_data_is_reported_not_fitted(tmp_path):
     ({"grid": {"estimator": ["sds"], "data": ["pooled"]}},
      "grid.data[0]: 'pooled' not allowed; allowed: trial, ensemble"),
     ({"grid": {"estimator": ["sds"], "joint": ["knee_model"]}}, "no model file knee_model.yaml"),
-    ({"grid": {"estimator": ["sds"], "colour": ["red"]}}, "grid: unknown axis 'colour'; axes: scenario"),
+    ({"grid": {"estimator": ["sds"], "colour": ["red"]}}, "grid: unknown key 'colour'; allowed: scenario"),
     ({"grid": {"estimator": ["sds"], "fs": ["fast"]}}, "grid: key 'fs[0]': expected a number in Hz"),
-    ({"grid": {"scenario": ["elbow"]}}, "grid: missing axis 'estimator'"),
+    ({"grid": {"scenario": ["elbow"]}}, "grid: missing required key 'estimator'"),
     ({"grid": {"estimator": ["sds", "sds"]}}, "grid.estimator: a value is listed twice"),
     ({"estimators": {"sdss": {}}}, "estimators: unknown estimator 'sdss'"),
     ({"estimators": {"sds": {"window": "-1 s"}}}, "estimators.sds (scenario elbow)"),
-    ({"budget": "soon"}, "key 'budget': expected minutes > 0"),
+    ({"budget": "soon"}, "key 'budget': expected a number in min, got 'soon'"),
+    ({"budget": 0}, "key 'budget': must be > 0 min"),
     ({"protocol": "parametric_fit"}, "a part with a 'grid' runs protocol 'compare'"),
 ])
 def test_bad_grid_input_is_one_line_naming_the_path(tmp_path, change, words):

@@ -74,6 +74,7 @@ def test_a_config_error_inside_a_grid_exits_2_before_anything_runs(tmp_path):
     path = _grid(tmp_path, CONFIG_ERRORS["typo'd key duraton"][0])
     r = cli("run", path, "--parts", "grid", "--out", tmp_path / "out", "--quiet")
     assert r.returncode == 2 and r.stderr.count("\n") == 1 and "duraton" in r.stderr, r.stderr
+    assert "(a misspelt 'duration', which is missing?)" in r.stderr       # one error, not two
     assert "the combination scenario=elbow, variation=square, noise=0" in r.stderr
     assert not (tmp_path / "out" / "history.sqlite").exists() and not (tmp_path / "out" / "cache").exists()
 

@@ -169,9 +169,12 @@ def test_only_rules_and_scenario_realizations_shape_the_grid(tmp_path):
 
 
 @pytest.mark.parametrize("key, value, message", [
-    ("only", [{"when": {"colour": "red"}, "keep": {}}], "only[0].when: unknown axis 'colour'"),
-    ("only", {"when": {}}, "key 'only': expected a list"),
-    ("tuning", {"sds": {"window": "1 s"}}, "tuning.sds: expected a mapping setting -> non-empty list"),
+    ("only", [{"when": {"colour": "red"}, "keep": {}}], "only[0]: when: unknown key 'colour'; allowed: scenario, "),
+    ("only", {"when": {}}, "only[0]: missing required key 'keep'"),
+    ("only", [{"keep": {"backend": "analytic"}, "why": "x"}],
+     "only[0]: unknown key 'why'; allowed: keep, when, reason"),
+    ("tuning", {"sds": {"window": []}}, "tuning.sds.window: expected a value or a non-empty list of values"),
+    ("tuning", {"sds": "window"}, "key 'tuning.sds': expected a mapping, got 'window'"),
     ("tuning", {"sds": {"widow": ["1 s"]}}, "tuning of sds (scenario elbow)"),
     ("tuning", {"nosuch": {"window": ["1 s"]}}, "tuning: unknown estimator 'nosuch'"),
 ])

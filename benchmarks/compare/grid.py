@@ -59,9 +59,9 @@ from typing import Any, Callable, Mapping
 
 from jointbench import estimators
 from jointbench import sims
-from jointbench.benchmarks.compare.tuning import AXES, _matches, _only, _search, candidates, grid_settings
+from jointbench.benchmarks.compare.tuning import AXES, AxisValues, OnlyRule, candidates, check_search, grid_settings
 from jointbench.core.errors import ConfigError, Incompatible
-from jointbench.core.schema import param, parse
+from jointbench.core.schema import Problems, number, param, parse
 
 NATIVE = "native"
 DATA = ("trial", "ensemble")
@@ -74,6 +74,9 @@ DEFAULT_BUDGET_MIN = 30.0
 #: most combinations a grid may have: each is built and checked when the study is expanded (about a
 #: millisecond each), before the budget is estimated; the matrix study has 704
 MAX_COMBINATIONS = 20_000
+
+#: a tuning search: estimator -> setting -> the values tried
+Search = dict[str, dict[str, tuple[Any, ...]]]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -93,7 +96,38 @@ class _ScenarioSpec:
     discard: float | None = param(None, unit="s", ge=0, doc="seconds not scored at each end")
     realizations: int | None = param(None, ge=2, doc="R of this scenario (over params.realizations)")
     estimators: dict = param(default_factory=dict, doc="estimator -> settings for this scenario")
-    tuning: dict = param(default_factory=dict, doc="estimator -> setting -> values searched (over the part's)")
+    tuning: Search = param(default_factory=dict, doc="estimator -> setting -> values searched (over the part's)")
+
+
+@dataclasses.dataclass(frozen=True, kw_only=True)
+class _GridAxes(AxisValues):
+    """The axes of a grid: the estimators compared, and any other axis (:data:`AXES`)."""
+
+    estimator: tuple[Any, ...] = param(doc="the estimators compared")
+
+
+def _axes(value: Any, where: str, key: str) -> _GridAxes:
+    """The grid's axes: each a non-empty list of values, each value listed once."""
+    if isinstance(value, Mapping):
+        for axis, values in value.items():
+            if not isinstance(values, list) or not values:
+                raise ConfigError(f"{where}: grid.{axis}: expected a non-empty list of values, got {values!r}")
+            if len({json.dumps(v, sort_keys=True, default=str) for v in values}) != len(values):
+                raise ConfigError(f"{where}: grid.{axis}: a value is listed twice in {values}")
+    return parse(_GridAxes, value, f"{where}: {key}")
+
+
+@dataclasses.dataclass(frozen=True, kw_only=True)
+class GridSpec:
+    """The keys of a part with a comparison grid, as written (the module docstring)."""
+
+    grid: _GridAxes = param(parser=_axes, doc="axis -> the values it takes (every axis but estimator is optional)")
+    scenarios: dict[str, _ScenarioSpec] = param(default_factory=dict, doc="name -> an experiment and its scoring")
+    variations: dict[str, dict] = param(default_factory=dict, doc="name -> a relative stiffness variation")
+    perturbations: dict[str, dict] = param(default_factory=dict, doc="name -> a perturbation {kind: ...}")
+    budget: float = param(DEFAULT_BUDGET_MIN, unit="min", gt=0, doc="a larger estimated time needs --yes")
+    tuning: Search = param(default_factory=dict, doc="estimator -> setting -> values searched by 'tuned'")
+    only: tuple[OnlyRule, ...] = param((), doc="rules that run part of the grid")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -108,32 +142,119 @@ class Grid:
     settings: Mapping[str, dict]
     budget_minutes: float
     search: Mapping[str, dict] = dataclasses.field(default_factory=dict)
-    only: tuple = ()
+    only: tuple[OnlyRule, ...] = ()
 
     def size(self) -> int:
         return math.prod(len(v) for v in self.axes.values())
 
 
-def _named(data: Mapping, key: str, where: str) -> dict:
-    value = data.get(key) or {}
-    if not isinstance(value, Mapping) or not all(isinstance(v, Mapping) for v in value.values()):
-        raise ConfigError(f"{where}: key '{key}': expected a mapping name -> settings")
-    return {str(k): dict(v) for k, v in value.items()}
+def parse_grid(data: Mapping, experiment: Mapping | None, part_estimators: Mapping[str, dict], where: str,
+               resolve_joint: Callable[[Any, str], dict]) -> Grid:
+    """The grid of a part from its grid keys ``data`` (:class:`GridSpec`: ``grid``, ``scenarios``,
+    ``variations``, ``perturbations``, ``budget``, ``tuning``, ``only``), every name and value checked;
+    the errors name the part, the axis, the value and what is allowed, all of them at once."""
+    spec = parse(GridSpec, data, where)
+    scenarios = _scenarios(spec, experiment, where, resolve_joint)
+    axes = spec.grid.given()
+    axes.setdefault("scenario", tuple(scenarios))
+    problems, found = Problems(), {}
+    with problems.catch():
+        _check_names(axes, scenarios, spec, part_estimators, where)
+    with problems.catch():
+        found["joints"] = _joints(axes, where, resolve_joint)
+    with problems.catch():
+        _check_values(axes, where)
+    with problems.catch():
+        _check_size(axes, where)
+    problems.raise_all()
+    found["settings"] = _settings(axes, scenarios, part_estimators, where)     # of the estimators named
+    found["search"] = _search(spec, scenarios, axes, part_estimators, where)
+    return Grid(axes=axes, scenarios=scenarios, variations=spec.variations, perturbations=spec.perturbations,
+                joints=found["joints"], settings=found["settings"], budget_minutes=float(spec.budget),
+                search=found["search"], only=spec.only)
 
 
-def _axis_values(grid: Mapping, where: str) -> dict[str, tuple]:
-    if not isinstance(grid, Mapping) or not grid:
-        raise ConfigError(f"{where}: key 'grid': expected a mapping axis -> list of values; axes: {', '.join(AXES)}")
-    for axis, values in grid.items():
-        if axis not in AXES:
-            raise ConfigError(f"{where}: grid: unknown axis {axis!r}; axes: {', '.join(AXES)}")
-        if not isinstance(values, list) or not values:
-            raise ConfigError(f"{where}: grid.{axis}: expected a non-empty list of values, got {values!r}")
-        if len({json.dumps(v, sort_keys=True, default=str) for v in values}) != len(values):
-            raise ConfigError(f"{where}: grid.{axis}: a value is listed twice in {values}")
-    if "estimator" not in grid:
-        raise ConfigError(f"{where}: grid: missing axis 'estimator' (the estimators compared)")
-    return {a: tuple(grid[a]) for a in AXES if a in grid}
+def _scenarios(spec: GridSpec, experiment: Mapping | None, where: str,
+               resolve_joint: Callable[[Any, str], dict]) -> dict[str, _ScenarioSpec]:
+    """The scenarios (``scenarios``, or the part's one ``experiment``), their joint models resolved."""
+    if spec.scenarios and experiment is not None:
+        raise ConfigError(f"{where}: give either 'experiment' (one scenario) or 'scenarios', not both")
+    if not spec.scenarios and experiment is None:
+        raise ConfigError(f"{where}: a grid needs 'scenarios' (or one 'experiment')")
+    given = spec.scenarios or {"experiment": _ScenarioSpec(experiment=dict(experiment))}
+    problems, out = Problems(), {}
+    for name, sc in given.items():
+        w = f"{where}: scenarios.{name}"
+        exp = dict(sc.experiment)
+        with problems.catch():
+            if isinstance(exp.get("joint"), str):
+                exp["joint"] = resolve_joint(exp["joint"], f"{w}: experiment")
+            _known_estimators(sc.estimators, f"{w}: estimators")
+        out[name] = dataclasses.replace(sc, experiment=exp)
+    problems.raise_all()
+    return out
+
+
+def _known_estimators(names, where: str) -> None:
+    unknown = [e for e in names if e not in estimators.REGISTRY]
+    if unknown:
+        raise ConfigError(f"{where}: unknown estimator {unknown[0]!r}; known: {', '.join(estimators.REGISTRY.names())}")
+
+
+def _check_names(axes: Mapping[str, tuple], scenarios: Mapping, spec: GridSpec, part_estimators: Mapping,
+                 where: str) -> None:
+    """Every value of the axes that name things (scenario, estimator, variation, perturbation) is defined
+    (or ``native``); the perturbations name known kinds; a variation axis has the levels of every scenario."""
+    _names("scenario", axes["scenario"], scenarios, where, "scenario", native=False)
+    _names("estimator", axes["estimator"], estimators.REGISTRY.names(), where, "estimator", native=False)
+    # settings of an estimator not on the axis are kept (an axis shortened by --set)
+    _known_estimators(part_estimators, f"{where}: estimators")
+    _names("variation", axes.get("variation", ()), spec.variations, where, "variation")
+    _names("perturbation", axes.get("perturbation", ()), spec.perturbations, where, "perturbation")
+    for name, pert in spec.perturbations.items():
+        kind = pert.get("kind")
+        if kind not in sims.PERTURBATIONS:
+            raise ConfigError(f"{where}: perturbations.{name}: unknown perturbation kind {kind!r}; known: "
+                              f"{', '.join(sims.PERTURBATIONS.names())}")
+    if "variation" in axes:
+        missing = [n for n, sc in scenarios.items() if sc.stiffness is None]
+        if missing:
+            raise ConfigError(f"{where}: scenarios.{missing[0]}: the grid has a 'variation' axis, so the scenario "
+                              f"needs 'stiffness: {{mean, amplitude, period}}' (the levels the variations take)")
+
+
+def _names(axis: str, values: tuple, known, where: str, what: str, native: bool = True) -> None:
+    for i, v in enumerate(values):
+        if native and v == NATIVE:
+            continue
+        if not isinstance(v, str) or v not in known:
+            allowed = ", ".join(([NATIVE] if native else []) + list(known)) or "(none defined)"
+            raise ConfigError(f"{where}: grid.{axis}[{i}]: unknown {what} {v!r}; allowed: {allowed}")
+
+
+def _settings(axes: Mapping[str, tuple], scenarios: Mapping[str, _ScenarioSpec], part_estimators: Mapping,
+              where: str) -> dict[str, dict]:
+    """The part's settings of each estimator on the axis; every combination with a scenario's parses."""
+    settings = {}
+    for est in axes["estimator"]:
+        base = dict(part_estimators.get(est) or {})
+        for sname, sc in scenarios.items():
+            estimators.make(est, {**base, **(sc.estimators.get(est) or {})},
+                            f"{where}: estimators.{est} (scenario {sname})")
+        settings[est] = base
+    return settings
+
+
+def _joints(axes: Mapping[str, tuple], where: str, resolve_joint: Callable[[Any, str], dict]) -> dict[str, dict]:
+    """The joint models of the ``joint`` axis (``native`` is the scenario's own)."""
+    joints = {}
+    for i, v in enumerate(axes.get("joint", ())):
+        if v != NATIVE:
+            if not isinstance(v, str):
+                raise ConfigError(f"{where}: grid.joint[{i}]: expected '{NATIVE}' or the name of a model in "
+                                  f"configs/models, got {v!r}")
+            joints[v] = resolve_joint(v, f"{where}: grid.joint[{i}]")
+    return joints
 
 
 def _no_repeats(axis: str, given, values: list, where: str, unit: str = "") -> None:
@@ -147,94 +268,19 @@ def _no_repeats(axis: str, given, values: list, where: str, unit: str = "") -> N
         seen[v] = i
 
 
-def _check_names(axis: str, values: tuple, known, where: str, what: str, native: bool = True) -> None:
-    for i, v in enumerate(values):
-        if native and v == NATIVE:
-            continue
-        if not isinstance(v, str) or v not in known:
-            allowed = ", ".join(([NATIVE] if native else []) + list(known)) or "(none defined)"
-            raise ConfigError(f"{where}: grid.{axis}[{i}]: unknown {what} {v!r}; allowed: {allowed}")
-
-
-def parse_grid(data: Mapping, experiment: Mapping | None, part_estimators: Mapping[str, dict], where: str,
-               resolve_joint: Callable[[Any, str], dict]) -> Grid:
-    """The grid of part ``data`` (its ``grid``, ``scenarios``, ``variations``, ``perturbations``,
-    ``budget``), every name and value checked; errors name the part, the axis, the value and what is
-    allowed."""
-    if str(data.get("protocol")) != "compare":
-        raise ConfigError(f"{where}: a part with a 'grid' runs protocol 'compare', not {data.get('protocol')!r}")
-    axes = _axis_values(data["grid"], where)
-    scen_data = _named(data, "scenarios", where)
-    if scen_data and experiment is not None:
-        raise ConfigError(f"{where}: give either 'experiment' (one scenario) or 'scenarios', not both")
-    if not scen_data:
-        if experiment is None:
-            raise ConfigError(f"{where}: a grid needs 'scenarios' (or one 'experiment')")
-        scen_data = {"experiment": {"experiment": dict(experiment)}}
-    scenarios = {}
-    for name, spec in scen_data.items():
-        w = f"{where}: scenarios.{name}"
-        sc = parse(_ScenarioSpec, spec, w)
-        exp = dict(sc.experiment)
-        if isinstance(exp.get("joint"), str):
-            exp["joint"] = resolve_joint(exp["joint"], f"{w}: experiment")
-        for est, settings in sc.estimators.items():
-            if est not in estimators.REGISTRY:
-                raise ConfigError(f"{w}: estimators: unknown estimator {est!r}; known: "
-                                  f"{', '.join(estimators.REGISTRY.names())}")
-        scenarios[name] = dataclasses.replace(sc, experiment=exp)
-    axes.setdefault("scenario", tuple(scenarios))
-    _check_names("scenario", axes["scenario"], scenarios, where, "scenario", native=False)
-    _check_names("estimator", axes["estimator"], estimators.REGISTRY.names(), where, "estimator", native=False)
-    unknown = sorted(set(part_estimators) - set(estimators.REGISTRY.names()))
-    if unknown:       # settings of an estimator not on the axis are kept (an axis shortened by --set)
-        raise ConfigError(f"{where}: estimators: unknown estimator {unknown[0]!r}; known: "
-                          f"{', '.join(estimators.REGISTRY.names())}")
-    settings = {}
-    for est in axes["estimator"]:
-        base = dict(part_estimators.get(est) or {})
-        for sname, sc in scenarios.items():   # every combination of settings parses (errors at load)
-            estimators.make(est, {**base, **(sc.estimators.get(est) or {})},
-                            f"{where}: estimators.{est} (scenario {sname})")
-        settings[est] = base
-    variations = _named(data, "variations", where)
-    perturbations = _named(data, "perturbations", where)
-    _check_names("variation", axes.get("variation", ()), variations, where, "variation")
-    _check_names("perturbation", axes.get("perturbation", ()), perturbations, where, "perturbation")
-    for name, pert in perturbations.items():
-        kind = pert.get("kind")
-        if kind not in sims.PERTURBATIONS:
-            raise ConfigError(f"{where}: perturbations.{name}: unknown perturbation kind {kind!r}; known: "
-                              f"{', '.join(sims.PERTURBATIONS.names())}")
-    if "variation" in axes:
-        missing = [n for n, sc in scenarios.items() if sc.stiffness is None]
-        if missing:
-            raise ConfigError(f"{where}: scenarios.{missing[0]}: the grid has a 'variation' axis, so the scenario "
-                              f"needs 'stiffness: {{mean, amplitude, period}}' (the levels the variations take)")
-    joints = {}
-    for i, v in enumerate(axes.get("joint", ())):
-        if v != NATIVE:
-            if not isinstance(v, str):
-                raise ConfigError(f"{where}: grid.joint[{i}]: expected '{NATIVE}' or the name of a model in "
-                                  f"configs/models, got {v!r}")
-            joints[v] = resolve_joint(v, f"{where}: grid.joint[{i}]")
+def _check_values(axes: dict[str, tuple], where: str) -> None:
+    """The values of the noise, fs, backend, data and tuning axes (``fs`` read in Hz, in place)."""
     for i, v in enumerate(axes.get("noise", ())):
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not (v >= 0 and math.isfinite(v)):
             raise ConfigError(f"{where}: grid.noise[{i}]: expected a number >= 0 (var(noise)/var(torque) on the "
                               f"torque channel; 0 = no noise), got {v!r}")
     _no_repeats("noise", axes.get("noise", ()), [float(v) for v in axes.get("noise", ())], where)
-    fs = []
-    for i, v in enumerate(axes.get("fs", ())):
-        if v == NATIVE:
-            fs.append(v)
-            continue
-        from jointbench.core.schema import _number   # the unit-aware number reader of every config value
-
-        x = _number(v, "Hz", f"{where}: grid", f"fs[{i}]", False)
-        if not x > 0:
-            raise ConfigError(f"{where}: grid.fs[{i}]: expected '{NATIVE}' or a rate > 0 Hz, got {v!r}")
-        fs.append(float(x))
     if "fs" in axes:
+        fs = [v if v == NATIVE else float(number(v, "Hz", f"{where}: grid", f"fs[{i}]"))
+              for i, v in enumerate(axes["fs"])]
+        for i, x in enumerate(fs):
+            if x != NATIVE and not x > 0:
+                raise ConfigError(f"{where}: grid.fs[{i}]: expected '{NATIVE}' or a rate > 0 Hz, got {axes['fs'][i]!r}")
         _no_repeats("fs", axes["fs"], fs, where, " Hz")
         axes["fs"] = tuple(fs)
     for i, v in enumerate(axes.get("backend", ())):
@@ -244,29 +290,30 @@ def parse_grid(data: Mapping, experiment: Mapping | None, part_estimators: Mappi
         if getattr(sims.BACKENDS.get(v), "unavailable", lambda: None)():     # an extra not installed
             raise ConfigError(f"{where}: grid.backend[{i}]: simulation backend {v!r} "
                               f"{sims.BACKENDS.get(v).unavailable()}")
-    for i, v in enumerate(axes.get("data", ())):
-        if v not in DATA:
-            raise ConfigError(f"{where}: grid.data[{i}]: {v!r} not allowed; allowed: {', '.join(DATA)}")
-    for i, v in enumerate(axes.get("tuning", ())):
-        if v not in TUNING:
-            raise ConfigError(f"{where}: grid.tuning[{i}]: {v!r} not allowed; allowed: {', '.join(TUNING)}")
-    search = _search(data.get("tuning"), f"{where}: tuning")
+    for axis, allowed in (("data", DATA), ("tuning", TUNING)):
+        for i, v in enumerate(axes.get(axis, ())):
+            if v not in allowed:
+                raise ConfigError(f"{where}: grid.{axis}[{i}]: {v!r} not allowed; allowed: {', '.join(allowed)}")
+
+
+def _search(spec: GridSpec, scenarios: Mapping[str, _ScenarioSpec], axes: Mapping[str, tuple],
+            part_estimators: Mapping, where: str) -> Search:
+    """The part's tuning search; with each scenario's over it, every candidate of every estimator parses."""
+    check_search(spec.tuning, f"{where}: tuning")
     for sname, sc in scenarios.items():
-        _search(sc.tuning, f"{where}: scenarios.{sname}.tuning")
-        for est in axes["estimator"]:          # every candidate parses (errors at load)
+        check_search(sc.tuning, f"{where}: scenarios.{sname}.tuning")
+        for est in axes["estimator"]:
             for cand in candidates(est, {**grid_settings(part_estimators, est), **(sc.estimators.get(est) or {})},
-                                   {**search.get(est, {}), **(sc.tuning.get(est) or {})}):
+                                   {**spec.tuning.get(est, {}), **(sc.tuning.get(est) or {})}):
                 estimators.make(est, cand, f"{where}: tuning of {est} (scenario {sname})")
-    only = _only(data.get("only"), axes, where)
-    budget = data.get("budget", DEFAULT_BUDGET_MIN)
-    if isinstance(budget, bool) or not isinstance(budget, (int, float)) or not budget > 0:
-        raise ConfigError(f"{where}: key 'budget': expected minutes > 0, got {budget!r}")
+    return spec.tuning
+
+
+def _check_size(axes: Mapping[str, tuple], where: str) -> None:
     size = math.prod(len(v) for v in axes.values())
     if size > MAX_COMBINATIONS:
         raise ConfigError(f"{where}: grid: {' x '.join(f'{len(v)} {a}' for a, v in axes.items())} = {size} "
                           f"combinations, more than the {MAX_COMBINATIONS} a grid may have; shorten the axes")
-    return Grid(axes=axes, scenarios=scenarios, variations=variations, perturbations=perturbations,
-                joints=joints, settings=settings, budget_minutes=float(budget), search=search, only=only)
 
 
 # ------------------------------------------------------------------------------------------ expansion
@@ -351,17 +398,16 @@ def expand_grid(study_id: str, part, backend: str | None = None) -> tuple[list[d
                 built[key] = str(exc)
             except ConfigError as exc:   # an invalid config: an error before anything runs
                 labels = ", ".join(f"{a}={v}" for a, v in combo.items() if a != "estimator")
-                raise ConfigError(f"{part.where}: the combination {labels}: "
-                                  f"{str(exc).removeprefix('the experiment: ')}") from None
+                raise ConfigError("\n".join(f"{part.where}: the combination {labels}: "
+                                            f"{line.removeprefix('the experiment: ')}"
+                                            for line in str(exc).splitlines())) from None
         exp = built[key]
         settings = {**grid.settings[est], **(sc.estimators.get(est) or {})}
         tuned = combo.get("tuning") == "tuned"
         search = candidates(est, settings, {**grid.search.get(est, {}), **(sc.tuning.get(est) or {})}) if tuned else []
         reason = exp if isinstance(exp, str) else (cls.supports(exp) or _refusal(cls, mode))
         if not reason:
-            reason = next((why for when, keep, why in grid.only
-                           if _matches({**combo, "data": mode}, when) and not _matches({**combo, "data": mode}, keep)),
-                          None)
+            reason = next((rule.reason for rule in grid.only if rule.skips({**combo, "data": mode})), None)
         if not reason and tuned and not search:
             reason = (f"nothing to tune: the tuning search names no setting of {est} (its tuned column is its "
                       f"paper column)")

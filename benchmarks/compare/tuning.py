@@ -1,42 +1,78 @@
-"""The tuning search and the ``only`` rules of a comparison grid (:mod:`jointbench.benchmarks.compare.grid`).
+"""The axes of a comparison grid, its tuning search and its ``only`` rules (:mod:`jointbench.benchmarks.compare.grid`).
 
 * ``tuning`` (part, and per scenario over the part's): estimator -> setting -> the values searched. A case
   with ``tuning: tuned`` chooses among :func:`candidates` (the paper's settings first, then every
   combination of the values) on tuning realizations (:func:`jointbench.benchmarks.compare.protocol.select_setting`).
-* ``only``: rules that run part of the grid (``[{when, keep, reason}]``, :func:`_only`): a combination that
+* ``only``: rules that run part of the grid (``[{when, keep, reason}]``, :class:`OnlyRule`): a combination that
   matches ``when`` and not ``keep`` is skipped with the ``reason`` (e.g. MuJoCo on a subset).
+
+Both are parsed by :func:`jointbench.core.schema.parse` (a key or axis it does not know, a value of the wrong
+type: every error of the part at once).
 """
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import json
 from typing import Any, Mapping
 
 from jointbench import estimators
 from jointbench.core.errors import ConfigError
+from jointbench.core.schema import param
+
+
+@dataclasses.dataclass(frozen=True, kw_only=True)
+class AxisValues:
+    """A value or a list of values per axis of a grid (the ``when`` and ``keep`` of an ``only`` rule); the
+    fields are the axes, in the order they appear in case ids (:data:`AXES`)."""
+
+    scenario: tuple[Any, ...] | None = None
+    joint: tuple[Any, ...] | None = None
+    variation: tuple[Any, ...] | None = None
+    perturbation: tuple[Any, ...] | None = None
+    noise: tuple[Any, ...] | None = None
+    fs: tuple[Any, ...] | None = None
+    backend: tuple[Any, ...] | None = None
+    estimator: tuple[Any, ...] | None = None
+    data: tuple[Any, ...] | None = None
+    tuning: tuple[Any, ...] | None = None
+
+    def given(self) -> dict[str, tuple]:
+        """The axes given, axis -> values, in :data:`AXES` order."""
+        return {a: getattr(self, a) for a in AXES if getattr(self, a) is not None}
+
 
 #: the axes a grid may have, in the order they appear in case ids (re-exported by jointbench.benchmarks.compare.grid)
-AXES = ("scenario", "joint", "variation", "perturbation", "noise", "fs", "backend", "estimator", "data", "tuning")
+AXES = tuple(f.name for f in dataclasses.fields(AxisValues))
+
+
+@dataclasses.dataclass(frozen=True)
+class OnlyRule:
+    """A combination matching every axis of ``when`` runs only if it matches every axis of ``keep`` (a value
+    or a list each); the others are skipped with the ``reason``."""
+
+    keep: AxisValues = param(doc="the combinations that run, among those matching 'when'")
+    when: AxisValues = param(default_factory=AxisValues, doc="the combinations the rule applies to (default: all)")
+    reason: str = param("excluded by the grid's 'only'", doc="why the others are skipped")
+
+    def skips(self, combo: Mapping) -> bool:
+        """Whether the rule skips combination ``combo`` (axis -> value)."""
+        return matches(combo, self.when.given()) and not matches(combo, self.keep.given())
 
 
 def grid_settings(part_estimators: Mapping[str, dict], est: str) -> dict:
     return dict(part_estimators.get(est) or {})
 
 
-def _search(value: Any, where: str) -> dict[str, dict[str, list]]:
-    """A tuning search: estimator -> setting -> the values tried (non-empty lists)."""
-    if value is None:
-        return {}
-    if not isinstance(value, Mapping):
-        raise ConfigError(f"{where}: expected a mapping estimator -> setting -> list of values")
-    out = {}
-    for est, spec in value.items():
+def check_search(search: Mapping[str, Mapping[str, tuple]], where: str) -> None:
+    """A tuning search (estimator -> setting -> the values tried, as parsed) names known estimators and tries
+    at least one value of each setting; a :class:`ConfigError` otherwise."""
+    for est, spec in search.items():
         if est not in estimators.REGISTRY:
             raise ConfigError(f"{where}: unknown estimator {est!r}; known: {', '.join(estimators.REGISTRY.names())}")
-        if not isinstance(spec, Mapping) or not all(isinstance(v, list) and v for v in spec.values()):
-            raise ConfigError(f"{where}.{est}: expected a mapping setting -> non-empty list of values, got {spec!r}")
-        out[str(est)] = {str(k): list(v) for k, v in spec.items()}
-    return out
+        empty = [k for k, v in spec.items() if not v]
+        if empty:
+            raise ConfigError(f"{where}.{est}.{empty[0]}: expected a value or a non-empty list of values")
 
 
 def candidates(est: str, settings: Mapping, search: Mapping[str, list]) -> list[dict]:
@@ -57,33 +93,9 @@ def candidates(est: str, settings: Mapping, search: Mapping[str, list]) -> list[
     return unique
 
 
-def _only(value: Any, axes: Mapping[str, tuple], where: str) -> tuple:
-    """Rules that run part of the grid: ``[{when: {axis: values}, keep: {axis: values}, reason: text}]``; a
-    combination matching every axis of ``when`` runs only if it matches every axis of ``keep`` (a value or
-    a list); the others are skipped with the ``reason``."""
-    if value is None:
-        return ()
-    if not isinstance(value, list):
-        raise ConfigError(f"{where}: key 'only': expected a list of {{when, keep, reason}}")
-    rules = []
-    for i, rule in enumerate(value):
-        w = f"{where}: only[{i}]"
-        if not isinstance(rule, Mapping) or set(rule) - {"when", "keep", "reason"} or "keep" not in rule:
-            raise ConfigError(f"{w}: expected {{when: {{axis: values}}, keep: {{axis: values}}, reason: text}}")
-        parsed = {}
-        for key in ("when", "keep"):
-            m = rule.get(key) or {}
-            if not isinstance(m, Mapping):
-                raise ConfigError(f"{w}.{key}: expected a mapping axis -> value or list of values")
-            for axis in m:
-                if axis not in AXES:
-                    raise ConfigError(f"{w}.{key}: unknown axis {axis!r}; axes: {', '.join(AXES)}")
-            parsed[key] = {a: tuple(v if isinstance(v, list) else [v]) for a, v in m.items()}
-        rules.append((parsed["when"], parsed["keep"], str(rule.get("reason") or "excluded by the grid's 'only'")))
-    return tuple(rules)
-
-
-def _matches(combo: Mapping, cond: Mapping[str, tuple]) -> bool:
+def matches(combo: Mapping, cond: Mapping[str, tuple]) -> bool:
+    """Whether ``combo`` (axis -> value) takes one of the values of every axis of ``cond`` (numbers equal as
+    numbers, anything else as text)."""
     def eq(a, b):
         if isinstance(a, (int, float)) and isinstance(b, (int, float)) and not isinstance(a, bool):
             return float(a) == float(b)

@@ -1,15 +1,23 @@
-"""Strict parsing of mappings (YAML, ``--set key=value``) into typed, validated dataclasses.
+"""Strict parsing of mappings (YAML, ``--set key=value``) into typed, validated dataclasses: the one config
+parser of the project (study, part, grid, tuning, published values, nightly, experiment, estimator settings).
 
-An unknown key, a value of the wrong type or unit, or an impossible value raises
-:class:`~jointbench.core.errors.ConfigError` naming where it came from, the key and what is allowed.
+An unknown key, a missing key, a value of the wrong type or unit, or an impossible value raises
+:class:`~jointbench.core.errors.ConfigError` naming where it came from, the key and what is allowed. Every
+error of a mapping is reported at once, one per line (the fields of nested dataclasses, the entries of
+lists and mappings included): one error is one line, as before; several are several lines in one
+:class:`~jointbench.core.errors.ConfigError` (:class:`Problems`).
 
 Numeric fields may declare a unit with :func:`param`. Such a field accepts a bare number (read in the
 declared unit) or a string ``"<number> <unit>"`` in any unit of the same dimension, e.g. ``"5 kHz"``
-for a field in Hz or ``"40 ms"`` for a field in s.
+for a field in Hz or ``"40 ms"`` for a field in s. A field whose value is read by its own rules (a tagged
+choice among registered classes, a list of seeds, ...) names a ``parser`` (:func:`param`, :func:`tagged`).
 """
 from __future__ import annotations
 
+import collections.abc
+import contextlib
 import dataclasses
+import difflib
 import functools
 import inspect
 import math
@@ -17,14 +25,14 @@ import numbers
 import re
 import types
 import typing
-from typing import Any, Literal, Mapping
+from typing import Any, Callable, Iterator, Literal, Mapping
 
 from jointbench.core.errors import ConfigError
 
 # normalised unit spelling -> (dimension, factor to the dimension's SI unit)
 _UNITS: dict[str, tuple[str, float]] = {
     "hz": ("frequency", 1.0), "khz": ("frequency", 1e3),
-    "s": ("time", 1.0), "ms": ("time", 1e-3),
+    "s": ("time", 1.0), "ms": ("time", 1e-3), "min": ("time", 60.0), "h": ("time", 3600.0),
     "rad": ("angle", 1.0), "mrad": ("angle", 1e-3), "deg": ("angle", math.pi / 180),
     "n.m": ("torque", 1.0), "nm": ("torque", 1.0),
     "n.m/rad": ("stiffness", 1.0), "nm/rad": ("stiffness", 1.0),
@@ -45,53 +53,98 @@ def _norm_unit(u: str) -> str:
 
 def param(default: Any = dataclasses.MISSING, *, unit: str | None = None, gt: float | None = None,
           ge: float | None = None, lt: float | None = None, le: float | None = None,
-          doc: str = "", default_factory: Any = dataclasses.MISSING, allow_inf: bool = False) -> Any:
+          doc: str = "", default_factory: Any = dataclasses.MISSING, allow_inf: bool = False,
+          parser: Callable[[Any, str, str], Any] | None = None) -> Any:
     """A dataclass field with an optional unit and bounds, checked by :func:`parse`.
 
     Numbers must be finite unless ``allow_inf`` (e.g. an SNR of ``.inf`` meaning no noise): an infinite
-    lag or segment length only overflows further on.
+    lag or segment length only overflows further on. ``parser(value, where, key)`` reads a value by rules
+    of its own instead of the field's type (raising :class:`ConfigError`, e.g. made by :func:`error`).
     """
-    meta = {"unit": unit, "gt": gt, "ge": ge, "lt": lt, "le": le, "doc": doc, "allow_inf": allow_inf}
+    meta = {"unit": unit, "gt": gt, "ge": ge, "lt": lt, "le": le, "doc": doc, "allow_inf": allow_inf,
+            "parser": parser}
     if default_factory is not dataclasses.MISSING:
         return dataclasses.field(default_factory=default_factory, metadata=meta)
     return dataclasses.field(default=default, metadata=meta)
 
 
-def _fail(where: str, key: str, msg: str) -> ConfigError:
+def error(where: str, key: str, msg: str) -> ConfigError:
+    """The error of key ``key`` read from ``where``: ``"<where>: key '<key>': <msg>"``."""
     return ConfigError(f"{where}: key '{key}': {msg}")
 
 
-def _number(value: Any, unit: str | None, where: str, key: str, integer: bool,
-            allow_inf: bool = False) -> float | int:
+class Problems:
+    """The errors found while reading one file, raised together by :meth:`raise_all`.
+
+    ``with problems.catch(): ...`` records a :class:`ConfigError` raised inside and goes on. One error is
+    raised as it is (its message and type unchanged, e.g. :class:`~jointbench.core.errors.Incompatible`);
+    several become one :class:`ConfigError` listing them one per line, in the order found.
+    """
+
+    def __init__(self) -> None:
+        self.errors: list[ConfigError] = []
+
+    def add(self, exc: ConfigError) -> None:
+        self.errors.append(exc)
+
+    @contextlib.contextmanager
+    def catch(self) -> Iterator[None]:
+        try:
+            yield
+        except ConfigError as exc:
+            self.errors.append(exc)
+
+    def raise_all(self) -> None:
+        if len(self.errors) == 1:
+            raise self.errors[0]
+        if self.errors:
+            lines = dict.fromkeys(line for exc in self.errors for line in str(exc).splitlines())
+            raise ConfigError("\n".join(lines))
+
+
+def number(value: Any, unit: str | None, where: str, key: str, integer: bool = False,
+           allow_inf: bool = False) -> float | int:
+    """A number read from ``value``: a number, or a string ``"<number> [<unit>]"`` converted to ``unit``
+    (errors name ``where`` and ``key``)."""
     kind = "a whole number" if integer else "a number"
     if isinstance(value, bool):
-        raise _fail(where, key, f"expected {kind}, got {value!r}")
+        raise error(where, key, f"expected {kind}, got {value!r}")
     if isinstance(value, str):
         m = re.fullmatch(r"\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?|[-+]?inf)\s*(.*?)\s*", value)
         if not m:
-            raise _fail(where, key, f"expected {kind}" + (f" in {unit}" if unit else "") + f", got {value!r}")
+            raise error(where, key, f"expected {kind}" + (f" in {unit}" if unit else "") + f", got {value!r}")
         num, u = float(m.group(1)), m.group(2)
         if u:
             if unit is None:
-                raise _fail(where, key, f"takes a plain number without a unit, got {value!r}")
+                raise error(where, key, f"takes a plain number without a unit, got {value!r}")
             got = _UNITS.get(_norm_unit(u))
             want = _UNITS[_norm_unit(unit)]
             if got is None or got[0] != want[0]:
                 same = sorted(k for k, v in _UNITS.items() if v[0] == want[0])
-                raise _fail(where, key, f"unit {u!r} is not a {want[0]} unit; allowed: {', '.join(same)}")
+                raise error(where, key, f"unit {u!r} is not a {want[0]} unit; allowed: {', '.join(same)}")
             num = num * got[1] / want[1]
         value = num
     if not isinstance(value, numbers.Real):      # numpy scalars too (a value computed by code, not read)
-        raise _fail(where, key, f"expected {kind}" + (f" in {unit}" if unit else "") + f", got {value!r}")
+        raise error(where, key, f"expected {kind}" + (f" in {unit}" if unit else "") + f", got {value!r}")
     if isinstance(value, float) and math.isnan(value):
-        raise _fail(where, key, "NaN is not allowed")
+        raise error(where, key, "NaN is not allowed")
     if isinstance(value, float) and math.isinf(value) and not allow_inf:
-        raise _fail(where, key, f"must be a finite number, got {value!r}")
+        raise error(where, key, f"must be a finite number, got {value!r}")
     if integer:
         if float(value) != int(value):
-            raise _fail(where, key, f"expected a whole number, got {value!r}")
+            raise error(where, key, f"expected a whole number, got {value!r}")
         return int(value)
     return float(value)
+
+
+def boolean(value: Any, where: str, key: str) -> bool:
+    """A yes/no value: ``True``/``False``, or the text ``true``/``yes``/``1`` or ``false``/``no``/``0`` (any
+    case, e.g. from ``--set``); the one reading of a flag in the project."""
+    if isinstance(value, bool):
+        return value
+    if isinstance(value, str) and value.strip().lower() in ("true", "false", "yes", "no", "1", "0"):
+        return value.strip().lower() in ("true", "yes", "1")
+    raise error(where, key, f"expected true or false, got {value!r}")
 
 
 def _convert(tp: Any, value: Any, meta: Mapping[str, Any], where: str, key: str) -> Any:
@@ -112,45 +165,68 @@ def _convert(tp: Any, value: Any, meta: Mapping[str, Any], where: str, key: str)
                 return _convert(a, value, meta, where, key)
             except ConfigError as exc:
                 errors.append(exc)
-        raise errors[0] if len(errors) == 1 else _fail(where, key, f"{value!r} matches none of {inner}")
+        raise errors[0] if len(errors) == 1 else error(where, key, f"{value!r} matches none of {inner}")
     if origin is Literal:
         if value not in args:
-            raise _fail(where, key, f"{value!r} is not allowed; allowed: {', '.join(map(repr, args))}")
+            raise error(where, key, f"{value!r} not allowed; allowed: {', '.join(map(str, args))}")
         return value
     if tp is float or tp is int:
-        x = _number(value, meta.get("unit"), where, key, integer=tp is int, allow_inf=bool(meta.get("allow_inf")))
+        x = number(value, meta.get("unit"), where, key, integer=tp is int, allow_inf=bool(meta.get("allow_inf")))
         for bound, op, text in (("gt", float.__gt__, ">"), ("ge", float.__ge__, ">="),
                                 ("lt", float.__lt__, "<"), ("le", float.__le__, "<=")):
             b = meta.get(bound)
             if b is not None and not op(float(x), float(b)):
                 u = f" {meta['unit']}" if meta.get("unit") else ""
-                raise _fail(where, key, f"must be {text} {b}{u}, got {x}{u}")
+                raise error(where, key, f"must be {text} {b}{u}, got {x}{u}")
         return x
     if tp is bool:
-        if isinstance(value, bool):
-            return value
-        if isinstance(value, str) and value.lower() in ("true", "false", "yes", "no", "1", "0"):
-            return value.lower() in ("true", "yes", "1")
-        raise _fail(where, key, f"expected true or false, got {value!r}")
+        return boolean(value, where, key)
     if tp is str:
         if not isinstance(value, str):
-            raise _fail(where, key, f"expected text, got {value!r}")
+            raise error(where, key, f"expected text, got {value!r}")
         return value
     if origin in (tuple, list):
-        if isinstance(value, str):
-            value = [v for v in re.split(r"[,\s]+", value.strip("[]() ")) if v]
-        if not isinstance(value, (list, tuple)):
-            value = [value]
-        elem = args[0] if args else Any
-        out = [_convert(elem, v, meta, where, f"{key}[{i}]") for i, v in enumerate(value)]
-        return tuple(out) if origin is tuple else out
-    if origin is dict or tp is dict:
+        return _sequence(origin, args, value, meta, where, key)
+    if origin in (dict, collections.abc.Mapping) or tp is dict:
         if not isinstance(value, Mapping):
-            raise _fail(where, key, f"expected a mapping, got {value!r}")
-        return dict(value)
+            raise error(where, key, f"expected a mapping, got {value!r}")
+        if not args:
+            return dict(value)
+        problems, out = Problems(), {}
+        for k, v in value.items():
+            with problems.catch():
+                out[_convert(args[0], k, {}, where, f"{key}.{k}")] = _convert(args[1], v, meta, where, f"{key}.{k}")
+        problems.raise_all()
+        return out
     if dataclasses.is_dataclass(tp):
         return parse(tp, value, f"{where}: {key}")
     raise TypeError(f"schema cannot parse type {tp!r}")  # a programming error, not a user error
+
+
+def _sequence(origin: Any, args: tuple, value: Any, meta: Mapping[str, Any], where: str, key: str) -> Any:
+    """A list or tuple of ``args[0]`` (every entry checked, every error kept); ``tuple[a, b]`` has that
+    length. A string is a comma- or space-separated list of numbers (``--set lags=1,2``); any other single
+    value is a list of one."""
+    numeric = bool(args) and all(a in (int, float) for a in args if a is not Ellipsis)
+    if isinstance(value, str) and numeric:
+        value = [v for v in re.split(r"[,\s]+", value.strip("[]() ")) if v]
+    if not isinstance(value, (list, tuple)):
+        value = [value]
+    fixed = origin is tuple and len(args) > 1 and args[1] is not Ellipsis
+    if fixed and len(value) != len(args):
+        raise error(where, key, f"expected {len(args)} values, got {len(value)}: {list(value)!r}")
+    problems, out = Problems(), []
+    for i, v in enumerate(value):
+        with problems.catch():
+            out.append(_convert(args[i] if fixed else (args[0] if args else Any), v, meta, where, f"{key}[{i}]"))
+    problems.raise_all()
+    return tuple(out) if origin is tuple else out
+
+
+def _field(tp: Any, value: Any, meta: Mapping[str, Any], where: str, key: str) -> Any:
+    """The value of one field: read by the field's ``parser`` when it has one, else by its type."""
+    parser = meta.get("parser")
+    return parser(value, where, key) if parser is not None else _convert(tp, value, meta, where, key)
 
 
 @functools.lru_cache(maxsize=None)
@@ -160,7 +236,7 @@ def _hints(cls: type) -> dict[str, Any]:
     return typing.get_type_hints(cls)
 
 
-def parse(cls: type, data: Mapping[str, Any] | None, where: str) -> Any:
+def parse(cls: type, data: Mapping[str, Any] | None, where: str, document: bool = False) -> Any:
     """Build dataclass ``cls`` from ``data``, strictly.
 
     Parameters
@@ -168,28 +244,79 @@ def parse(cls: type, data: Mapping[str, Any] | None, where: str) -> Any:
     cls : dataclass type
         Target type; fields made with :func:`param` carry units and bounds.
     data : mapping or None
-        Values by field name; ``None`` means all defaults.
+        Values by field name; ``None`` means all defaults (but an empty file when ``document``).
     where : str
         Where the values came from (file and section), prefixed to every error message.
+    document : bool
+        ``data`` is a whole file (``None``: the file is empty, an error).
+
+    Raises
+    ------
+    ConfigError
+        Every unknown key, missing key and bad value of ``data`` and of the mappings nested in it, one per
+        line (one error: its message alone; a misspelt required key is one error, the unknown key, saying
+        which it resembles); then an error of ``cls``'s own checks (``__post_init__``).
     """
+    if data is None and document:
+        raise ConfigError(f"{where}: the file is empty; expected a mapping of settings")
     data = {} if data is None else data
     if not isinstance(data, Mapping):
         raise ConfigError(f"{where}: expected a mapping of settings, got {data!r}")
     fields = {f.name: f for f in dataclasses.fields(cls) if f.init}
-    unknown = sorted(set(data) - set(fields))
-    if unknown:
-        raise ConfigError(f"{where}: unknown key {unknown[0]!r}; allowed: {', '.join(fields)}")
+    missing = [name for name, f in fields.items() if name not in data and f.default is dataclasses.MISSING
+               and f.default_factory is dataclasses.MISSING]
+    problems, meant = Problems(), {}
+    for key in sorted((k for k in data if k not in fields), key=str):
+        close = difflib.get_close_matches(str(key), [m for m in missing if m not in meant.values()], 1, 0.75)
+        hint = f" (a misspelt {close[0]!r}, which is missing?)" if close else ""
+        meant.update({key: close[0]} if close else {})
+        problems.add(ConfigError(f"{where}: unknown key {key!r}; allowed: {', '.join(fields)}{hint}"))
     hints = _hints(cls)
     kwargs = {}
     for name, f in fields.items():
         if name in data:
-            kwargs[name] = _convert(hints[name], data[name], f.metadata, where, name)
-        elif f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING:
-            raise ConfigError(f"{where}: missing required key {name!r}")
+            with problems.catch():
+                kwargs[name] = _field(hints[name], data[name], f.metadata, where, name)
+        elif name in missing and name not in meant.values():
+            problems.add(ConfigError(f"{where}: missing required key {name!r}"))
+    problems.raise_all()
     try:
         return cls(**kwargs)
     except (ValueError, TypeError) as exc:
         raise ConfigError(f"{where}: {exc}") from None
+
+
+def parse_tagged(data: Any, tag: str, choices: Any, what: str, where: str, default: str | None = None) -> Any:
+    """Parse ``{tag: name, **settings}``: ``name`` picks a class of ``choices`` whose settings dataclass
+    parses the rest (:func:`parse`).
+
+    ``choices`` is a registry (``names()``, ``get(name)``, e.g. :data:`jointbench.sims.JOINTS`) or a mapping
+    name -> class. The class is its own settings dataclass, or has a ``Settings`` attribute, in which case
+    the result is ``cls(settings)``. ``default``: the name when the tag is left out (``None`` data too).
+    """
+    known = list(choices.names()) if hasattr(choices, "names") else list(choices)
+    if data is None and default is not None:
+        data = {}
+    if not isinstance(data, Mapping):
+        raise ConfigError(f"{where}: expected a mapping with key '{tag}' (one of: {', '.join(known)}), "
+                          f"got {data!r}")
+    name = data.get(tag, default)
+    if name is None:
+        raise ConfigError(f"{where}: missing key '{tag}'; known {what}s: {', '.join(known)}")
+    if not isinstance(name, str) or name not in known:
+        raise ConfigError(f"{where}: key '{tag}': unknown {what} {name!r}; known: {', '.join(known)}")
+    cls = choices.get(name)
+    settings_cls = getattr(cls, "Settings", cls)
+    settings = parse(settings_cls, {k: v for k, v in data.items() if k != tag}, where)
+    return settings if settings_cls is cls else cls(settings)
+
+
+def tagged(tag: str, choices: Any, what: str, default: str | None = None) -> Callable[[Any, str, str], Any]:
+    """The ``parser`` (:func:`param`) of a field holding ``{tag: name, **settings}`` (:func:`parse_tagged`);
+    its errors are placed under ``<where>: <key>``."""
+    def parser(value: Any, where: str, key: str) -> Any:
+        return parse_tagged(value, tag, choices, what, f"{where}: {key}", default)
+    return parser
 
 
 def checked(cls: type) -> type:
@@ -212,7 +339,7 @@ def checked(cls: type) -> type:
     def __init__(self, *args, **kwargs):
         given = signature.bind(self, *args, **kwargs).arguments
         hints = _hints(cls)
-        values = {name: _convert(hints[name], v, fields[name].metadata, where, name) if name in fields else v
+        values = {name: _field(hints[name], v, fields[name].metadata, where, name) if name in fields else v
                   for name, v in list(given.items())[1:]}
         init(self, **values)
 
