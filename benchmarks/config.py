@@ -35,8 +35,6 @@ from jointbench.benchmarks.published import (AGGREGATES, CHECK_KINDS, COUNTS, EV
 from jointbench.core.errors import ConfigError
 from jointbench.core.schema import Problems, error, param, parse
 
-#: the old private name of :func:`load_yaml`, kept until ``jointbench/api.py`` imports ``load_yaml``
-_load_yaml = load_yaml
 
 
 @dataclasses.dataclass(frozen=True)

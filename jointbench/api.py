@@ -175,10 +175,10 @@ def score(estimate, data, *, fs: float | None = None, array: str | None = None,
 def joint(name: str) -> dict:
     """The joint model ``name`` (a shipped model, ``configs/models/<name>.yaml``, or a YAML file's path) as
     its mapping, ready for an experiment's ``joint``."""
-    from jointbench.benchmarks.config import _load_yaml, resolve_joint
+    from jointbench.benchmarks.config import load_yaml, resolve_joint
 
     if name.endswith((".yaml", ".yml")):
-        return _load_yaml(Path(name))
+        return load_yaml(Path(name))
     return resolve_joint(name, where="joint")
 
 

@@ -187,6 +187,8 @@ class record_simulations:
         _RECORDERS.remove(self.log)
 
 
-def _record(backend: str, seconds: float, reused: bool = False) -> None:
+def record(backend: str, seconds: float, reused: bool = False) -> None:
+    """Tell the recorders open now (:class:`record_simulations`) that ``backend`` simulated for ``seconds`` (or reused a
+    response)."""
     for log in _RECORDERS:
         log.append((backend, seconds, bool(reused)))

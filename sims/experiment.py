@@ -358,7 +358,7 @@ def simulate(experiment: Experiment, seed: int | np.random.SeedSequence, backend
         return _measured(exp, drive, tv, resp, rng, key, replicate, name), reused
 
     (trial, reused), whole = _reuse.lookup_trial(_reuse.trial_key(key, exp, replicate, name), acquire)
-    _backend._record(getattr(runner, "name", "") or type(runner).__name__, time.perf_counter() - t_start,
+    _backend.record(getattr(runner, "name", "") or type(runner).__name__, time.perf_counter() - t_start,
                      reused or whole)
     return trial
 

@@ -274,11 +274,11 @@ def test_duplicate_part_name_blames_the_study_file(tmp_path, capsys):
 
 
 def test_yaml_merge_keys_may_override(tmp_path):
-    from jointbench.benchmarks.config import _load_yaml
+    from jointbench.benchmarks.config import load_yaml
 
     p = tmp_path / "m.yaml"
     p.write_text("base: &b {x: 1, y: 2}\nderived:\n  <<: *b\n  x: 3\n")
-    assert _load_yaml(p)["derived"] == {"x": 3, "y": 2}
+    assert load_yaml(p)["derived"] == {"x": 3, "y": 2}
 
 
 @pytest.mark.parametrize("seeds, message", [

@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING, Any, Mapping
 
 from jointbench.core.ensemble import Ensemble
 from jointbench.core.errors import ConfigError, InputError, argument
-from jointbench.core.schema import parse
+from jointbench.core.schema import boolean
 from jointbench.fitting import checks, inputs
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -82,13 +82,6 @@ class Fit:
         return buf.getvalue()
 
 
-@dataclasses.dataclass(frozen=True)
-class _Auto:
-    """The one setting the pipeline reads itself: ``auto`` (choose a time-varying method's smoothing)."""
-
-    auto: bool = False
-
-
 def make_estimator(estimator, settings: Mapping[str, Any] | None = None, schedule: str | None = None):
     """The estimator to fit: a registered name with ``settings`` parsed strictly (units allowed: ``"40 ms"``;
     ``auto=True`` sets each of the estimator's :attr:`AUTO` keys to 'auto'; ``schedule`` added as its
@@ -111,7 +104,7 @@ def make_estimator(estimator, settings: Mapping[str, Any] | None = None, schedul
     cls = estimators.REGISTRY.get(estimator)
     where = f"{argument('settings')} (estimator '{estimator}')"
     if "auto" in settings:
-        auto = parse(_Auto, {"auto": settings.pop("auto")}, where).auto
+        auto = boolean(settings.pop("auto"), where, "auto")
         keys = getattr(cls, "AUTO", ())
         if not keys:
             raise ConfigError(f"{where}: key 'auto': {estimator} has no smoothing or regularisation parameter to "

@@ -134,9 +134,9 @@ def read_trial(path: str | Path, *, array: str | None = None, fs: float | None =
                              f"a CSV file needs columns {', '.join(COLUMNS)}")
         variables = _read_csv(path)
     elif suffix == ".npz":
-        variables = _read_npz(path)
+        variables = read_npz(path)
     else:
-        variables = _read_mat(path)
+        variables = read_mat(path)
     name = name or (path.name + (f":{array}" if array else ""))
     if array is not None:
         return _from_array(variables, array, fs, where, name)
@@ -242,7 +242,7 @@ def _csv_header(path: Path) -> list[str]:
     return []
 
 
-def _read_npz(path: Path) -> dict[str, np.ndarray]:
+def read_npz(path: Path) -> dict[str, np.ndarray]:
     """Every member of an NPZ archive, each checked before it is loaded.
 
     A member's header gives its shape and dtype; a member whose data would be larger than what the
@@ -301,7 +301,7 @@ def _size(nbytes: int) -> str:
     return f"{nbytes} bytes"
 
 
-def _read_mat(path: Path) -> dict[str, np.ndarray]:
+def read_mat(path: Path) -> dict[str, np.ndarray]:
     from scipy import io as sio
 
     where = str(path)
@@ -309,13 +309,13 @@ def _read_mat(path: Path) -> dict[str, np.ndarray]:
     try:
         data = sio.loadmat(path)
     except NotImplementedError:        # version 7.3: HDF5
-        return _read_mat73(path)
+        return read_mat73(path)
     except (sio.matlab.MatReadError, ValueError, TypeError, OSError, EOFError) as exc:
         raise InputError(f"{where}: cannot read as a MATLAB .mat file: {exc}") from None
     return {k: v for k, v in data.items() if not k.startswith("__")}
 
 
-def _read_mat73(path: Path) -> dict[str, np.ndarray]:
+def read_mat73(path: Path) -> dict[str, np.ndarray]:
     """Top-level numeric variables of a MATLAB v7.3 (HDF5) file, with MATLAB's shapes.
 
     MATLAB stores arrays column-major, so HDF5 sees them transposed: an N x 2 matrix is a 2 x N
@@ -355,20 +355,20 @@ def _read_mat73(path: Path) -> dict[str, np.ndarray]:
 
 # --- layouts: {name: ndarray} -> Trial -----------------------------------------------------------
 
-def _what_is_there(variables: Mapping[str, np.ndarray]) -> str:
+def what_is_there(variables: Mapping[str, np.ndarray]) -> str:
     if "__columns__" in variables:
         cols = list(variables["__columns__"])
         return "columns found: " + (", ".join(cols) if cols else "(none)")
-    names = [f"{k} {_shape(v)}" for k, v in variables.items()]
+    names = [f"{k} {shape_text(v)}" for k, v in variables.items()]
     return "variables found: " + (", ".join(names) if names else "(none)")
 
 
-def _shape(v) -> str:
+def shape_text(v) -> str:
     s = np.shape(v)
     return "scalar" if s == () else "×".join(map(str, s))
 
 
-def _numeric(v, what: str, where: str) -> np.ndarray:
+def numeric(v, what: str, where: str) -> np.ndarray:
     a = np.asarray(v)
     if a.dtype.kind not in "biuf":
         raise InputError(f"{where}: {what} is not a numeric array (MATLAB type or dtype {a.dtype})")
@@ -376,20 +376,20 @@ def _numeric(v, what: str, where: str) -> np.ndarray:
 
 
 def _series(variables, key: str, where: str) -> np.ndarray:
-    a = _numeric(variables[key], f"'{key}'", where)
+    a = numeric(variables[key], f"'{key}'", where)
     a = np.squeeze(a) if a.ndim != 1 else a
     if a.ndim != 1:
-        raise InputError(f"{where}: '{key}' must squeeze to one dimension, got shape {_shape(variables[key])}")
+        raise InputError(f"{where}: '{key}' must squeeze to one dimension, got shape {shape_text(variables[key])}")
     return a
 
 
-def _file_fs(variables, fs: float | None, where: str) -> float | None:
+def file_rate(variables, fs: float | None, where: str) -> float | None:
     """Sampling rate from the file's ``fs`` variable, checked against the ``fs`` argument."""
     if "fs" not in variables or "__columns__" in variables:
         return fs
-    v = _numeric(variables["fs"], "'fs'", where)
+    v = numeric(variables["fs"], "'fs'", where)
     if v.size != 1:
-        raise InputError(f"{where}: 'fs' must be a scalar sampling rate, got shape {_shape(v)}")
+        raise InputError(f"{where}: 'fs' must be a scalar sampling rate, got shape {shape_text(v)}")
     f = float(v.reshape(()))
     if not (np.isfinite(f) and f > 0):
         raise InputError(f"{where}: 'fs' must be > 0 Hz, got {f}")
@@ -409,12 +409,12 @@ def _from_array(variables, array: str, fs: float | None, where: str, name: str) 
     if array not in variables:
         two = [k for k, v in variables.items() if np.ndim(v) == 2 and np.shape(v)[1] == 2]
         hint = f"; N×2 arrays there: {', '.join(two)}" if two else ""
-        raise InputError(f"{where}: no array {array!r}; {_what_is_there(variables)}{hint}")
-    a = _numeric(variables[array], f"array '{array}'", where)
+        raise InputError(f"{where}: no array {array!r}; {what_is_there(variables)}{hint}")
+    a = numeric(variables[array], f"array '{array}'", where)
     if a.ndim != 2 or a.shape[1] != 2:
         tip = " (transpose it to N×2)" if a.ndim == 2 and a.shape[0] == 2 else ""
-        raise InputError(f"{where}: array '{array}' must be N×2 [angle, torque], got shape {_shape(a)}{tip}")
-    fs = _file_fs(variables, fs, where)
+        raise InputError(f"{where}: array '{array}' must be N×2 [angle, torque], got shape {shape_text(a)}{tip}")
+    fs = file_rate(variables, fs, where)
     if fs is None:
         raise InputError(f"{where}: no sampling rate for array '{array}': the file has no scalar 'fs' "
                          f"variable; give it with --fs HZ")
@@ -433,16 +433,16 @@ def _from_columns(variables, fs: float | None, where: str, name: str) -> Trial:
         hint = (f"; or pick an N×2 [angle, torque] array with --array NAME or FILE:NAME "
                 f"(candidates: {', '.join(two)})") if two else ""
         raise InputError(f"{where}: missing {kind}{'s' if len(missing) > 1 else ''} "
-                         f"{', '.join(map(repr, missing))}; {_what_is_there(variables)}{hint}")
+                         f"{', '.join(map(repr, missing))}; {what_is_there(variables)}{hint}")
     angle = _series(variables, "angle", where)
     torque = _series(variables, "torque", where)
     if "time" not in variables:
-        fs = _file_fs(variables, fs, where)
+        fs = file_rate(variables, fs, where)
         return _make_trial(where, time=np.arange(angle.size) / fs, angle=angle, torque=torque,
                            fs=fs, name=name)
     time = _series(variables, "time", where)
-    file_fs = _file_fs(variables, fs, where)
-    rate, time = _time_base(time, where)
+    file_fs = file_rate(variables, fs, where)
+    rate, time = time_base(time, where)
     if file_fs is not None and not np.isclose(rate, file_fs, rtol=1e-3):
         raise InputError(f"{where}: the time column gives {rate:.6g} Hz but the sampling rate "
                          f"is given as {file_fs:g} Hz")
@@ -450,7 +450,7 @@ def _from_columns(variables, fs: float | None, where: str, name: str) -> Trial:
                        fs=rate if file_fs is None else file_fs, name=name)
 
 
-def _time_base(t: np.ndarray, where: str) -> tuple[float, np.ndarray]:
+def time_base(t: np.ndarray, where: str) -> tuple[float, np.ndarray]:
     """Sampling rate of a time column, and the time base (rebuilt uniform if only rounding differs).
 
     The rate is ``(n - 1) / (t[-1] - t[0])``, replaced by the number with the fewest significant digits

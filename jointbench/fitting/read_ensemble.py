@@ -14,8 +14,8 @@ from typing import Sequence
 
 import numpy as np
 
-from jointbench.fitting.read import (Source, _file_fs, _numeric, _read_mat, _read_npz, _shape, _time_base,
-                                      _what_is_there, read_trials)
+from jointbench.fitting.read import (Source, file_rate, numeric, read_mat, read_npz, shape_text, time_base,
+                                      what_is_there, read_trials)
 from jointbench.core.ensemble import Ensemble
 from jointbench.core.errors import InputError, argument
 
@@ -25,7 +25,7 @@ def is_ensemble_file(source: Source | str | Path) -> bool:
     if src.array is not None or src.path.suffix.lower() not in (".npz", ".mat") or not src.path.is_file():
         return False
     try:
-        variables = _read_npz(src.path) if src.path.suffix.lower() == ".npz" else _read_mat(src.path)
+        variables = read_npz(src.path) if src.path.suffix.lower() == ".npz" else read_mat(src.path)
     except InputError:
         return False
     return all(k in variables and np.ndim(variables[k]) == 2 and min(np.shape(variables[k])) > 1
@@ -57,22 +57,22 @@ def read_ensemble(path: str | Path, *, fs: float | None = None, name: str | None
     if suffix not in (".npz", ".mat"):
         raise InputError(f"{where}: an ensemble file must be .npz or .mat with 2-D angle and torque "
                          f"(samples x realizations), got {path.suffix or '(no extension)'!r}")
-    variables = _read_npz(path) if suffix == ".npz" else _read_mat(path)
+    variables = read_npz(path) if suffix == ".npz" else read_mat(path)
     missing = [k for k in ("angle", "torque") if k not in variables]
     if missing:
         raise InputError(f"{where}: missing variable{'s' if len(missing) > 1 else ''} "
-                         f"{', '.join(map(repr, missing))}; {_what_is_there(variables)}")
-    a = _numeric(variables["angle"], "'angle'", where)
-    y = _numeric(variables["torque"], "'torque'", where)
+                         f"{', '.join(map(repr, missing))}; {what_is_there(variables)}")
+    a = numeric(variables["angle"], "'angle'", where)
+    y = numeric(variables["torque"], "'torque'", where)
     if a.ndim != 2 or y.ndim != 2:
         raise InputError(f"{where}: an ensemble needs 2-D 'angle' and 'torque' (samples x realizations), got "
-                         f"shapes {_shape(a)} and {_shape(y)}")
+                         f"shapes {shape_text(a)} and {shape_text(y)}")
     if a.shape != y.shape:
-        raise InputError(f"{where}: 'angle' ({_shape(a)}) and 'torque' ({_shape(y)}) differ in shape; both must "
-                         f"be samples x realizations")
+        raise InputError(f"{where}: 'angle' ({shape_text(a)}) and 'torque' ({shape_text(y)}) differ in shape; "
+                         f"both must be samples x realizations")
     t0 = 0.0
     if "time" in variables:
-        t = _numeric(variables["time"], "'time'", where)
+        t = numeric(variables["time"], "'time'", where)
         t = np.squeeze(t) if t.ndim == 2 and min(t.shape) == 1 else t
         if t.ndim == 2 and t.shape == a.shape:
             if not np.allclose(t, t[:, :1]):
@@ -81,23 +81,23 @@ def read_ensemble(path: str | Path, *, fs: float | None = None, name: str | None
             t = t[:, 0]
         if t.ndim != 1:
             raise InputError(f"{where}: 'time' must be one time base for all realizations (1-D), got shape "
-                             f"{_shape(variables['time'])}")
+                             f"{shape_text(variables['time'])}")
         if len(t) != a.shape[0]:
             tip = " (transpose 'angle' and 'torque' to samples x realizations)" if len(t) == a.shape[1] else ""
             raise InputError(f"{where}: 'time' has {len(t)} samples but 'angle' has {a.shape[0]} rows{tip}")
-        rate, t = _time_base(t, where)
-        file_fs = _file_fs(variables, fs, where)
+        rate, t = time_base(t, where)
+        file_fs = file_rate(variables, fs, where)
         if file_fs is not None and not np.isclose(rate, file_fs, rtol=1e-3):
             raise InputError(f"{where}: the time variable gives {rate:.6g} Hz but the sampling rate is given as "
                              f"{file_fs:g} Hz")
         fs, t0 = (rate if file_fs is None else file_fs), float(t[0])
     else:
-        fs = _file_fs(variables, fs, where)
+        fs = file_rate(variables, fs, where)
         if fs is None:
             raise InputError(f"{where}: no sampling rate: the file has neither a scalar 'fs' nor a 'time' "
                              f"variable; give it with --fs HZ")
         if a.shape[0] < a.shape[1]:
-            raise InputError(f"{where}: 'angle' is {_shape(a)}: an ensemble is samples x realizations (more "
+            raise InputError(f"{where}: 'angle' is {shape_text(a)}: an ensemble is samples x realizations (more "
                              f"samples than realizations); transpose 'angle' and 'torque'")
     label = name or path.name
     try:

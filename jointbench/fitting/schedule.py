@@ -46,8 +46,8 @@ def _variables(path):
             out[str(c).strip()] = values
         return out
     if suffix == ".npz":
-        return read._read_npz(path)
-    return read._read_mat(path)
+        return read.read_npz(path)
+    return read.read_mat(path)
 
 
 def attach(records, sources, name: str):
