@@ -95,8 +95,7 @@ bench-studies: $(STAMP)
 # both cores stay busy; quiet: four progress bars would garble each other), then the README's status
 # tables from their checks.csv files (never typed by hand; --write-readme: by the same command, which
 # has pandas loaded already). The four studies are the parallelism: one
-# command runs them (--jobs 4), each in a process forked after the imports they all share (about 2 CPU-s
-# each, paid once instead of four times; each prints its summary whole when it is done). With fewer than
+# command runs them (--jobs 4), each in a forked process (each prints its summary whole when it is done). With fewer than
 # 8 cores each study runs its cases in its own process (--serial: four processes on 2 cores, where four
 # pools of workers on top of them made 12 processes and cost 15 % more CPU on the same numbers, issue 22);
 # with 8 or more cores each study gets a pool of cores/4 workers. A RUN_ARGS that says where cases run

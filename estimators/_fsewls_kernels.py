@@ -1,7 +1,7 @@
 """The numerical kernels of FSEWLS (Xu & Hollerbach 1998): the zero-phase high-pass (eq. 3), the
 state-variable filter (eq. 4) and the continuous-time EWLS integrated by RK4 (eqs. 5-6).
 
-:mod:`estimators.fsewls` wraps them in the estimator; they are public there too.
+:mod:`estimators.fsewls` wraps them in the estimator.
 
 References
 ----------
@@ -17,7 +17,7 @@ import scipy.fft
 from scipy import signal as sps
 
 
-_IU = np.triu_indices(3)  # the 6 unique entries of a symmetric 3 x 3 matrix
+UPPER3 = np.triu_indices(3)  # the 6 unique entries of a symmetric 3 x 3 matrix
 
 
 # ------------------------------------------------------------------------------------------ filters
@@ -37,7 +37,7 @@ def highpass(x: np.ndarray, fs: float, cutoff: float, order: int, ripple: float)
     ----------
     Xu & Hollerbach (1998), eq. 3 and Sec. III-B ("fourth-order Chebyshev filter ... 1 Hz").
     """
-    sos, zi = _highpass_sos(order, ripple, cutoff, fs), _highpass_zi(order, ripple, cutoff, fs)
+    sos, zi = highpass_sos(order, ripple, cutoff, fs), _highpass_zi(order, ripple, cutoff, fs)
     sos = sos.copy()                                   # sosfilt wants a writable array
     n = x.shape[-1]
     w = max(2, min(n // 4, int(round(fs / cutoff))))
@@ -58,7 +58,7 @@ def highpass(x: np.ndarray, fs: float, cutoff: float, order: int, ripple: float)
 
 
 @functools.lru_cache(maxsize=32)
-def _highpass_sos(order: int, ripple: float, cutoff: float, fs: float) -> np.ndarray:
+def highpass_sos(order: int, ripple: float, cutoff: float, fs: float) -> np.ndarray:
     """Second-order sections of the high-pass of :func:`highpass`, designed once per setting (read-only)."""
     sos = sps.cheby1(order, ripple, cutoff, btype="highpass", fs=fs, output="sos")
     sos.flags.writeable = False
@@ -67,9 +67,9 @@ def _highpass_sos(order: int, ripple: float, cutoff: float, fs: float) -> np.nda
 
 @functools.lru_cache(maxsize=32)
 def _highpass_zi(order: int, ripple: float, cutoff: float, fs: float) -> np.ndarray:
-    """Step-response initial states of :func:`_highpass_sos` (:func:`scipy.signal.sosfilt_zi`), shape
+    """Step-response initial states of :func:`highpass_sos` (:func:`scipy.signal.sosfilt_zi`), shape
     (n_sections, 2), once per setting (read-only)."""
-    zi = sps.sosfilt_zi(_highpass_sos(order, ripple, cutoff, fs).copy())
+    zi = sps.sosfilt_zi(highpass_sos(order, ripple, cutoff, fs).copy())
     zi.flags.writeable = False
     return zi
 
@@ -100,10 +100,10 @@ def svf_pole(cutoff: float, order: int, means: str) -> float:
     return w if means == "a" else w / np.sqrt(2.0 ** (1.0 / order) - 1.0)
 
 
-def _odd_fast_len(n: int) -> int:
+def odd_fast_len(n: int) -> int:
     """Smallest fast FFT length >= ``n`` that is odd (no Nyquist bin, so ``j w`` stays exact)."""
     m = scipy.fft.next_fast_len(n, real=True)
-    return m if m % 2 else _odd_fast_len(m + 1)
+    return m if m % 2 else odd_fast_len(m + 1)
 
 
 def svf(theta: np.ndarray, tau: np.ndarray, fs: float, a: float, order: int,
@@ -128,7 +128,7 @@ def svf(theta: np.ndarray, tau: np.ndarray, fs: float, a: float, order: int,
     """
     n = theta.shape[-1]
     pad = int(np.ceil(40.0 / a * fs))
-    nfft = _odd_fast_len(n + 2 * pad)
+    nfft = odd_fast_len(n + 2 * pad)
     mult = _svf_multipliers(nfft, fs, a, order, causal, form)
     buf = np.zeros((2,) + theta.shape[:-1] + (nfft,))                # both records, zero-padded
     buf[0, ..., pad:pad + n] = theta
@@ -176,7 +176,7 @@ def rk4_coefficients(lam: float, h: float) -> tuple[float, float, float, float]:
     return c, h / 6 * (1.0 - z + z * z / 2.0 - z ** 3 / 4.0), h / 6 * (4.0 - 2.0 * z + z * z / 2.0), h / 6
 
 
-def _products(Phi: np.ndarray, y: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+def products(Phi: np.ndarray, y: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
     """``[unique entries of Phi Phi^T, Phi y]`` per sample, summed over records, shape (9, n).
 
     ``Phi`` has shape (3, n_records, n) (regressor first: each product is one contiguous pass), ``y``
@@ -184,49 +184,54 @@ def _products(Phi: np.ndarray, y: np.ndarray, out: np.ndarray | None = None) -> 
     """
     if out is None:
         out = np.empty((9, y.shape[-1]))
-    for m, (i, j) in enumerate(zip(*_IU)):
+    for m, (i, j) in enumerate(zip(*UPPER3)):
         np.einsum("rn,rn->n", Phi[i], Phi[j], out=out[m])
     for i in range(3):
         np.einsum("rn,rn->n", Phi[i], y, out=out[6 + i])
     return out
 
 
-def _forcing(Phi: np.ndarray, y: np.ndarray) -> np.ndarray:
+def forcing(Phi: np.ndarray, y: np.ndarray) -> np.ndarray:
     """``[unique entries of Phi Phi^T, Phi y]`` per sample, summed over records: shape (n, 9).
 
     ``Phi`` has shape (n_records, n, 3), ``y`` (n_records, n).
     """
-    return _products(np.moveaxis(Phi, -1, 0), y).T
+    return products(np.moveaxis(Phi, -1, 0), y).T
 
 
-def _unpack(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def unpack(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     R = np.empty(x.shape[:-1] + (3, 3))
-    R[..., _IU[0], _IU[1]] = R[..., _IU[1], _IU[0]] = x[..., :6]
+    R[..., UPPER3[0], UPPER3[1]] = R[..., UPPER3[1], UPPER3[0]] = x[..., :6]
     return R, x[..., 6:]
 
 
-def _solve_spd3(x: np.ndarray) -> np.ndarray:
+def solve_spd3(x: np.ndarray) -> np.ndarray:
     """``R^-1 r`` per sample from ``x`` = [unique entries of R, r], shape (9, n); ``R`` symmetric positive
     definite. Returns shape (n, 3).
 
     Columns scaled so that the mean diagonal of ``R`` is 1, then ``R = L D L^T`` written out for 3 x 3
-    (no pivoting is needed for a positive definite matrix) and two triangular solves, per sample in one
-    compiled loop (:func:`jointbench.estimators._ewls_loops.solve3`; tests/test_fsewls.py keeps the numpy
-    formulation it replaced, the same numbers to the last bit).
+    (no pivoting is needed for a positive definite matrix) and two triangular solves, each step one numpy
+    pass over the samples.
 
     Raises
     ------
     numpy.linalg.LinAlgError
         ``R`` is not positive definite at some sample.
     """
-    from jointbench.estimators import _ewls_loops
-
-    x = np.ascontiguousarray(x, dtype=float)
     s = 1.0 / np.sqrt(x[[0, 3, 5]].mean(axis=1))
-    out = np.empty((x.shape[-1], 3))
-    if not _ewls_loops.solve3(x, s, out):
+    a00, a01, a02, a11, a12, a22 = (x[m] * (s[i] * s[j]) for m, (i, j) in enumerate(zip(*UPPER3)))
+    b0, b1, b2 = (x[6 + i] * s[i] for i in range(3))
+    l10, l20 = a01 / a00, a02 / a00
+    d1, e12 = a11 - l10 * a01, a12 - l20 * a01
+    l21 = e12 / d1
+    d2 = a22 - l20 * a02 - l21 * e12
+    if not (np.all(a00 > 0) and np.all(d1 > 0) and np.all(d2 > 0)):
         raise np.linalg.LinAlgError("EWLS information matrix is not positive definite")
-    return out
+    z1 = b1 - l10 * b0
+    x2 = (b2 - l20 * b0 - l21 * z1) / d2
+    x1 = (z1 - e12 * x2) / d1
+    x0 = (b0 - a01 * x1 - a02 * x2) / a00
+    return np.column_stack([x0 * s[0], x1 * s[1], x2 * s[2]])
 
 
 def ewls(Phi: np.ndarray, y: np.ndarray, dt: float, lam: float, R0: np.ndarray,
@@ -236,11 +241,10 @@ def ewls(Phi: np.ndarray, y: np.ndarray, dt: float, lam: float, R0: np.ndarray,
     With ``R = P^-1`` and ``r = R Theta`` eq. 6 is linear: ``R' = -lam R + Phi Phi^T``,
     ``r' = -lam r + Phi y``, ``Theta = R^-1 r`` (records pool by summing ``Phi Phi^T`` and ``Phi y``).
     RK4 with ``Phi`` and ``y`` linearly interpolated at the mid-points is then exactly the recursion of
-    :func:`rk4_coefficients` on the products at the samples and at the mid-points (compiled:
-    :func:`jointbench.estimators._ewls_loops.recursion`, the numbers of ``scipy.signal.lfilter`` on the
-    drive), followed by a column-scaled 3 x 3 solve per sample (:func:`_solve_spd3`).
+    :func:`rk4_coefficients` on the products at the samples and at the mid-points (``scipy.signal.lfilter``
+    on the drive), followed by a column-scaled 3 x 3 solve per sample (:func:`solve_spd3`).
     RK4 is not invariant under the change of variables ``(P, Theta) -> (R, r)``: the result differs
-    from RK4 on eq. 6 itself (:func:`_ewls_riccati_rk4`) by RK4's truncation error, ``O(dt^4)``; the tests
+    from RK4 on eq. 6 itself (:func:`ewls_riccati_rk4`) by RK4's truncation error, ``O(dt^4)``; the tests
     check they agree.
 
     ``Phi`` has shape (n_records, n, 3), ``y`` (n_records, n); ``dt`` is the step (s), ``lam`` the
@@ -251,15 +255,15 @@ def ewls(Phi: np.ndarray, y: np.ndarray, dt: float, lam: float, R0: np.ndarray,
     ----------
     Xu & Hollerbach (1998), eqs. 5-6 and Sec. II-D.
     """
-    from jointbench.estimators import _ewls_loops
-
     c, w0, wm, w1 = rk4_coefficients(lam, dt)
-    P = np.ascontiguousarray(np.moveaxis(Phi, -1, 0), dtype=float)    # (3, n_records, n)
-    y = np.ascontiguousarray(y, dtype=float)
-    R = np.empty((9, y.shape[-1]))            # R(t) and r(t) from R0, r0: x_k = c x_k-1 + w0 f0 + wm fm + w1 f1
-    _ewls_loops.recursion(P, y, float(w0), float(wm), float(w1), float(c),
-                          np.ascontiguousarray(np.concatenate([R0[_IU], r0]), dtype=float), R)
-    return _solve_spd3(R)
+    P = np.ascontiguousarray(np.moveaxis(Phi, -1, 0), dtype=float)   # (3, n_records, n): a product per pass
+    y = np.asarray(y, dtype=float)
+    f = products(P, y)                                   # at the samples
+    fm = products((P[..., 1:] + P[..., :-1]) * 0.5, (y[..., 1:] + y[..., :-1]) * 0.5)   # at the mid-points
+    drive = np.empty_like(f)                             # x_k = c x_k-1 + w0 f_k-1 + wm fm_k + w1 f_k
+    drive[:, 0] = np.concatenate([R0[UPPER3], r0])       # from R0, r0
+    drive[:, 1:] = f[:, :-1] * w0 + fm * wm + f[:, 1:] * w1
+    return solve_spd3(sps.lfilter([1.0], [1.0, -c], drive, axis=-1))
 
 
 def ewls_start(Phi: np.ndarray, y: np.ndarray, fs: float, init_window: float) -> tuple[np.ndarray, np.ndarray]:
@@ -272,7 +276,7 @@ def ewls_start(Phi: np.ndarray, y: np.ndarray, fs: float, init_window: float) ->
     Xu & Hollerbach (1998), Sec. II-D ("initial values ... calculated using standard least squares").
     """
     m = max(int(round(init_window * fs)), 3)
-    return _unpack(_forcing(Phi[:, :m], y[:, :m]).sum(axis=0) / fs)
+    return unpack(forcing(Phi[:, :m], y[:, :m]).sum(axis=0) / fs)
 
 
 def ewls_regression(Phi: np.ndarray, y: np.ndarray, fs: float, forgetting: float, init_window: float) -> np.ndarray:
@@ -289,7 +293,7 @@ def ewls_regression(Phi: np.ndarray, y: np.ndarray, fs: float, forgetting: float
     return ewls(Phi, y, 1.0 / fs, forgetting, R0, r0)
 
 
-def _ewls_riccati_rk4(Phi: np.ndarray, y: np.ndarray, dt: float, lam: float, P0: np.ndarray,
+def ewls_riccati_rk4(Phi: np.ndarray, y: np.ndarray, dt: float, lam: float, P0: np.ndarray,
                       theta0: np.ndarray) -> np.ndarray:
     """Reference for the tests: plain classical RK4 on eq. 6 in ``(P, Theta)`` for one record (slow).
 

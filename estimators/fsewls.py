@@ -14,10 +14,8 @@ import pandas as pd
 from jointbench.estimators import Estimator, register
 from jointbench.estimators._band import MIN_RUN, band_of_trials, chance, excited_share, input_band, welch_of_trials
 from jointbench.estimators._ewls_band import forgetting_table, pointwise_bands
-from jointbench.estimators._fsewls_kernels import (  # noqa: F401 - the kernels are public here too
-    _IU, highpass, _highpass_sos, highpass_time_constant, svf_pole, _odd_fast_len, svf,
-    rk4_coefficients, _products, _forcing, _unpack, _solve_spd3, ewls, ewls_start, ewls_regression,
-    _ewls_riccati_rk4)
+from jointbench.estimators._fsewls_kernels import (  # noqa: F401 - ewls_regression: public here, for controls
+    ewls, ewls_regression, ewls_start, highpass, highpass_time_constant, svf, svf_pole)
 from jointbench.core.errors import InputError
 from jointbench.core.estimate import Intervals, ParametricEstimate, Prediction
 from jointbench.core.schema import param

@@ -20,7 +20,7 @@ SPLIT = frozenset({"tests.test_dask_faults", "tests.test_runner_faults", "tests.
 #: so that the workers finish together rather than one of them starting a long unit at the end: the units go
 #: out in this order (the tests of a SPLIT module one by one), then every other module (each under 4 CPU-s) in
 #: collection order. A stale order costs balance, never a result.
-FIRST = ("tests.test_side_by_side",         # 21 CPU-s: runs of several studies with --jobs, a cold numba compile
+FIRST = ("tests.test_side_by_side",         # 21 CPU-s: runs of several studies with --jobs
          "tests.test_plugins",              # 20: pip installs, 4 processes, 2 local Dask clusters
          "tests.test_backends_harness",     # 14: each paper study on MuJoCo
          "tests.test_nightly",              # 12: nightly runs, make nightly, Chromium

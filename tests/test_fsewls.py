@@ -11,13 +11,13 @@ import math
 
 import numpy as np
 import pytest
-import scipy.signal as sps
 
 from jointbench import estimators
 from jointbench.benchmarks.metrics import vafv
-from jointbench.estimators.fsewls import (FSEWLS, FSEWLSEstimate, _IU, _ewls_riccati_rk4, _forcing, _solve_spd3,
-                                         _unpack, ewls, highpass, highpass_time_constant, rk4_coefficients, svf,
-                                         svf_pole)
+from jointbench.estimators._fsewls_kernels import (UPPER3, ewls, ewls_riccati_rk4, forcing, highpass,
+                                                  highpass_time_constant, rk4_coefficients, solve_spd3, svf, svf_pole,
+                                                  unpack)
+from jointbench.estimators.fsewls import FSEWLS, FSEWLSEstimate
 from jointbench.core.errors import ConfigError, InputError
 from jointbench.core.types import Trial
 
@@ -215,47 +215,11 @@ def test_information_form_equals_riccati_rk4(slow_elbow):
     trial, _ = slow_elbow
     Phi, y = _regression(trial)
     Phi, y = Phi[:, 4000:7000], y[:, 4000:7000]          # 3 s in the steady part of a varying elbow
-    R0, r0 = _unpack(_forcing(Phi[:, :500], y[:, :500]).sum(axis=0) / FS)
+    R0, r0 = unpack(forcing(Phi[:, :500], y[:, :500]).sum(axis=0) / FS)
     fast = ewls(Phi, y, 1 / FS, 20.0, R0, r0)
-    ref = _ewls_riccati_rk4(Phi[0], y[0], 1 / FS, 20.0, np.linalg.inv(R0), np.linalg.solve(R0, r0))
+    ref = ewls_riccati_rk4(Phi[0], y[0], 1 / FS, 20.0, np.linalg.inv(R0), np.linalg.solve(R0, r0))
     assert np.allclose(fast[0], np.linalg.lstsq(Phi[0, :500], y[0, :500], rcond=None)[0], rtol=1e-9)
     assert (np.abs(fast - ref) / np.abs(ref)).max() < 1e-6
-
-
-def _solve_spd3_numpy(x):
-    """The 3 x 3 solve of ewls as numpy passes (its formulation before it was compiled, issue 22): the
-    reference for the compiled loop's order of operations."""
-    s = 1.0 / np.sqrt(x[[0, 3, 5]].mean(axis=1))
-    a = np.array([x[k] * (s[i] * s[j]) for k, (i, j) in enumerate(zip(*_IU))] + [x[6 + i] * s[i] for i in range(3)])
-    a00, a01, a02, a11, a12, a22, b0, b1, b2 = a
-    l10, l20 = a01 / a00, a02 / a00
-    d1, e12 = a11 - l10 * a01, a12 - l20 * a01
-    l21 = e12 / d1
-    d2 = a22 - l20 * a02 - l21 * e12
-    z1 = b1 - l10 * b0
-    x2 = (b2 - l20 * b0 - l21 * z1) / d2
-    x1 = (z1 - e12 * x2) / d1
-    x0 = (b0 - a01 * x1 - a02 * x2) / a00
-    return np.column_stack([x0 * s[0], x1 * s[1], x2 * s[2]])
-
-
-@pytest.mark.parametrize("records", [1, 3])
-def test_ewls_recursion_is_lfilter_on_the_rk4_drive(records):
-    """The compiled recursion of ewls gives exactly what its numpy formulation gave (issue 22): the products
-    at the samples and mid-points by numpy.einsum, the RK4 drive w0 f0 + wm fm + w1 f1, scipy.signal.lfilter."""
-    from jointbench.estimators import _ewls_loops
-    from jointbench.estimators._fsewls_kernels import _products, rk4_coefficients
-    rng = np.random.default_rng(records)
-    P, y, start = rng.standard_normal((3, records, 5000)), rng.standard_normal((records, 5000)), rng.standard_normal(9)
-    c, w0, wm, w1 = rk4_coefficients(20.0, 1e-3)
-    f = _products(P, y)
-    fm = _products((P[..., 1:] + P[..., :-1]) * 0.5, (y[:, 1:] + y[:, :-1]) * 0.5)
-    drive = np.empty_like(f)
-    drive[:, 0] = start
-    drive[:, 1:] = f[:, :-1] * w0 + fm * wm + f[:, 1:] * w1
-    got = np.empty_like(f)
-    _ewls_loops.recursion(P, y, w0, wm, w1, c, start, got)
-    assert np.array_equal(got, sps.lfilter([1.0], [1.0, -c], drive, axis=-1))
 
 
 def test_spd_solve_equals_lapack_and_refuses_indefinite():
@@ -264,14 +228,13 @@ def test_spd_solve_equals_lapack_and_refuses_indefinite():
     A = rng.standard_normal((2000, 3, 3))
     R = A @ np.swapaxes(A, 1, 2) + 0.1 * np.eye(3)        # positive definite, condition up to ~1e3
     r = rng.standard_normal((2000, 3))
-    x = np.concatenate([R[:, _IU[0], _IU[1]], r], axis=1).T
+    x = np.concatenate([R[:, UPPER3[0], UPPER3[1]], r], axis=1).T
     want = np.linalg.solve(R, r[..., None])[..., 0]
-    assert np.abs(_solve_spd3(x) - want).max() <= 1e-11 * np.abs(want).max()
-    assert np.array_equal(_solve_spd3(x), _solve_spd3_numpy(x))   # the compiled loop: the same bits
+    assert np.abs(solve_spd3(x) - want).max() <= 1e-11 * np.abs(want).max()
     R[7] = np.diag([1.0, -1.0, 1.0])                       # indefinite at one sample
-    x = np.concatenate([R[:, _IU[0], _IU[1]], r], axis=1).T
+    x = np.concatenate([R[:, UPPER3[0], UPPER3[1]], r], axis=1).T
     with pytest.raises(np.linalg.LinAlgError, match="not positive definite"):
-        _solve_spd3(x)
+        solve_spd3(x)
 
 
 def test_information_form_and_riccati_converge_at_fourth_order():
@@ -282,7 +245,7 @@ def test_information_form_and_riccati_converge_at_fourth_order():
         y = Phi[0] @ np.array([1.0, -2.0, 0.5]) + np.sin(11 * t)
         R0, r0 = np.eye(3) * 0.2, np.zeros(3)
         fast = ewls(Phi, y[None], 1 / fs, 20.0, R0, r0)
-        ref = _ewls_riccati_rk4(Phi[0], y, 1 / fs, 20.0, np.linalg.inv(R0), r0)
+        ref = ewls_riccati_rk4(Phi[0], y, 1 / fs, 20.0, np.linalg.inv(R0), r0)
         return np.abs(fast - ref).max()
     ratio = gap(100.0) / gap(200.0)
     assert 10 < ratio < 25
@@ -362,7 +325,6 @@ def test_settings_are_frozen_and_documented():
 def test_svf_lowpass_form_drops_the_differentiator():
     """svf_form='lowpass': L = a^n/(s+a)^n, so L theta of a constant is the constant (the printed form
     s^(n-2) a^n/(s+a)^n has a zero at s = 0 and removes it)."""
-    from jointbench.estimators.fsewls import svf
     fs, n = 1000.0, 20000
     theta = np.full(n, 0.3)
     mid = slice(n // 4, 3 * n // 4)
@@ -374,10 +336,10 @@ def test_svf_lowpass_form_drops_the_differentiator():
 def _svf_as_first_written(theta, tau, fs, a, order, causal, form):
     """svf as it was before issue 22 (filters designed per call, np.pad, np.stack of the products)."""
     import scipy.fft
-    from jointbench.estimators.fsewls import _odd_fast_len
+    from jointbench.estimators._fsewls_kernels import odd_fast_len
     n = theta.shape[-1]
     pad = int(np.ceil(40.0 / a * fs))
-    nfft = _odd_fast_len(n + 2 * pad)
+    nfft = odd_fast_len(n + 2 * pad)
     f = scipy.fft.rfftfreq(nfft, 1.0 / fs)
     jw = 2j * np.pi * f
     low = (a / (jw + a)) ** order if causal else (a * a / (a * a + (2 * np.pi * f) ** 2)) ** (order / 2.0)

@@ -398,7 +398,7 @@ def test_ibk_spectral_weights_the_fit_by_coherence_squared():
 def test_fsewls_settings_reach_the_ewls_and_its_start():
     """FSEWLS's output equals eq. 6 integrated independently (plain RK4 in P, Theta) from P(0) = the inverse
     of sum(Phi Phi^T) dt over init_window and Theta(0) the least-squares fit there, with lambda as set."""
-    from jointbench.estimators.fsewls import _ewls_riccati_rk4, svf, svf_pole
+    from jointbench.estimators._fsewls_kernels import ewls_riccati_rk4, svf, svf_pole
 
     fs, n = 1000.0, 4000
     rng = np.random.default_rng(2)
@@ -419,7 +419,7 @@ def test_fsewls_settings_reach_the_ewls_and_its_start():
         m = int(round(init * fs))
         R0 = Phi[:m].T @ Phi[:m] / fs                                # information in the window, dt = 1/fs
         th0 = np.linalg.lstsq(Phi[:m], y[:m], rcond=None)[0]
-        ref = _ewls_riccati_rk4(Phi, y, 1 / fs, lam, np.linalg.inv(R0), th0)
+        ref = ewls_riccati_rk4(Phi, y, 1 / fs, lam, np.linalg.inv(R0), th0)
         got = np.column_stack([fit.I, fit.B, fit.K])
         scale = np.abs(ref).max(axis=0)
         assert np.abs(got - ref).max(axis=0) / scale == pytest.approx(np.zeros(3), abs=1e-4), (lam, init)

@@ -71,7 +71,7 @@ def _values(folder: Path) -> pd.DataFrame:
 def side_by_side(tmp_path_factory):
     """``run tiny_a tiny_b --jobs 2 --serial --quiet --write-readme`` from a folder with a stale README: the
     command of make reproduce, once for the two tests below (a command with --jobs pays 5 CPU-s of
-    start-up, imports and compile-aside before its studies). What they read of the results folder and the
+    start-up and imports before its studies). What they read of the results folder and the
     README is taken at once, before either test runs anything else there."""
     from jointbench.benchmarks import status
 
@@ -193,43 +193,3 @@ def test_studies_never_started_after_an_interrupt_are_not_reported_as_success(tm
     r = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=60,
                        start_new_session=True, preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     assert r.returncode == 0 and r.stdout.strip() == "[130, 130, 130]", r.stdout + r.stderr
-
-
-def test_the_estimators_loops_are_compiled_aside_into_the_disk_cache(tmp_path):
-    """preload's compile child (on the idle core while the parent imports) exits 0 and leaves the compiled
-    loops of the ensemble solver and of FSEWLS in numba's disk cache, where a study that fits them loads them; run
-    in a subprocess (NUMBA_CACHE_DIR is read at import)."""
-    script = textwrap.dedent("""
-        import os, sys
-        from jointbench.benchmarks.harness.side_by_side import _compile_aside
-        pid = _compile_aside()
-        _, status = os.waitpid(pid, 0)
-        print(os.waitstatus_to_exitcode(status))
-    """)
-    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path)}
-    out = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True, check=True)
-    assert out.stdout.split() == ["0"], out.stderr
-    kept = {p.name.split("-")[0] for p in tmp_path.rglob("*.nbi")}
-    want = {"_small_eigh._mdl_stack", "_small_eigh._lagged_gram", "_ewls_loops.recursion", "_ewls_loops.solve3"}
-    assert want <= kept, kept
-
-
-def test_a_study_waits_for_the_compile_aside_then_goes_on():
-    """wait_aside returns at once when nothing compiles aside, and otherwise only when the compiling process
-    has closed its end of the pipe (by exiting: here a thread closes it after 0.3 s), once."""
-    import threading
-
-    from jointbench.core import compiled
-
-    t0 = time.monotonic()
-    compiled.wait_aside()
-    assert time.monotonic() - t0 < 0.1
-    r, w = os.pipe()
-    compiled.compiling_aside(r)
-    threading.Timer(0.3, os.close, (w,)).start()
-    t0 = time.monotonic()
-    compiled.wait_aside()
-    assert 0.25 < time.monotonic() - t0 < 5
-    t0 = time.monotonic()
-    compiled.wait_aside()                  # done: never again
-    assert time.monotonic() - t0 < 0.1

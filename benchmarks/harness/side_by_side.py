@@ -1,12 +1,10 @@
 """Several studies side by side: one forked process per study, after the imports they all share.
 
 ``jointbench run A B C D --jobs 4`` (``make reproduce``) runs each study in a child process forked from
-the command's own, at most ``jobs`` at once. Before forking, :func:`preload` imports what every study run
-imports (numpy, scipy, pandas, pyarrow, matplotlib, Jinja2, the harness, every registered protocol and
-estimator): the children share those pages instead of importing them again each. A study run imports
-about 2 CPU-s of modules on the 2-core machine, so four studies started as four commands (``make -j4``)
-spent 6 CPU-s on imports their neighbours had already made (issue 22). Nothing else is shared: each
-child opens its own history connection, cache and workers, as a command of its own would.
+the command's own, at most ``jobs`` at once. Nothing is shared: each child imports what its study needs
+and opens its own history connection, cache and workers, as a command of its own would. (Importing the
+modules every study needs once before forking, a speed-only mechanism, was removed in issue 34: it saved
+less than the 10 % of ``make reproduce`` such a mechanism must save to stay, results/benchmarks.md.)
 
 Signals: each child runs in a process group of its own, so a signal meant for the command (Ctrl-C at the
 terminal, a SIGTERM to the command or to its process group) reaches the command alone, which passes it on
@@ -21,83 +19,6 @@ import signal
 import sys
 import traceback
 from collections.abc import Callable, Sequence
-
-
-def preload() -> None:
-    """Import what every study run imports, and compile the simulator's loops, so that children forked
-    afterwards share them.
-
-    The compiled loops (numba) cost seconds to compile on a machine where they never were, and loading
-    them from numba's disk cache after that. This process compiles the simulator's
-    (:func:`jointbench.sims.backend_ltv.warm`: every study simulates); meanwhile a child of its own
-    compiles the estimators' into the disk cache (:func:`_compile_aside`), on the core this process
-    leaves idle while it imports, so a study that fits them loads them from there.
-
-    Starts no thread (the BLAS thread count is fixed by the command line before numpy loads, Arrow's
-    thread pool starts on first use), so forking afterwards is safe."""
-    _compile_aside()
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import jinja2  # noqa: F401
-    import matplotlib.pyplot  # noqa: F401
-    import pandas  # noqa: F401
-    import pyarrow.parquet  # noqa: F401
-    import scipy.signal  # noqa: F401
-
-    from jointbench import estimators
-    from jointbench.benchmarks import protocols, report, study, tables  # noqa: F401
-    from jointbench.sims import backend_ltv
-
-    for registry in (protocols.REGISTRY, estimators.REGISTRY):
-        for name in registry.names():
-            registry.get(name)
-    backend_ltv.warm()
-
-
-def _compile_aside() -> int | None:
-    """A forked child that compiles the estimators' loops (the ensemble solver's,
-    :func:`jointbench.estimators._small_eigh.warm`, and FSEWLS's, :func:`jointbench.estimators._ewls_loops.warm`)
-    into numba's disk cache and exits, silently (its pid; None when no process can be forked). A study
-    that first imports those loops waits for it (:func:`jointbench.core.compiled.wait_aside`: the pipe it holds
-    closes when it exits) and loads them from the cache, so they are compiled once; when numba has no
-    writable cache folder it exits at once (its work could not be shared). :func:`run_forked` reaps it
-    with the studies (a pid that is not a study's)."""
-    sys.stdout.flush()
-    sys.stderr.flush()
-    try:
-        done_r, done_w = os.pipe()                # closed by the child's exit: what wait_aside waits for
-    except OSError:
-        return None
-    try:
-        pid = os.fork()
-    except OSError:
-        os.close(done_r)
-        os.close(done_w)
-        return None
-    if pid == 0:                                  # the child: compile, leave the cache, exit
-        code = 1
-        try:
-            os.close(done_r)
-            quiet = os.open(os.devnull, os.O_WRONLY)    # warnings are the studies' to print
-            os.dup2(quiet, 1)
-            os.dup2(quiet, 2)
-            from jointbench.core import compiled
-            from jointbench.estimators import _ewls_loops, _small_eigh
-
-            if not compiled.uncached():
-                _small_eigh.warm()
-                _ewls_loops.warm()
-            code = 0
-        except BaseException:                     # noqa: BLE001 - a fit compiles them then
-            pass
-        finally:
-            os._exit(code)
-    os.close(done_w)
-    from jointbench.core import compiled
-
-    compiled.compiling_aside(done_r)              # the studies forked from here wait for it (wait_aside)
-    return pid
 
 
 def exit_code(status: int) -> int:

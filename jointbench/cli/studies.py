@@ -56,7 +56,6 @@ def _run(args) -> int:
     else:
         from jointbench.benchmarks.harness import side_by_side
 
-        side_by_side.preload()
         code = max(side_by_side.run_forked(studies, args.jobs,
                                            lambda study: guarded(lambda: _run_one(args, study))))
     if args.write_readme and code == 0:       # what `jointbench status --write-readme` does, without its start-up

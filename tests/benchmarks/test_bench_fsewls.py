@@ -18,8 +18,9 @@ from scipy import signal as sps
 
 from jointbench import estimators
 import jointbench.estimators.fsewls as fsewls_module
-from jointbench.estimators.fsewls import (FSEWLS, _IU, _ewls_riccati_rk4, _forcing, _unpack, ewls, highpass,
-                               rk4_coefficients, svf)
+from jointbench.estimators._fsewls_kernels import (UPPER3, ewls, ewls_riccati_rk4, forcing, highpass,
+                                                  rk4_coefficients, svf, unpack)
+from jointbench.estimators.fsewls import FSEWLS
 from jointbench.core.types import Trial
 
 FS, DURATION, BASELINE = 1000.0, 45.0, 3.0
@@ -50,23 +51,23 @@ def regression(trial):
     Phi, y = svf(x[0], x[1], FS, FSEWLS(s).pole(), s.svf_order, s.svf_causal)
     sl = slice(int(10 * FS), int((10 + BASELINE) * FS))
     Phi, y = Phi[:, sl], y[:, sl]
-    R0, r0 = _unpack(_forcing(Phi[:, :500], y[:, :500]).sum(axis=0) / FS)
+    R0, r0 = unpack(forcing(Phi[:, :500], y[:, :500]).sum(axis=0) / FS)
     return Phi, y, R0, r0
 
 
 def ewls_before_issue12(Phi, y, dt, lam, R0, r0):
     """Baseline: the information-form EWLS as it was before issue 12 (same arithmetic, other layout)."""
     def forcing(Phi, y):
-        prod = np.einsum("rni,rnj->nij", Phi, Phi)[:, _IU[0], _IU[1]]
+        prod = np.einsum("rni,rnj->nij", Phi, Phi)[:, UPPER3[0], UPPER3[1]]
         return np.concatenate([prod, np.einsum("rni,rn->ni", Phi, y)], axis=1)
 
     c, w0, wm, w1 = rk4_coefficients(lam, dt)
     f = forcing(Phi, y)
     fm = forcing(0.5 * (Phi[:, 1:] + Phi[:, :-1]), 0.5 * (y[:, 1:] + y[:, :-1]))
     drive = np.empty_like(f)
-    drive[0] = np.concatenate([R0[_IU], r0])
+    drive[0] = np.concatenate([R0[UPPER3], r0])
     drive[1:] = w0 * f[:-1] + wm * fm + w1 * f[1:]
-    R, r = _unpack(sps.lfilter([1.0], [1.0, -c], drive, axis=0))
+    R, r = unpack(sps.lfilter([1.0], [1.0, -c], drive, axis=0))
     scale = 1.0 / np.sqrt(np.einsum("nii->i", R) / len(R))
     return np.linalg.solve(R * np.multiply.outer(scale, scale), (r * scale)[..., None])[..., 0] * scale
 
@@ -110,6 +111,6 @@ def test_bench_ewls_information_form_3s(benchmark, regression):
 @pytest.mark.benchmark(group="fsewls-1kHz")
 def test_bench_riccati_rk4_loop_3s(benchmark, regression):
     Phi, y, R0, r0 = regression
-    out = benchmark(_ewls_riccati_rk4, Phi[0], y[0], 1 / FS, 20.0, np.linalg.inv(R0), np.linalg.solve(R0, r0))
+    out = benchmark(ewls_riccati_rk4, Phi[0], y[0], 1 / FS, 20.0, np.linalg.inv(R0), np.linalg.solve(R0, r0))
     fast = ewls(Phi, y, 1 / FS, 20.0, R0, r0)
     assert (np.abs(fast - out) / np.abs(out)).max() < 1e-6  # same estimate as the fast path
