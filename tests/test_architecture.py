@@ -329,3 +329,44 @@ def test_an_import_loop_is_caught():
     sources["p.dask"] = ("from p.workers import run_task\n", False)
     sources["p.workers"] = ("import os\n", False)
     assert import_loops(import_graph(sources)) == []
+
+
+def private_imports(source: str, module: str, is_package: bool = False) -> list[str]:
+    """``from M import _name`` in ``source`` where ``_name`` is not a module (a private helper of a package,
+    ``from pkg import _mod``, is the package's own and allowed)."""
+    tree = ast.parse(source)
+    package = module if is_package else module.rpartition(".")[0]
+    bad = []
+    for node in ast.walk(tree):
+        if not isinstance(node, ast.ImportFrom):
+            continue
+        base = node.module or ""
+        if node.level:
+            parent = package.rsplit(".", node.level - 1)[0] if node.level > 1 else package
+            base = f"{parent}.{base}" if base else parent
+        for a in node.names:
+            if a.name.startswith("_") and not a.name.startswith("__") and f"{base}.{a.name}" not in MODULES:
+                bad.append(f"{base}.{a.name}")
+    return bad
+
+
+MODULES = {module_of_file(f) for f in code_files()}
+
+
+def test_no_private_name_is_imported_from_another_module():
+    """A name that starts with ``_`` is its module's own: another module that needs it gets a public name in
+    its home (private modules of a package, ``from pkg import _mod``, are the package's and allowed)."""
+    bad = []
+    for f in code_files():
+        module = module_of_file(f)
+        bad += [f"{f.relative_to(REPO)} imports {m}" for m in
+                private_imports(f.read_text(), module, f.name == "__init__.py")]
+    assert not bad, "\n".join(bad)
+
+
+def test_a_private_import_is_caught():
+    assert private_imports("from jointbench.core.schema import _number", "jointbench.sims.x") == \
+        ["jointbench.core.schema._number"]
+    assert private_imports("def f():\n    from .tables import _kind\n", "jointbench.benchmarks.checks") == \
+        ["jointbench.benchmarks.tables._kind"]
+    assert not private_imports("from jointbench.estimators import _reflex as rx", "jointbench.estimators.x")
