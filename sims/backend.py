@@ -27,7 +27,7 @@ from typing import Any, ClassVar, Mapping
 import numpy as np
 
 from jointbench.core.errors import Incompatible
-from jointbench.sims import BACKENDS
+from jointbench.sims.registries import BACKENDS
 
 
 @dataclasses.dataclass(frozen=True)

@@ -22,7 +22,7 @@ import numpy as np
 from jointbench.core.lazy import scipy_linalg, scipy_signal as sps   # imported on first use (0.8 CPU-s)
 
 from jointbench.core.errors import ConfigError, Incompatible
-from jointbench.sims import BACKENDS
+from jointbench.sims.registries import BACKENDS
 from jointbench.sims.backend import Backend, Response, lti_applies
 
 

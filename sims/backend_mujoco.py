@@ -58,7 +58,7 @@ from typing import ClassVar
 import numpy as np
 
 from jointbench.core.errors import ConfigError
-from jointbench.sims import BACKENDS
+from jointbench.sims.registries import BACKENDS
 from jointbench.sims.apparatus import derivative
 from jointbench.sims.backend import Backend, Response, nonlinear_parts
 from jointbench.sims.backend_mujoco_models import CONTROLS, HandleServo, build, mjcf_module

@@ -39,7 +39,7 @@ import numpy as np
 from jointbench.core.lazy import scipy_signal as sps
 
 from jointbench.core.errors import ConfigError
-from jointbench.sims import BACKENDS
+from jointbench.sims.registries import BACKENDS
 from jointbench.sims.backend import Backend, Response
 from jointbench.sims.backend_ltv import step_weights
 from jointbench.sims.reflex_stretch import ReflexStepper

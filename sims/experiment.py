@@ -25,7 +25,7 @@ from jointbench.core.errors import ConfigError, Incompatible
 from jointbench.core.schema import Problems, param, parse, parse_tagged, tagged
 from jointbench.core.signal import decimate, decimate_fft
 from jointbench.core.types import Trial
-from jointbench.sims import BACKENDS, JOINTS, PERTURBATIONS, REFLEXES
+from jointbench.sims.registries import BACKENDS, JOINTS, PERTURBATIONS, REFLEXES
 from jointbench.sims import backend as _backend
 from jointbench.sims import reuse as _reuse
 from jointbench.sims import truth as _truth

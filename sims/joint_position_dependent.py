@@ -41,7 +41,7 @@ from numpy.polynomial import polynomial as P
 
 from jointbench.core.errors import ConfigError
 from jointbench.core.schema import param, parse
-from jointbench.sims import JOINTS
+from jointbench.sims.registries import JOINTS
 
 _GRID = 10001      # points on which a function's range is checked
 

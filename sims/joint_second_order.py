@@ -13,7 +13,7 @@ import numpy as np
 
 from jointbench.core.errors import ConfigError
 from jointbench.core.schema import param
-from jointbench.sims import JOINTS
+from jointbench.sims.registries import JOINTS
 
 
 @JOINTS.register("second_order", tags=("lti",))

@@ -14,7 +14,7 @@ import numpy as np
 
 from jointbench.core.errors import ConfigError
 from jointbench.core.schema import param
-from jointbench.sims import JOINTS
+from jointbench.sims.registries import JOINTS
 from jointbench.sims.profile import parse_profile_fields, require_positive
 
 

@@ -9,7 +9,7 @@ from jointbench.core.lazy import scipy_signal as sps   # imported on first use: 
 
 from jointbench.core.errors import ConfigError
 from jointbench.core.schema import param
-from jointbench.sims import PERTURBATIONS
+from jointbench.sims.registries import PERTURBATIONS
 
 
 def scale_to_rms(x: np.ndarray, rms: float) -> np.ndarray:

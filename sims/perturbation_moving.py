@@ -24,7 +24,7 @@ import numpy as np
 
 from jointbench.core.errors import ConfigError
 from jointbench.core.schema import param, parse_tagged
-from jointbench.sims import PERTURBATIONS
+from jointbench.sims.registries import PERTURBATIONS
 from jointbench.sims.profile import parse_profile
 
 

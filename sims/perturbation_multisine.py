@@ -8,7 +8,7 @@ import numpy as np
 
 from jointbench.core.errors import ConfigError
 from jointbench.core.schema import param
-from jointbench.sims import PERTURBATIONS
+from jointbench.sims.registries import PERTURBATIONS
 
 
 @PERTURBATIONS.register("multisine")

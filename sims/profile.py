@@ -26,7 +26,7 @@ import numpy as np
 
 from jointbench.core.errors import ConfigError
 from jointbench.core.schema import param, parse
-from jointbench.sims import PROFILES
+from jointbench.sims.registries import PROFILES
 
 
 def _period(frequency: float | None, period: float | None, where: str) -> float:

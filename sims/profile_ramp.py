@@ -12,7 +12,7 @@ import numpy as np
 
 from jointbench.core.errors import ConfigError
 from jointbench.core.schema import param
-from jointbench.sims import PROFILES
+from jointbench.sims.registries import PROFILES
 
 
 @PROFILES.register("ramp")

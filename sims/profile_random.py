@@ -13,7 +13,7 @@ import numpy as np
 
 from jointbench.core.errors import ConfigError
 from jointbench.core.schema import param
-from jointbench.sims import PROFILES
+from jointbench.sims.registries import PROFILES
 
 _MAX_LINES = 20_000
 _GRID_PER_LINE = 32      # grid points per line over one period when searching the extremes

@@ -46,7 +46,7 @@ from jointbench.core.lazy import scipy_signal as sps
 
 from jointbench.core.errors import ConfigError
 from jointbench.core.schema import number, param
-from jointbench.sims import REFLEXES
+from jointbench.sims.registries import REFLEXES
 from jointbench.sims.profile import parse_profile
 
 

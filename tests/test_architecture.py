@@ -303,17 +303,11 @@ def import_loops(graph: dict[str, set[str]]) -> list[list[str]]:
     return sorted(loops)
 
 
-#: the import loops left, each with why it stays: the simulator package's registries live in its
-#: ``__init__``, which imports ``experiment`` last, whose modules import the registries back
-KNOWN_LOOPS = [["jointbench.sims", "jointbench.sims.backend", "jointbench.sims.experiment",
-                "jointbench.sims.perturbation_filtered_noise", "jointbench.sims.voluntary"]]
-
-
 def test_no_import_loops():
     """No two of the project's modules import each other, round about or directly, function-local imports
-    included (a function-local import only hides a loop), but the ones :data:`KNOWN_LOOPS` names."""
+    included (a function-local import only hides a loop)."""
     sources = {module_of_file(f): (f.read_text(), f.name == "__init__.py") for f in code_files()}
-    loops = [loop for loop in import_loops(import_graph(sources)) if loop not in KNOWN_LOOPS]
+    loops = import_loops(import_graph(sources))
     assert not loops, "\n".join(" <-> ".join(loop) for loop in loops)
 
 
