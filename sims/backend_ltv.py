@@ -25,7 +25,7 @@ import pickle
 
 import numpy as np
 
-from jointbench.sims import BACKENDS
+from jointbench.sims.registries import BACKENDS
 from jointbench.sims.apparatus import derivative  # noqa: F401 - re-exported: the drive's derivative, shared with lti
 from jointbench.sims.backend import Backend, Response
 
