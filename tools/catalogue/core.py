@@ -5,9 +5,12 @@ A case is a careless, hostile or unlucky use of ``jointbench`` (a bad input, a l
 and the outcome is classified:
 
 - ``clean``: what a user should see: an error case exits non-zero with one line that names the thing
-  (``names``, a regular expression); an ``ok`` case exits 0 and its ``check`` holds; a ``fail`` case (cases
-  that fail at run time) exits non-zero and says how many failed;
-- ``unclear``: non-zero but several lines, or the wrong thing named (or an ``ok`` case refused);
+  (``names``, a regular expression), or with several when a config file has several errors (the parser
+  reports every error of a file at once, one per line): then every line names that file and one names the
+  thing (:func:`clean_error`); an ``ok`` case exits 0 and its ``check`` holds; a ``fail`` case (cases that
+  fail at run time) exits non-zero and says how many failed;
+- ``unclear``: non-zero but several lines that are not all one config file's errors (a line that does not
+  name the file), or the wrong thing named (or an ``ok`` case refused);
 - ``traceback``: a Python traceback reached the user;
 - ``hang``: no answer within the timeout;
 - ``silent wrong``: exit 0 where it must not, or a wrong result (the ``check`` failed);
@@ -32,6 +35,10 @@ from typing import Callable
 CLASSES = ("clean", "unclear", "traceback", "hang", "silent wrong", "outputs lost")
 #: informational stderr lines that are not part of an error message (the grid's time estimate)
 INFO = re.compile(r"^jointbench: (?!error:).*(estimated \d+ CPU-minutes|lock acquired)")
+#: what the command line puts before an error message (on its first line only)
+ERROR_PREFIX = re.compile(r"^jointbench: error: ")
+#: the config file a line of a config error names, at its start: ``<path>.yaml: <where>: <what>``
+CONFIG_FILE = re.compile(r"^(?P<file>\S.*?\.ya?ml): ")
 
 
 @dataclasses.dataclass
@@ -178,9 +185,27 @@ def classify(c: Case, o: Outcome) -> str:
         text = o.stdout + o.stderr
         return "clean" if re.search(r"\d+ (case\(s\) |of \d+ cases )?failed", text) and re.search(c.names, text) \
             else "unclear"
-    if len(lines) != 1 or not re.search(c.names, lines[0], re.I):
-        return "unclear"
-    return "clean"
+    return "clean" if clean_error(c.names, lines) else "unclear"
+
+
+def clean_error(names: str, lines: list[str]) -> bool:
+    """Whether the lines of an error message are what a user should see: one line that names the thing
+    (``names``, a regular expression), or every error of one config file, one per line (:func:`each_names_one_file`),
+    one of them naming the thing."""
+    if len(lines) == 1:
+        return bool(re.search(names, lines[0], re.I))
+    return each_names_one_file(lines) and any(re.search(names, ln, re.I) for ln in lines)
+
+
+def each_names_one_file(lines: list[str]) -> bool:
+    """Whether several lines are errors of one config file: each starts with the path of the file the
+    first names (``<path>.yaml: ...``, the first after the command line's ``jointbench: error: ``). A line
+    that does not name the file (a hint, a warning, an error that lost its origin) makes them unclear."""
+    first = CONFIG_FILE.match(ERROR_PREFIX.sub("", lines[0], count=1))
+    if len(lines) < 2 or first is None:
+        return False
+    named = first.group("file") + ": "
+    return all(ERROR_PREFIX.sub("", ln, count=1).startswith(named) for ln in lines)
 
 
 def run_one(c: Case, python: str, keep_dir: Path | None = None) -> dict:

@@ -96,6 +96,24 @@ case(kind, "study file not readable (permissions)", needs=lambda: "root reads an
      setup=lambda ws: (fx.study(ws, name="s"), os.chmod(ws.path("configs", "s.yaml"), 0)),
      args=lambda ws: ["run", ws.path("configs", "s.yaml"), "--out", ws.out, "--quiet"], names=r"s\.yaml")
 
+
+def _experiment(**changes):
+    """A study whose one part's experiment has ``changes`` (several mistakes: each is one line of the error)."""
+    def setup(ws):
+        fx.study(ws, parts={"fit": fx.fit_part(experiment=dict(fx.EXPERIMENT, **changes))}, name="s")
+    return setup
+
+
+def _s_yaml(ws):
+    return ["run", ws.path("configs", "s.yaml"), "--out", ws.out, "--quiet"]
+
+
+# every error of a file at once, one line each, each naming the file (core.clean_error)
+case(kind, "several errors in one experiment", args=_s_yaml, names=r"s\.yaml.*fs_sim",
+     setup=_experiment(joint={"model": "second_order", "I": "heavy", "B": 0.5, "K": -50}, fs_sim="2 kg"))
+case(kind, "several errors in one profile", args=_s_yaml, names=r"s\.yaml.*initial",
+     setup=_experiment(joint={"model": "time_varying", "I": 0.01, "B": 0.5, "K": {"shape": "ramp", "end": 80}}))
+
 kind = "published"
 
 
