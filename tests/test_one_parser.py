@@ -218,6 +218,22 @@ def test_an_experiment_with_several_bad_keys_reports_all_of_them():
     ]
 
 
+def test_several_errors_of_a_spec_checked_on_construction_each_name_where():
+    """A profile is parsed when its joint is constructed (``__post_init__``): its several errors still come one
+    per line, each line naming where (the catalogue's 'several errors in one profile' found the first line
+    alone did)."""
+    from jointbench.sims.experiment import Experiment
+
+    with pytest.raises(ConfigError) as exc:
+        Experiment.from_mapping({"joint": {"model": "time_varying", "I": 0.01, "B": 0.5,
+                                           "K": {"shape": "ramp", "end": 80, "tilt": 1}},
+                                 "fs_sim": "1 kHz", "duration": 2}, "exp")
+    lines = str(exc.value).splitlines()
+    profile = [line for line in lines if not line.startswith("exp: missing required key 'perturbation'")]
+    assert all(line.startswith("exp: joint: key 'K' (ramp): ") for line in profile), lines
+    assert len(profile) == 5 and sum("unknown key" in line for line in profile) == 2        # end, tilt
+
+
 def test_a_misspelt_required_key_is_one_error_and_an_empty_file_one_line(tmp_path):
     with pytest.raises(ConfigError) as exc:
         parse(_Outer, {"nmae": "x"}, "f.yaml")

@@ -282,8 +282,8 @@ def parse(cls: type, data: Mapping[str, Any] | None, where: str, document: bool 
     problems.raise_all()
     try:
         return cls(**kwargs)
-    except (ValueError, TypeError) as exc:
-        raise ConfigError(f"{where}: {exc}") from None
+    except (ValueError, TypeError) as exc:            # a check of the spec's own (__post_init__): each line
+        raise ConfigError("\n".join(f"{where}: {line}" for line in str(exc).splitlines())) from None
 
 
 def parse_tagged(data: Any, tag: str, choices: Any, what: str, where: str, default: str | None = None) -> Any:
