@@ -12,6 +12,7 @@ that both see the same load on the shared machine:
 - ``estimate``: ``jointbench estimate`` on a one-minute record (60 s at 1 kHz, simulated once by HEAD's
   API with a fixed seed) with ``fsewls``, and on an ensemble of ten one-minute records at 100 Hz with
   ``ensemble_irf`` (the two fits whose compiled loops were removed);
+- ``matrix``: ``make matrix`` (every estimator on every scenario) with an empty cache, as ``reproduce``;
 - ``test``: ``make test``.
 
 Wall and CPU seconds (the children's, from ``wait4``) are appended to ``results/speed_versus.csv``
@@ -35,7 +36,7 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[2]
 TABLE = REPO / "results" / "speed_versus.csv"
 FIELDS = ["date", "label", "commit", "command", "pair", "wall_s", "cpu_s", "exit", "load_before"]
-WHAT = ("reproduce", "estimate", "test")
+WHAT = ("reproduce", "estimate", "matrix", "test")
 
 
 def _git(*args: str, cwd: Path = REPO) -> str:
@@ -82,6 +83,8 @@ def commands(what: str, data: dict[str, list[Path]] | None) -> list[tuple[str, l
     """(name, argv relative to the clone, fresh cache) of one kind of wait."""
     if what == "reproduce":
         return [("make reproduce (fresh clone, empty cache)", ["make", "reproduce"], True)]
+    if what == "matrix":
+        return [("make matrix (empty cache)", ["make", "matrix"], True)]
     if what == "test":
         return [("make test", ["make", "test"], False)]
     out = [("jointbench estimate fsewls, one 60 s record at 1 kHz",
