@@ -1,10 +1,9 @@
-"""What a study run does besides computing its cases, made cheaper (issue 22), with the same results: the
-comparison's selections (tables.Selection), the curves' frame (tables.curves_frame), the case keys (one
-per case object, cache.Cache.key) and the Parquet table (outputs.parquet_frame)."""
+"""What a study run does besides computing its cases: the checks' selections of the tidy rows
+(selection.select) and their judging (checks.judge), the curves' frame (tables.curves_frame), the case keys
+(one per case object, cache.Cache.key) and the Parquet table (outputs.parquet_frame)."""
 from __future__ import annotations
 
 import dataclasses
-import json
 
 import numpy as np
 import pandas as pd
@@ -14,7 +13,7 @@ from jointbench.benchmarks.config import Check
 from jointbench.benchmarks.harness import cache as cache_mod
 from jointbench.benchmarks.harness.case import Case, CaseResult
 from jointbench.benchmarks.harness.outputs import parquet_frame
-from jointbench.benchmarks.selection import Selection, select
+from jointbench.benchmarks.selection import select
 from jointbench.benchmarks.tables import curves_frame
 from jointbench.benchmarks.checks import judge
 
@@ -35,53 +34,24 @@ def _rows() -> pd.DataFrame:
     })
 
 
-def _select_column_by_column(rows: pd.DataFrame, part: str, where) -> pd.DataFrame:
-    """The selection as it was: each condition on the frame cut so far (the rows' own columns each time)."""
-    sel = rows[(rows["part"] == part) & (rows["status"] == "ok")]
-    for k, v in where.items():
-        if k not in sel.columns:
-            return rows.iloc[0:0]
-        col = sel[k]
-        if isinstance(v, dict):
-            num = pd.to_numeric(col, errors="coerce").astype(float)
-            ok = num.notna()
-            for op, bound in v.items():
-                ok &= {"lt": num < bound, "le": num <= bound, "gt": num > bound, "ge": num >= bound}[op]
-        elif isinstance(v, (int, float)) and not isinstance(v, bool):
-            ok = pd.Series(np.isclose(pd.to_numeric(col, errors="coerce").astype(float), float(v), rtol=1e-9,
-                                      atol=0), index=col.index)
-        else:
-            ok = col.astype(str) == str(v)
-        sel = sel[ok]
-    return sel
-
-
-WHERES = [{}, {"metric": "K"}, {"metric": "K", "estimator": "a"}, {"metric": "K", "snr_db": 5},
-          {"snr_db": float("inf")}, {"snr_db": {"ge": 5, "lt": 11}}, {"fs": 100}, {"fs": "native"},
-          {"fs": {"gt": 150}}, {"flag": True}, {"estimator": "nan"}, {"metric": "K", "missing": 1},
-          {"metric": "Z"}, {"value": {"le": 5}}]
-
-
-@pytest.mark.parametrize("where", WHERES, ids=[json.dumps(w) for w in WHERES])
-@pytest.mark.parametrize("part", ["p", "q", "r"])
-def test_a_selection_is_the_rows_comparing_the_columns_one_by_one_gives(part, where):
+def test_select_by_hand():
     rows = _rows()
-    expected = _select_column_by_column(rows, part, where)
-    pd.testing.assert_frame_equal(select(rows, part, where), expected)
-    one = Selection(rows)                      # one prepared frame for many selections: the same rows
-    for _ in range(2):
-        pd.testing.assert_frame_equal(rows.iloc[one.positions(part, where)], expected)
 
+    def picked(part, where):
+        return select(rows, part, where).index.tolist()
 
-def test_selection_by_hand():
-    s = Selection(_rows())
-    assert s.positions("p", {"metric": "K", "estimator": "a"}).tolist() == [0, 5, 9]   # row 3 failed
-    assert s.positions("p", {"snr_db": {"ge": 5, "lt": 11}, "metric": "K"}).tolist() == [0, 1, 4, 9]
-    assert s.positions("p", {"fs": 100}).tolist() == [1, 5]            # the text 'native' is no number
-    assert s.positions("p", {"metric": "K"}, within=np.array([1, 2, 5])).tolist() == [1, 5]
-    assert s.positions("p", {"nope": 1}).tolist() == []
-    assert s.values(np.array([0, 8])).tolist()[0] == 1.0 and np.isnan(s.values(np.array([8]))[0])
-    assert list(s.frame(np.array([0, 1]), "estimator", "nope").columns) == ["value", "estimator"]
+    assert picked("p", {"metric": "K", "estimator": "a"}) == [0, 5, 9]        # row 3 failed
+    assert picked("p", {"snr_db": {"ge": 5, "lt": 11}, "metric": "K"}) == [0, 1, 4, 9]
+    assert picked("p", {"value": {"le": 5}}) == [0, 1, 2, 4]                   # NaN is in no range
+    assert picked("p", {"fs": 100}) == [1, 5]                                  # the text 'native' is no number
+    assert picked("p", {"fs": "native"}) == [0, 9]
+    assert picked("p", {"snr_db": float("inf")}) == [5]
+    assert picked("p", {"flag": True}) == [0, 2, 4, 8]                         # compared as text: 'True'
+    assert picked("q", {}) == [6, 7]
+    assert picked("r", {}) == []
+    none = select(rows, "p", {"metric": "K", "nope": 1})                       # a column the rows lack: none
+    assert none.empty and list(none.columns) == list(rows.columns)
+    pd.testing.assert_frame_equal(select(rows, "p", {"metric": "K", "estimator": "b"}), rows.iloc[[1, 8]])
 
 
 def test_compare_scores_value_trend_difference_and_the_rows_outside_the_domain():

@@ -1,6 +1,5 @@
-"""What a study run does besides its cases (issue 22): the checks' selections of the tidy rows and the curves'
-frame, each against the way it was done before (the same-run baseline: a selection comparing the frame's
-columns one by one; one frame per curve, concatenated).
+"""What a study run does besides its cases (issue 22): the curves' frame, against the way it was done before
+(the same-run baseline: one frame per curve, concatenated).
 
 Run with ``--benchmark-enable`` for timings; by default (``--benchmark-disable``) each runs once as a test.
 """
@@ -9,65 +8,10 @@ import pandas as pd
 import pytest
 
 from jointbench.benchmarks.harness.case import Case, CaseResult
-from jointbench.benchmarks.selection import Selection
 from jointbench.benchmarks.tables import curves_frame
 
 VARIATIONS, SNRS, METRICS, SEEDS = ("sine20", "square10", "square20", "square30"), (5.0, 10.0, np.inf), \
     ("vaf_self", "vaf_optim", "vaf_val", "rmse_k", "rmse_k_bound", "step_captured"), range(10)
-
-
-@pytest.fixture(scope="module")
-def rows():
-    """Tidy rows shaped like vanderuit2018_table1's (parts, sweeps, estimators, text and number columns)."""
-    rng = np.random.default_rng(2018)
-    recs = [{"part": part, "status": "ok", "case_id": f"{part}-{v}-{s}-{seed}", "estimator": est, "metric": m,
-             "variation": v, "snr_db": s, "seed": seed, "value": float(rng.normal(90, 5))}
-            for part in ("table1", "table1_np7") for v in VARIATIONS for s in SNRS for seed in SEEDS
-            for est in ("kbr", "skirt") for m in METRICS]
-    frame = pd.DataFrame(recs)
-    for i in range(12):                                 # the other label columns a study carries
-        frame[f"label{i}"] = frame["variation"] + str(i)
-    return frame
-
-
-@pytest.fixture(scope="module")
-def wheres():
-    return [{"metric": m, "estimator": e, "variation": v, "snr_db": s}
-            for m in METRICS[:4] for e in ("kbr", "skirt") for v in VARIATIONS for s in SNRS][:120]
-
-
-def naive_selections(rows: pd.DataFrame, wheres) -> list[np.ndarray]:
-    """Baseline: each selection cuts the frame column by column (as tables.select did before)."""
-    out = []
-    for where in wheres:
-        sel = rows[(rows["part"] == "table1") & (rows["status"] == "ok")]
-        for k, v in where.items():
-            col = sel[k]
-            if isinstance(v, float) and k != "metric":
-                ok = pd.Series(np.isclose(pd.to_numeric(col, errors="coerce").astype(float), v, rtol=1e-9, atol=0),
-                               index=col.index)
-            else:
-                ok = col.astype(str) == str(v)
-            sel = sel[ok]
-        out.append(sel.index.to_numpy())
-    return out
-
-
-def selections(rows: pd.DataFrame, wheres) -> list[np.ndarray]:
-    s = Selection(rows)
-    return [rows.index.to_numpy()[s.positions("table1", where)] for where in wheres]
-
-
-@pytest.mark.benchmark(group="report-selections")
-def test_bench_selection(benchmark, rows, wheres):
-    got = benchmark(selections, rows, wheres)
-    assert [len(g) for g in got] == [len(SEEDS)] * len(wheres)
-
-
-@pytest.mark.benchmark(group="report-selections")
-def test_bench_naive_selections(benchmark, rows, wheres):
-    got = benchmark(naive_selections, rows, wheres)
-    assert all(np.array_equal(a, b) for a, b in zip(got, selections(rows, wheres)))
 
 
 @pytest.fixture(scope="module")
