@@ -152,13 +152,3 @@ def test_the_noise_levels_of_a_figure_are_the_distinct_values_of_its_rows():
     with_nan = pd.Series([5.0, NAN, 5.0, NAN])
     as_iterated = {float(v) for v in with_nan}              # each NaN read from a row is an element of its own
     assert len(_floats(with_nan)) == len(as_iterated) == 3 and 5.0 in _floats(with_nan)
-
-
-@pytest.mark.parametrize("dtype", ["str", pd.StringDtype("python", na_value=NAN), object])
-def test_text_columns_are_written_as_pandas_writes_them(dtype):
-    from jointbench.core.csv_text import csv_bytes
-
-    text = ["plain", NAN, 'a "quoted" one', "comma, inside", "new\nline", "", "é ω"] * 3
-    frame = pd.DataFrame({"t": pd.Series(text, dtype=dtype), "x": np.arange(len(text), dtype=float) / 7})
-    assert csv_bytes(frame) == frame.to_csv(index=False).encode()
-    assert csv_bytes(frame.iloc[5:9]) == frame.iloc[5:9].to_csv(index=False).encode()    # an offset slice
