@@ -1,6 +1,6 @@
 """What a study run does besides computing its cases: the checks' selections of the tidy rows
-(selection.select) and their judging (checks.judge), the curves' frame (tables.curves_frame), the case keys
-(one per case object, cache.Cache.key) and the Parquet table (outputs.parquet_frame)."""
+(selection.select) and their judging (checks.judge), the curves' frame (tables.curves_frame), a case's
+cache entry (cache.Cache) and the Parquet table (outputs.parquet_frame)."""
 from __future__ import annotations
 
 import dataclasses
@@ -117,22 +117,17 @@ def test_the_curves_frame_of_like_curves_of_none_and_of_a_bad_one():
         curves_frame(bad)
 
 
-def test_a_case_key_is_worked_out_once_per_case_and_is_case_key(tmp_path, monkeypatch):
-    calls = []
-    real = cache_mod.key_material
-    monkeypatch.setattr(cache_mod, "key_material", lambda c: calls.append(c) or real(c))
+def test_a_stored_case_is_read_back_under_its_key(tmp_path):
     case = _case()
     cache = cache_mod.Cache(tmp_path / "cache")
-    key = cache.key(case)
-    assert cache.key(case) == key and cache.get(case) is None and len(calls) == 1
-    assert key == cache_mod.case_key(case)
-    other = dataclasses.replace(case, seed=1)               # an equal-looking case object of its own
-    assert cache.key(other) != key and len(calls) == 3     # (case_key above called it once more)
+    key = cache_mod.case_key(case)
+    assert cache.get(case) is None and not cache.path(key).exists()
+    assert cache_mod.case_key(dataclasses.replace(case, seed=1)) != key       # another seed, another key
     rows = [{"estimator": "e", "metric": "K", "value": 1.5}]
     cache.put(CaseResult(case, "ok", rows, [], 0.1))
-    assert len(calls) == 3
+    assert cache.path(key).is_file() and cache.written == 1
     again = cache_mod.Cache(tmp_path / "cache", warn=lambda m: None)
-    assert again.get(case).rows == rows and again.rejected == 0
+    assert again.get(case).rows == rows and again.hits == 1 and again.rejected == 0
 
 
 def test_the_parquet_table_leaves_text_columns_as_they_are():
@@ -142,13 +137,3 @@ def test_the_parquet_table_leaves_text_columns_as_they_are():
     pd.testing.assert_series_equal(out["a"], rows["a"])                  # text and NaN: unchanged
     assert out["b"].dtype == object and out["b"].tolist() == [None] * 3  # no text at all: missing values
     assert out["c"].fillna("-").tolist() == ["1.5", "-", "2.5"] and str(out["seed"].dtype) == "Int64"
-
-
-def test_the_noise_levels_of_a_figure_are_the_distinct_values_of_its_rows():
-    from jointbench.benchmarks.studies.vanderuit2018_table1.figures import _floats, _snr_order
-
-    levels = pd.Series([5.0, float("inf"), 10.0, 5.0, 10.0] * 100)
-    assert _floats(levels) == {5.0, 10.0, float("inf")} and _snr_order(levels) == [5.0, 10.0, float("inf")]
-    with_nan = pd.Series([5.0, NAN, 5.0, NAN])
-    as_iterated = {float(v) for v in with_nan}              # each NaN read from a row is an element of its own
-    assert len(_floats(with_nan)) == len(as_iterated) == 3 and 5.0 in _floats(with_nan)
