@@ -206,7 +206,7 @@ def run_group(cases: list[Case], on_result=None) -> list[CaseResult]:
 _ONE_THREAD: list = []
 
 
-def one_blas_thread() -> None:
+def limit_process_to_one_blas_thread() -> None:
     """One BLAS thread per process (the pool already uses every core; nested BLAS threads would
     oversubscribe them, which slowed a 0.16 s KBR fit to seconds on 2 cores). Serial runs use one
     thread too, so that serial and parallel runs give bit-identical numbers. Set once per process."""
