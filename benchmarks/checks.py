@@ -15,15 +15,15 @@ import numpy as np
 import pandas as pd
 
 from jointbench.benchmarks.config import Check
-from jointbench.benchmarks.selection import Selection
+from jointbench.benchmarks.selection import select
 from jointbench.benchmarks.tables import stamp
 
 
-def _out_of_domain(rows: Selection, part: str, where: Mapping, domain: Mapping) -> np.ndarray:
-    """Positions of the rows matching ``where`` but not ``domain``."""
-    every = rows.positions(part, where)
-    inside = rows.positions(part, domain, within=every)
-    return every[~np.isin(every, inside)]
+def _out_of_domain(rows: pd.DataFrame, part: str, where: Mapping, domain: Mapping) -> pd.DataFrame:
+    """The rows of ``part`` matching ``where`` but not ``domain``."""
+    every = select(rows, part, where)
+    inside = select(every, part, domain)
+    return every[~every.index.isin(inside.index)]
 
 
 def aggregate(values, how: str) -> float:
@@ -48,9 +48,9 @@ def _grouped(sel: pd.DataFrame, column: str, how: str) -> pd.Series:
     return g.loc[list(order)]
 
 
-def _trend(c: Check, rows: Selection) -> tuple[float, str, int]:
+def _trend(c: Check, rows: pd.DataFrame) -> tuple[float, str, int]:
     """Largest move against ``c.direction`` between consecutive aggregates over ``c.over``."""
-    sel = rows.frame(rows.positions(c.part, {**c.select, **(c.domain or {})}), c.over)
+    sel = select(rows, c.part, {**c.select, **(c.domain or {})})
     m = _grouped(sel, c.over, c.aggregate)
     if len(m) < 2:
         return np.nan, "", len(sel)
@@ -66,12 +66,12 @@ def _differences(c: Check, a: pd.DataFrame, b: pd.DataFrame) -> pd.Series:
     return pd.Series({k: float(ma[k] - mb[k]) for k in keys}, dtype=float)
 
 
-def _difference(c: Check, rows: Selection) -> tuple[float, str, int]:
+def _difference(c: Check, rows: pd.DataFrame) -> tuple[float, str, int]:
     """aggregate(select) - aggregate(versus) per value of ``c.by``; the group closest to (or furthest
     beyond) a bound is the reproduced value."""
     dom = c.domain or {}
-    a = rows.frame(rows.positions(c.part, {**c.select, **dom}), c.by)
-    b = rows.frame(rows.positions(c.part, {**(c.versus or {}), **dom}), c.by)
+    a = select(rows, c.part, {**c.select, **dom})
+    b = select(rows, c.part, {**(c.versus or {}), **dom})
     d = _differences(c, a, b)
     if d.empty:
         return np.nan, "", len(a) + len(b)
@@ -81,18 +81,18 @@ def _difference(c: Check, rows: Selection) -> tuple[float, str, int]:
     return float(d[worst]), (f"{c.by} -> {spread}" if c.by else spread), len(a) + len(b)
 
 
-def _outside(c: Check, rows: Selection) -> str:
+def _outside(c: Check, rows: pd.DataFrame) -> str:
     """What the rows outside the check's domain give (shown, not scored)."""
     if not c.domain:
         return ""
     if c.kind == "difference":
-        a = rows.frame(_out_of_domain(rows, c.part, c.select, c.domain), c.by)
-        b = rows.frame(_out_of_domain(rows, c.part, c.versus or {}, c.domain), c.by)
+        a = _out_of_domain(rows, c.part, c.select, c.domain)
+        b = _out_of_domain(rows, c.part, c.versus or {}, c.domain)
         d = _differences(c, a, b)
         body = ", ".join(f"{k}: {v:+.4g}" for k, v in d.items())
         return f"{c.by} -> {body}" if body else ""
     col = next(iter(c.domain))
-    out = rows.frame(_out_of_domain(rows, c.part, c.select, c.domain), col)
+    out = _out_of_domain(rows, c.part, c.select, c.domain)
     g = _grouped(out, col if col in out.columns else "", c.aggregate)
     return f"{col} -> " + ", ".join(f"{k}: {v:.4g}" for k, v in g.items()) if len(g) else ""
 
@@ -113,12 +113,11 @@ def judge(checks: tuple[Check, ...], rows: pd.DataFrame, parts_run: set[str], co
     ``commit`` is stamped on every row (``...-dirty`` rows say loudly that they must not be committed).
     """
     out = []
-    rows = Selection(rows)
     for c in checks:
         if c.part not in parts_run:
             continue
         if c.kind == "value":
-            v = rows.values(rows.positions(c.part, {**c.select, **(c.domain or {})}))
+            v = select(rows, c.part, {**c.select, **(c.domain or {})})["value"].to_numpy(float)
             v = v[np.isfinite(v)]
             n = len(v)
             rep = aggregate(v, c.aggregate)

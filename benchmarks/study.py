@@ -25,7 +25,7 @@ import pandas as pd
 from jointbench.benchmarks import backends, figures, report
 from jointbench.benchmarks.config import Study, load_study
 from jointbench.benchmarks.harness import fingerprint, outputs
-from jointbench.benchmarks.harness.cache import Cache
+from jointbench.benchmarks.harness.cache import Cache, case_key
 from jointbench.benchmarks.harness.history import History
 from jointbench.benchmarks.runner import CaseResult, RunInterrupted, expand, expand_study, group_cases, run_cases
 from jointbench.benchmarks.tables import cases_frame, curves_frame
@@ -129,7 +129,7 @@ def check_budget(study: Study, cases: list, skipped: list, cache: Cache, workers
         if part.grid is None:
             continue
         mine = [c for c in cases if c.part == name]
-        todo = [c for c in mine if not (cache.enabled and cache.read and cache.path(cache.key(c)).is_file())]
+        todo = [c for c in mine if not (cache.enabled and cache.read and cache.path(case_key(c)).is_file())]
         if not todo:
             continue
         seconds = estimate_seconds(todo, group_cases(todo))
@@ -314,7 +314,7 @@ def _run_cases(run: _Run) -> tuple[list[CaseResult], float, str | None]:
             done[1] = time.monotonic()
             run.history.progress(run.run_id, done[0])
 
-    run.keys = {c.case_id: run.cache.key(c) for c in run.cases}
+    run.keys = {c.case_id: case_key(c) for c in run.cases}
     t0 = time.perf_counter()
     ran: dict = {}
     try:
@@ -347,7 +347,7 @@ def _cached_parts(run: _Run) -> tuple[list[CaseResult], list[str]]:
         hits = [run.cache.get(c) for c in extra]
         if all(h is not None for h in hits):
             results += hits
-            run.keys.update({c.case_id: run.cache.key(c) for c in extra})
+            run.keys.update({c.case_id: case_key(c) for c in extra})
             names.append(name)
     return results, names
 

@@ -32,95 +32,22 @@ def cases_frame(results, commit: str) -> pd.DataFrame:
     return df[front + sorted(c for c in df.columns if c not in front)]
 
 
-#: label types joined column by column: a list of them gets the dtype a broadcast one gets
-_LABEL_TYPES = (str, float, int, bool)
-
-
-def _kind(cols: dict) -> tuple | None:
-    """What a curve's frame is made of (its column names, the kinds of ``x`` and ``y``, its labels' types),
-    or None when it gets a frame of its own: ``x`` and ``y`` of one length, each a non-empty list of Python
-    floats or a numeric 1-D array, the labels of :data:`_LABEL_TYPES` (integers within int64)."""
-    points = []
-    for v in (cols["x"], cols["y"]):
-        if isinstance(v, list) and v and set(map(type, v)) == {float}:
-            points.append("floats")
-        elif isinstance(v, np.ndarray) and v.ndim == 1 and len(v) and v.dtype.kind in "fiub":
-            points.append(v.dtype.str)
-        else:
-            return None
-    if len(cols["x"]) != len(cols["y"]):
-        return None
-    types = tuple(type(v) for k, v in cols.items() if k not in ("x", "y"))
-    if any(t not in _LABEL_TYPES for t in types) or any(
-            type(v) is int and not -2 ** 63 <= v < 2 ** 63 for v in cols.values()):
-        return None
-    return tuple(cols), *points, types
-
-
-def _joined(pieces: dict, counts: list[int]) -> pd.DataFrame:
-    """One frame of curves of one :func:`_kind`: ``x`` and ``y`` concatenated, each label repeated over
-    its curve's points."""
-    out = {}
-    for name, values in pieces.items():
-        if name in ("x", "y"):
-            out[name] = np.concatenate([np.asarray(v, dtype=float) if isinstance(v, list) else v for v in values])
-        elif type(values[0]) is str:            # one type per column (the kind)
-            out[name] = _repeated_text(values, counts)
-        else:
-            kind = type(values[0])
-            out[name] = np.repeat(np.array(values, dtype={int: np.int64}.get(kind, kind)), counts)
-    return pd.DataFrame(out)
-
-
-def _repeated_text(values: list[str], counts: list[int]):
-    """Each of ``values`` repeated ``counts`` times, as the column pandas makes of such a list: its
-    Arrow-backed text is built by Arrow from the few distinct strings (pandas converted every one of the
-    176 000 strings of a column of xu1998's curves, 13 ms a column), its other text as Python objects."""
-    dtype = pd.Series(values[:1]).dtype
-    if isinstance(dtype, pd.StringDtype) and dtype.storage == "pyarrow":
-        import pyarrow as pa
-
-        picks = pa.array(np.repeat(np.arange(len(values)), counts))
-        return pd.array(pa.array(values, pa.large_string()).take(picks), dtype=dtype)
-    return np.repeat(np.array(values, dtype=object), counts)
+def curve_frame(result, curve: dict) -> pd.DataFrame:
+    """One curve of a case result as rows, one per point: ``x``, ``y``, the case's part, id, seed and sweep
+    values, then the curve's own labels (``curve``, ``series``, ...), each repeated over the points."""
+    case = result.case
+    labels = {k: v for k, v in curve.items() if k not in ("x", "y")}
+    return pd.DataFrame({"x": curve["x"], "y": curve["y"], "part": case.part, "case_id": case.case_id,
+                         "seed": case.seed, **case.sweep, **labels})
 
 
 def curves_frame(results) -> pd.DataFrame:
-    """Curves in long form: one row per point.
-
-    The frame that concatenating one frame per curve gives (columns in order of appearance, a column a
-    curve lacks empty there, dtypes by the same rules): the curves of one :func:`_kind` (a few kinds a
-    study) are joined column by column into one frame each, those frames concatenated and the rows put
-    back in the curves' order (a frame per curve, 633 of them in vanderuit2018_table1, cost 0.6 CPU-s;
-    issue 22). A curve of no kind gets a frame of its own, as before."""
-    groups: dict = {}       # kind -> [pieces: column -> values per curve, points per curve, rows]
-    spans = []              # per curve, in order: (kind or own key, first row in that frame, rows)
-    for r in results:
-        fixed = {"part": r.case.part, "case_id": r.case.case_id, "seed": r.case.seed, **r.case.sweep}
-        for c in r.curves:
-            cols = {"x": c["x"], "y": c["y"], **fixed, **{k: v for k, v in c.items() if k not in ("x", "y")}}
-            kind = _kind(cols)
-            if kind is None:
-                own = pd.DataFrame(cols)
-                groups[key := object()] = own
-                spans.append((key, 0, len(own)))
-                continue
-            g = groups.setdefault(kind, [{k: [] for k in cols}, [], 0])
-            n = len(cols["x"])
-            spans.append((kind, g[2], n))
-            for k, v in cols.items():
-                g[0][k].append(v)
-            g[1].append(n)
-            g[2] += n
-    if not spans:
+    """Curves in long form: one row per point, the frames of every curve (:func:`curve_frame`) concatenated
+    in the results' order (columns in order of appearance, a column a curve lacks empty there)."""
+    frames = [curve_frame(r, c) for r in results for c in r.curves]
+    if not frames:
         return pd.DataFrame(columns=["part", "case_id", "seed", "curve", "series", "x", "y"])
-    frames = [g if isinstance(g, pd.DataFrame) else _joined(g[0], g[1]) for g in groups.values()]
-    start = dict(zip(groups, np.cumsum([0] + [len(f) for f in frames[:-1]])))
-    out = pd.concat(frames, ignore_index=True) if len(frames) > 1 else frames[0]
-    order = np.concatenate([np.arange(start[key] + first, start[key] + first + n) for key, first, n in spans])
-    if not np.array_equal(order, np.arange(len(out))):
-        out = out.take(order).reset_index(drop=True)
-    return out
+    return pd.concat(frames, ignore_index=True)
 
 
 DIRTY_BANNER = "generated from an uncommitted tree - do not commit"

@@ -123,7 +123,7 @@ def lagged(U: np.ndarray, m1: int, m2: int) -> np.ndarray:
 _CONTROLLER: ThreadpoolController | None = None
 
 
-def one_blas_thread():
+def blas_single_thread():
     """Context with one BLAS thread, for the many tiny products and factorizations of these estimators
     (threads only add waiting: 10-20 times slower on a loaded 2-core machine). The controller is made
     once: finding the BLAS libraries reads /proc and costs milliseconds per call."""
@@ -136,7 +136,7 @@ def one_blas_thread():
 def gram_stack(X: np.ndarray) -> np.ndarray:
     """``X[i]^T X[i]`` for every row of a stack ``(rows, R, L)``: ``(rows, L, L)``, with one BLAS thread
     (thousands of tiny products gain nothing from threads and lose much on a loaded machine)."""
-    with one_blas_thread():
+    with blas_single_thread():
         return np.matmul(X.transpose(0, 2, 1), X)
 
 
@@ -191,7 +191,7 @@ def basis_normal(X: np.ndarray, Y: np.ndarray, Phi: np.ndarray) -> tuple[np.ndar
     S = gram_stack(X)[:, lag, lag2]                      # (T, L(L+1)/2)
     PhiT = Phi.T
     P = PhiT[m] * PhiT[m2]                                # (M(M+1)/2, T): rows over the samples
-    with one_blas_thread():                               # a long, thin product: threads only wait
+    with blas_single_thread():                            # a long, thin product: threads only wait
         G = (P @ S).ravel()[_symmetric_gather(M, L)]
     return G, basis_rhs(X, Y, Phi)
 

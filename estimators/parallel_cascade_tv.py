@@ -11,7 +11,7 @@ from numpy.lib.stride_tricks import sliding_window_view
 from jointbench.estimators import register
 from jointbench.estimators import _reflex as rx
 from jointbench.estimators._tvirf import (EnsembleEstimator, TVLagSettings, basis_normal, basis_rhs, centred,
-                                          lag_samples, one_blas_thread)
+                                          lag_samples, blas_single_thread)
 from jointbench.estimators.guarin import BasisKind, time_basis
 from jointbench.core.ensemble import Ensemble
 from jointbench.core.errors import InputError
@@ -333,7 +333,7 @@ class TVParallelCascade(EnsembleEstimator):
         Z = np.concatenate([(XI[:, :, None, :] * Ph[:, None, :, None]).reshape(N * R, M * LI),
                             XR.reshape(N * R, -1)], axis=1)
         y = data.Yv.reshape(N * R)
-        with one_blas_thread():
+        with blas_single_thread():
             G = Z.T @ Z
         ne = rx.NormalEquations(G=G, b=Z.T @ y, yy=float(y @ y), yy_centred=float(np.sum((y - y.mean()) ** 2)),
                                 N=N * R, LI=M * LI, p=B.shape[-1], W=W, d_lo=d_lo, offset=offset)

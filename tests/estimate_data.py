@@ -81,7 +81,7 @@ def run(argv) -> tuple[int, str, str]:
 
 
 @pytest.fixture(autouse=True)
-def one_blas_thread():
+def one_blas_thread_per_test():
     """One BLAS thread, as the command itself runs (jointbench.cli.studies): threads on a loaded 2-core machine
     turn seconds of linear algebra into minutes. Autouse in the modules that import it."""
     with threadpool_limits(limits=1):

@@ -14,7 +14,7 @@ from jointbench import estimators
 from jointbench.core.errors import InputError
 from jointbench.estimators._band import input_band
 from jointbench.core.types import Trial
-from tests.estimate_data import one_blas_thread, run, save  # noqa: F401 (autouse fixture)
+from tests.estimate_data import one_blas_thread_per_test, run, save  # noqa: F401 (autouse fixture)
 
 TRUTH = {"I": 0.02, "B": 0.6, "K": 120.0}
 

@@ -9,7 +9,7 @@ def _bench(name, group, median, extra=None):
 
 REPORT = {"datetime": "2026-11-30T18:00:00.000", "commit_info": {"id": "abcdef0123", "dirty": False},
           "machine_info": {"python_version": "3.11.9", "cpu": {"count": 2}},
-          "benchmarks": [_bench("test_bench_fast", "g", 0.025, {"speedup_vs_baseline": 2.9, "target_s": 0.04}),
+          "benchmarks": [_bench("test_bench_fast", "g", 0.025, {"speedup_vs_baseline": 2.9, "peak_mib": 0.04}),
                          _bench("test_bench_slow_baseline", "g", 0.1),
                          _bench("test_bench_alone", "h", 2.5)]}
 
@@ -23,7 +23,7 @@ def test_ratio_to_the_groups_baseline_and_the_recorded_figures():
             for line in md.splitlines() if line.startswith("| g ") or line.startswith("| h ")}
     fast = rows["`test_bench_fast`"]
     assert fast[2:7] == ["25 ms", "2.5 ms", "12.5 ms", "7", "0.25"]          # 0.025 / 0.1
-    assert fast[7] == "2.9x faster" and fast[8] == "target_s 0.04"
+    assert fast[7] == "2.9x faster" and fast[8] == "peak_mib 0.04"
     assert rows["`test_bench_slow_baseline`"][6] == "baseline"
     assert rows["`test_bench_alone`"][2] == "2.5 s" and rows["`test_bench_alone`"][6] == ""   # no baseline
     assert "commit `abcdef0`" in md and "load average 0.20 before and 1.80 after" in md

@@ -93,3 +93,11 @@ def test_gzip_bytes_depend_on_the_table_alone(tmp_path):
     write_csv(frame, tmp_path / "plain.csv")
     assert (tmp_path / "plain.csv").read_bytes() == csv_text.csv_bytes(frame)
     assert pd.read_csv(tmp_path / "a.csv.gz").equals(pd.read_csv(tmp_path / "plain.csv"))
+
+
+@pytest.mark.parametrize("dtype", ["str", pd.StringDtype("python", na_value=np.nan), object])
+def test_text_columns_are_written_as_pandas_writes_them(dtype):
+    text = ["plain", np.nan, 'a "quoted" one', "comma, inside", "new\nline", "", "é ω"] * 3
+    frame = pd.DataFrame({"t": pd.Series(text, dtype=dtype), "x": np.arange(len(text), dtype=float) / 7})
+    assert csv_bytes(frame) == frame.to_csv(index=False).encode()
+    assert csv_bytes(frame.iloc[5:9]) == frame.iloc[5:9].to_csv(index=False).encode()    # an offset slice

@@ -11,7 +11,7 @@ from jointbench import estimators
 from jointbench.core.ensemble import Ensemble
 from jointbench.core.errors import InputError
 from jointbench.estimators._resample import MIN_REALIZATIONS
-from tests.estimate_data import one_blas_thread, run  # noqa: F401 (autouse fixture)
+from tests.estimate_data import one_blas_thread_per_test, run  # noqa: F401 (autouse fixture)
 from tests.test_ensemble_estimators import FS, ensemble_of, true_irf
 
 ENSEMBLE = ("ensemble_irf", "sds", "guarin")

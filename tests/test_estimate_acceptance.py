@@ -18,7 +18,7 @@ import pytest
 from scipy import signal as sps
 
 from jointbench import estimators
-from tests.estimate_data import (LTI_TRUTH, gated_wrist, lti_ankle, one_blas_thread,  # noqa: F401 (autouse)
+from tests.estimate_data import (LTI_TRUTH, gated_wrist, lti_ankle, one_blas_thread_per_test,  # noqa: F401 (autouse)
                                   run, save, tv_elbow)
 
 TOL = 2.0   # points of VAF between the printed and the recomputed value (issue 13)

@@ -18,7 +18,7 @@ import pandas as pd
 import pytest
 from numpy.lib import format as npf
 
-from tests.estimate_data import gated_wrist, lti_ankle, one_blas_thread, run, save, tv_elbow  # noqa: F401 (autouse fixture)
+from tests.estimate_data import gated_wrist, lti_ankle, one_blas_thread_per_test, run, save, tv_elbow  # noqa: F401 (autouse fixture)
 from tests.multisine_data import multisine_impedance_trial
 
 REPO = Path(__file__).resolve().parents[1]

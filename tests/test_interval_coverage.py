@@ -25,7 +25,7 @@ from scipy import stats
 
 from jointbench import estimators
 from jointbench.core.types import Trial
-from tests.estimate_data import one_blas_thread  # noqa: F401 (autouse fixture)
+from tests.estimate_data import one_blas_thread_per_test  # noqa: F401 (autouse fixture)
 from tests.test_band_checks import TRUTH, narrow_band
 from tests.test_ensemble_estimators import LAGS, ensemble_of, true_irf
 from tests.test_fsewls import FS as FS_ELBOW, simulate as elbow

@@ -17,7 +17,7 @@ from scipy import signal as sps
 from jointbench import estimators
 from jointbench.core.ensemble import Ensemble
 from jointbench.estimators.guarin import reflex_signal
-from tests.estimate_data import one_blas_thread  # noqa: F401 (autouse fixture)
+from tests.estimate_data import one_blas_thread_per_test  # noqa: F401 (autouse fixture)
 
 FS = 100.0
 

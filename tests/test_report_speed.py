@@ -1,10 +1,9 @@
-"""What a study run does besides computing its cases, made cheaper (issue 22), with the same results: the
-comparison's selections (tables.Selection), the curves' frame (tables.curves_frame), the case keys (one
-per case object, cache.Cache.key) and the Parquet table (outputs.parquet_frame)."""
+"""What a study run does besides computing its cases: the checks' selections of the tidy rows
+(selection.select) and their judging (checks.judge), the curves' frame (tables.curves_frame), a case's
+cache entry (cache.Cache) and the Parquet table (outputs.parquet_frame)."""
 from __future__ import annotations
 
 import dataclasses
-import json
 
 import numpy as np
 import pandas as pd
@@ -14,7 +13,7 @@ from jointbench.benchmarks.config import Check
 from jointbench.benchmarks.harness import cache as cache_mod
 from jointbench.benchmarks.harness.case import Case, CaseResult
 from jointbench.benchmarks.harness.outputs import parquet_frame
-from jointbench.benchmarks.selection import Selection, select
+from jointbench.benchmarks.selection import select
 from jointbench.benchmarks.tables import curves_frame
 from jointbench.benchmarks.checks import judge
 
@@ -35,53 +34,24 @@ def _rows() -> pd.DataFrame:
     })
 
 
-def _select_column_by_column(rows: pd.DataFrame, part: str, where) -> pd.DataFrame:
-    """The selection as it was: each condition on the frame cut so far (the rows' own columns each time)."""
-    sel = rows[(rows["part"] == part) & (rows["status"] == "ok")]
-    for k, v in where.items():
-        if k not in sel.columns:
-            return rows.iloc[0:0]
-        col = sel[k]
-        if isinstance(v, dict):
-            num = pd.to_numeric(col, errors="coerce").astype(float)
-            ok = num.notna()
-            for op, bound in v.items():
-                ok &= {"lt": num < bound, "le": num <= bound, "gt": num > bound, "ge": num >= bound}[op]
-        elif isinstance(v, (int, float)) and not isinstance(v, bool):
-            ok = pd.Series(np.isclose(pd.to_numeric(col, errors="coerce").astype(float), float(v), rtol=1e-9,
-                                      atol=0), index=col.index)
-        else:
-            ok = col.astype(str) == str(v)
-        sel = sel[ok]
-    return sel
-
-
-WHERES = [{}, {"metric": "K"}, {"metric": "K", "estimator": "a"}, {"metric": "K", "snr_db": 5},
-          {"snr_db": float("inf")}, {"snr_db": {"ge": 5, "lt": 11}}, {"fs": 100}, {"fs": "native"},
-          {"fs": {"gt": 150}}, {"flag": True}, {"estimator": "nan"}, {"metric": "K", "missing": 1},
-          {"metric": "Z"}, {"value": {"le": 5}}]
-
-
-@pytest.mark.parametrize("where", WHERES, ids=[json.dumps(w) for w in WHERES])
-@pytest.mark.parametrize("part", ["p", "q", "r"])
-def test_a_selection_is_the_rows_comparing_the_columns_one_by_one_gives(part, where):
+def test_select_by_hand():
     rows = _rows()
-    expected = _select_column_by_column(rows, part, where)
-    pd.testing.assert_frame_equal(select(rows, part, where), expected)
-    one = Selection(rows)                      # one prepared frame for many selections: the same rows
-    for _ in range(2):
-        pd.testing.assert_frame_equal(rows.iloc[one.positions(part, where)], expected)
 
+    def picked(part, where):
+        return select(rows, part, where).index.tolist()
 
-def test_selection_by_hand():
-    s = Selection(_rows())
-    assert s.positions("p", {"metric": "K", "estimator": "a"}).tolist() == [0, 5, 9]   # row 3 failed
-    assert s.positions("p", {"snr_db": {"ge": 5, "lt": 11}, "metric": "K"}).tolist() == [0, 1, 4, 9]
-    assert s.positions("p", {"fs": 100}).tolist() == [1, 5]            # the text 'native' is no number
-    assert s.positions("p", {"metric": "K"}, within=np.array([1, 2, 5])).tolist() == [1, 5]
-    assert s.positions("p", {"nope": 1}).tolist() == []
-    assert s.values(np.array([0, 8])).tolist()[0] == 1.0 and np.isnan(s.values(np.array([8]))[0])
-    assert list(s.frame(np.array([0, 1]), "estimator", "nope").columns) == ["value", "estimator"]
+    assert picked("p", {"metric": "K", "estimator": "a"}) == [0, 5, 9]        # row 3 failed
+    assert picked("p", {"snr_db": {"ge": 5, "lt": 11}, "metric": "K"}) == [0, 1, 4, 9]
+    assert picked("p", {"value": {"le": 5}}) == [0, 1, 2, 4]                   # NaN is in no range
+    assert picked("p", {"fs": 100}) == [1, 5]                                  # the text 'native' is no number
+    assert picked("p", {"fs": "native"}) == [0, 9]
+    assert picked("p", {"snr_db": float("inf")}) == [5]
+    assert picked("p", {"flag": True}) == [0, 2, 4, 8]                         # compared as text: 'True'
+    assert picked("q", {}) == [6, 7]
+    assert picked("r", {}) == []
+    none = select(rows, "p", {"metric": "K", "nope": 1})                       # a column the rows lack: none
+    assert none.empty and list(none.columns) == list(rows.columns)
+    pd.testing.assert_frame_equal(select(rows, "p", {"metric": "K", "estimator": "b"}), rows.iloc[[1, 8]])
 
 
 def test_compare_scores_value_trend_difference_and_the_rows_outside_the_domain():
@@ -113,30 +83,21 @@ def _case(part="p", seed=0, sweep=None) -> Case:
                 estimators={}, seed=seed, where="w")
 
 
-def _concatenated(results) -> pd.DataFrame:
-    """The curves' frame as it was made: one frame per curve, concatenated."""
-    frames = [pd.DataFrame({"x": c["x"], "y": c["y"], "part": r.case.part, "case_id": r.case.case_id,
-                            "seed": r.case.seed, **r.case.sweep, **{k: v for k, v in c.items() if k not in ("x", "y")}})
-              for r in results for c in r.curves]
-    return pd.concat(frames, ignore_index=True)
-
-
 def _curves_results() -> list[CaseResult]:
     a = {"curve": "k", "series": "truth", "x": [0.0, 1.0], "y": [2.0, 3.0]}
     b = {"curve": "k", "series": "est", "n": 3, "x": [0.0, 1.0, 2.0], "y": [4.0, 5.0, 6.0]}
     ints = {"curve": "lags", "series": "h", "x": np.arange(3), "y": np.array([0.5, 0.25, 0.125])}
     flag = {"curve": "k", "series": "on", "ok": True, "x": [1.0], "y": [1.0]}
-    mixed = {"curve": "k", "series": "odd", "x": [1, 2.5], "y": [1.0, 2.0]}          # a frame of its own
+    mixed = {"curve": "k", "series": "odd", "x": [1, 2.5], "y": [1.0, 2.0]}
     return [CaseResult(_case(seed=0, sweep={"snr": 5.0}), "ok", [], [a, b, ints], 0.0),
             CaseResult(_case(seed=1, sweep={"snr": 10.0}), "ok", [], [b, a, flag, mixed, a], 0.0),
             CaseResult(_case(part="q", seed=2), "ok", [], [ints, a], 0.0)]
 
 
-def test_the_curves_frame_is_the_concatenation_of_one_frame_per_curve():
+def test_the_curves_frame_has_a_row_per_point_in_the_curves_order():
     results = _curves_results()
     got = curves_frame(results)
-    pd.testing.assert_frame_equal(got, _concatenated(results))
-    # by hand: the rows in the curves' order, columns in order of appearance, a missing label empty
+    # the rows in the curves' order, columns in order of appearance, a missing label empty
     assert list(got.columns) == ["x", "y", "part", "case_id", "seed", "snr", "curve", "series", "n", "ok"]
     assert got["series"].tolist()[:8] == ["truth"] * 2 + ["est"] * 3 + ["h"] * 3
     assert got["seed"].tolist() == [0] * 8 + [1] * 10 + [2] * 5
@@ -145,34 +106,28 @@ def test_the_curves_frame_is_the_concatenation_of_one_frame_per_curve():
     assert got["snr"].iloc[-5:].isna().all() and got["snr"].iloc[:18].tolist() == [5.0] * 8 + [10.0] * 10
 
 
-def test_the_curves_frame_of_one_kind_and_of_none():
+def test_the_curves_frame_of_like_curves_of_none_and_of_a_bad_one():
     one = [CaseResult(_case(seed=s), "ok", [], [{"curve": "c", "series": "s", "x": [0.0, 1.0], "y": [1.0, 2.0]}],
                       0.0) for s in range(3)]
     got = curves_frame(one)
-    pd.testing.assert_frame_equal(got, _concatenated(one))
     assert got["case_id"].tolist() == ["p-seed0"] * 2 + ["p-seed1"] * 2 + ["p-seed2"] * 2
     assert list(curves_frame([]).columns) == ["part", "case_id", "seed", "curve", "series", "x", "y"]
     bad = [CaseResult(_case(), "ok", [], [{"curve": "c", "x": [0.0, 1.0], "y": [1.0]}], 0.0)]
-    with pytest.raises(ValueError):                       # x and y of two lengths: as before, an error
+    with pytest.raises(ValueError):                       # x and y of two lengths: an error
         curves_frame(bad)
 
 
-def test_a_case_key_is_worked_out_once_per_case_and_is_case_key(tmp_path, monkeypatch):
-    calls = []
-    real = cache_mod.key_material
-    monkeypatch.setattr(cache_mod, "key_material", lambda c: calls.append(c) or real(c))
+def test_a_stored_case_is_read_back_under_its_key(tmp_path):
     case = _case()
     cache = cache_mod.Cache(tmp_path / "cache")
-    key = cache.key(case)
-    assert cache.key(case) == key and cache.get(case) is None and len(calls) == 1
-    assert key == cache_mod.case_key(case)
-    other = dataclasses.replace(case, seed=1)               # an equal-looking case object of its own
-    assert cache.key(other) != key and len(calls) == 3     # (case_key above called it once more)
+    key = cache_mod.case_key(case)
+    assert cache.get(case) is None and not cache.path(key).exists()
+    assert cache_mod.case_key(dataclasses.replace(case, seed=1)) != key       # another seed, another key
     rows = [{"estimator": "e", "metric": "K", "value": 1.5}]
     cache.put(CaseResult(case, "ok", rows, [], 0.1))
-    assert len(calls) == 3
+    assert cache.path(key).is_file() and cache.written == 1
     again = cache_mod.Cache(tmp_path / "cache", warn=lambda m: None)
-    assert again.get(case).rows == rows and again.rejected == 0
+    assert again.get(case).rows == rows and again.hits == 1 and again.rejected == 0
 
 
 def test_the_parquet_table_leaves_text_columns_as_they_are():
@@ -182,23 +137,3 @@ def test_the_parquet_table_leaves_text_columns_as_they_are():
     pd.testing.assert_series_equal(out["a"], rows["a"])                  # text and NaN: unchanged
     assert out["b"].dtype == object and out["b"].tolist() == [None] * 3  # no text at all: missing values
     assert out["c"].fillna("-").tolist() == ["1.5", "-", "2.5"] and str(out["seed"].dtype) == "Int64"
-
-
-def test_the_noise_levels_of_a_figure_are_the_distinct_values_of_its_rows():
-    from jointbench.benchmarks.studies.vanderuit2018_table1.figures import _floats, _snr_order
-
-    levels = pd.Series([5.0, float("inf"), 10.0, 5.0, 10.0] * 100)
-    assert _floats(levels) == {5.0, 10.0, float("inf")} and _snr_order(levels) == [5.0, 10.0, float("inf")]
-    with_nan = pd.Series([5.0, NAN, 5.0, NAN])
-    as_iterated = {float(v) for v in with_nan}              # each NaN read from a row is an element of its own
-    assert len(_floats(with_nan)) == len(as_iterated) == 3 and 5.0 in _floats(with_nan)
-
-
-@pytest.mark.parametrize("dtype", ["str", pd.StringDtype("python", na_value=NAN), object])
-def test_text_columns_are_written_as_pandas_writes_them(dtype):
-    from jointbench.core.csv_text import csv_bytes
-
-    text = ["plain", NAN, 'a "quoted" one', "comma, inside", "new\nline", "", "é ω"] * 3
-    frame = pd.DataFrame({"t": pd.Series(text, dtype=dtype), "x": np.arange(len(text), dtype=float) / 7})
-    assert csv_bytes(frame) == frame.to_csv(index=False).encode()
-    assert csv_bytes(frame.iloc[5:9]) == frame.iloc[5:9].to_csv(index=False).encode()    # an offset slice

@@ -158,67 +158,26 @@ def content_hash(path: str) -> str:
     return got
 
 
-def parse_inputs(case: Case, memo: dict | None = None):
-    """The protocol, parsed parameters, experiment and estimators of a case (raises ConfigError).
-
-    ``memo`` (a dict the caller keeps, e.g. for the cases of one group) holds what was parsed for earlier
-    cases: a case whose inputs are equal to an earlier one's, value for value and in plain YAML types
-    (:func:`_plain`), gets the same parameters, experiment and estimator settings (frozen dataclasses),
-    and estimator objects of its own made of those settings, without parsing again (a parse costs about
-    a millisecond: the cases of a sweep share most of their inputs)."""
+def parse_inputs(case: Case):
+    """The protocol, parsed parameters, experiment and estimators of a case (raises ConfigError)."""
     proto = protocols.REGISTRY.get(case.protocol)
-
-    def parsed(what: str, value, build):
-        key = _plain((what, case.where, case.backend, value)) if memo is not None else None
-        if key is None:
-            return build()
-        if key not in memo:
-            memo[key] = build()
-        return memo[key]
-
-    params = parsed("params", (case.protocol, case.params, case.sweep),
-                    lambda: parse(proto.Params, {**case.params, **case.sweep}, f"{case.where}: params"))
+    params = parse(proto.Params, {**case.params, **case.sweep}, f"{case.where}: params")
     exp = None
     if case.experiment is not None:
-        exp = parsed("experiment", case.experiment, lambda: sims.Experiment.from_mapping(
-            case.experiment, f"{case.where}: experiment", backend=case.backend))
-    ests = {}
-    for name, settings in case.estimators.items():
-        made = parsed(("estimator", name), settings,
-                      lambda: estimators.make(name, settings, f"{case.where}: estimators.{name}"))
-        ests[name] = made if memo is None else type(made)(made.settings)   # a case's own estimator object
+        exp = sims.Experiment.from_mapping(case.experiment, f"{case.where}: experiment", backend=case.backend)
+    ests = {name: estimators.make(name, settings, f"{case.where}: estimators.{name}")
+            for name, settings in case.estimators.items()}
     return proto, params, exp, ests
 
 
-_PLAIN_SCALARS = (str, int, float, bool, type(None))
-
-
-def _plain(value) -> tuple | None:
-    """A hashable copy of ``value`` that tells apart exactly the values that differ, when it is made of
-    plain YAML types (mappings, lists and tuples, strings, numbers, booleans, None); None otherwise
-    (an array or another object: its ``repr`` may abbreviate it, so it is never a key)."""
-    if isinstance(value, _PLAIN_SCALARS):
-        return (type(value).__name__, value)
-    if isinstance(value, Mapping):
-        items = [(k, _plain(v)) for k, v in value.items()]
-        if any(not isinstance(k, _PLAIN_SCALARS) or v is None for k, v in items):
-            return None
-        return ("map", tuple(items))
-    if isinstance(value, (list, tuple)):
-        items = [_plain(v) for v in value]
-        return None if any(v is None for v in items) else (type(value).__name__, tuple(items))
-    return None
-
-
-def run_case(case: Case, memo: dict | None = None) -> CaseResult:
+def run_case(case: Case) -> CaseResult:
     """Run one case; never raises: a failure is returned as ``status='failed'`` with its error.
 
     Trials of the case that share a response (an estimation and a validation trial, a record with and
-    without noise) simulate it once (:mod:`sims.reuse`), inside the group's block when one is open;
-    ``memo``: the group's parsed inputs (:func:`parse_inputs`)."""
+    without noise) simulate it once (:mod:`sims.reuse`), inside the group's block when one is open."""
     t0 = time.perf_counter()
     try:
-        proto, params, exp, ests = parse_inputs(case, memo)
+        proto, params, exp, ests = parse_inputs(case)
         ctx = protocols.Context(part=case.part, seed=case.seed, params=params, experiment=exp,
                                 estimators=ests)
         with record_simulations() as log, (contextlib.nullcontext() if reuse.active() else reuse.reuse_responses()):
@@ -235,10 +194,10 @@ def run_group(cases: list[Case], on_result=None) -> list[CaseResult]:
     (one :func:`sims.reuse.reuse_responses` block around them all); every number is what
     :func:`run_case` gives for each case alone (tests/test_reuse.py). ``on_result`` is called with each
     result as it finishes (a worker stores it at once: a lost scheduler loses no finished case)."""
-    out, memo = [], {}                  # parsed inputs shared by the group's cases (parse_inputs)
+    out = []
     with reuse.reuse_responses():
         for c in cases:
-            out.append(run_case(c, memo))
+            out.append(run_case(c))
             if on_result is not None:
                 on_result(out[-1])
     return out
@@ -247,7 +206,7 @@ def run_group(cases: list[Case], on_result=None) -> list[CaseResult]:
 _ONE_THREAD: list = []
 
 
-def one_blas_thread() -> None:
+def limit_process_to_one_blas_thread() -> None:
     """One BLAS thread per process (the pool already uses every core; nested BLAS threads would
     oversubscribe them, which slowed a 0.16 s KBR fit to seconds on 2 cores). Serial runs use one
     thread too, so that serial and parallel runs give bit-identical numbers. Set once per process."""

@@ -116,7 +116,6 @@ def parquet_frame(rows):
     """The tidy rows typed for Parquet: a column holding one kind of value keeps it (numbers, booleans,
     strings; the :data:`INT_COLUMNS` as nullable integers); a column mixing kinds (a grid axis with ``native``
     and rates) is written as strings."""
-    import numpy as np
     import pandas as pd
 
     out = rows.copy()
@@ -128,9 +127,6 @@ def parquet_frame(rows):
     for col in out.columns:
         if out[col].dtype != object and not pd.api.types.is_string_dtype(out[col]):
             continue
-        dtype = out[col].dtype
-        if isinstance(dtype, pd.StringDtype) and dtype.na_value is np.nan and out[col].notna().any():
-            continue              # text and NaN only: as the mapping below leaves it (issue 22: 0.3 CPU-s)
         values = out[col].dropna()
         kinds = {bool if isinstance(v, bool) else (float if isinstance(v, (int, float)) else type(v)) for v in values}
         if kinds == {bool}:

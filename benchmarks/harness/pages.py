@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import base64
 import dataclasses
-import functools
 import math
 import os
 import re
@@ -191,11 +190,9 @@ def md_cell(text: Any) -> str:
     return str(text).replace("|", "\\|").replace("\n", " ")
 
 
-@functools.lru_cache(maxsize=1)
 def template_env():
-    """The one Jinja2 environment of the process: each template compiled once (an environment per page or
-    table compiled them again each time: the README's status block compiled its table macro 15 times,
-    0.13 CPU-s; issue 22). Templates edited on disk are reloaded (Jinja2's ``auto_reload``)."""
+    """A Jinja2 environment of the report templates (:data:`TEMPLATES`), with the ``md`` and ``md_cell``
+    filters; a page or table gets one of its own."""
     import jinja2
 
     env = jinja2.Environment(loader=jinja2.FileSystemLoader(str(TEMPLATES)),

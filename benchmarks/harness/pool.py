@@ -10,7 +10,7 @@ futures with ``add_done_callback``, ``shutdown``); a pool that can be stopped at
   process that started it, twice a second;
 - a worker ignores SIGINT: Ctrl-C in a terminal reaches the whole process group, and the parent alone
   decides what to do (keep the finished cases, terminate the workers, return within 2 s);
-- a worker uses one BLAS thread (:func:`benchmarks.harness.case.one_blas_thread`).
+- a worker uses one BLAS thread (:func:`benchmarks.harness.case.limit_process_to_one_blas_thread`).
 
 A task is a group of cases (:func:`run_task`): cases that share a simulated response run together in one
 worker (:func:`benchmarks.harness.case.run_group`). :func:`make_executor` builds the executor a run asks
@@ -28,7 +28,7 @@ import sys
 import threading
 import time
 
-from jointbench.benchmarks.harness.case import one_blas_thread, run_group
+from jointbench.benchmarks.harness.case import limit_process_to_one_blas_thread, run_group
 from jointbench.benchmarks.harness.workers import WorkerMismatch, identity_problem, worker_identity
 from jointbench.core.errors import ConfigError
 
@@ -66,7 +66,7 @@ def init_worker(parent: int) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)   # a fork inherits the CLI's SIGTERM handler
     _die_with(parent)
-    one_blas_thread()
+    limit_process_to_one_blas_thread()
 
 
 class WorkerPool(cf.ProcessPoolExecutor):
@@ -132,7 +132,7 @@ def run_task(cases: list, code_hash: str | None = None, env: dict | None = None,
     nothing finished is lost with the scheduler. ``plugins`` (from
     :func:`~benchmarks.harness.fingerprint.plugin_requirements` and ``plugin_hash``): the outside modules
     the cases' estimators come from, imported here first and refused when their source differs."""
-    one_blas_thread()
+    limit_process_to_one_blas_thread()
     if code_hash is not None:
         here = worker_identity()
         run = {"code": code_hash, "env": env if env is not None else here["env"]}

@@ -1,14 +1,20 @@
-"""A table as CSV text, byte for byte what ``DataFrame.to_csv(index=False)`` writes, about five times faster.
+"""A table as CSV text, byte for byte what ``DataFrame.to_csv(index=False)`` writes, about four times faster.
 
-pandas turns every float into its text in numpy's formatter, one cell at a time: the 1.25 million rows
-of a KBR frequency response at 2.5 kHz (``OUT_frf.csv``, 115 MB) took 9.1 s to write on the 2-core
-machine (1.9 s here; issue 22). Arrow's cast of a float column to text (:func:`pyarrow.compute.cast`)
-finds the same shortest round-trip digits in C++, but lays some of them out differently (``3`` for
-``3.0``, ``0.00001`` for ``1e-05``, ``1.5e-7`` for ``1.5e-07``, ``1.2e+10`` for ``12000000000.5``):
-:func:`csv_bytes` takes Arrow's text only where the layouts agree (finite, not a whole number, magnitude
-in :data:`_ARROW_RANGE`) and Python's ``repr`` (what pandas writes) for every other cell, so the file is
-the one pandas writes; tests/test_csv_text.py compares them byte for byte over random tables of every
-kind of value.
+Kept for ``jointbench estimate`` (issue 34 weighed every speed-only mechanism against the time a user
+waits): ``jointbench estimate -e kbr`` on a one-minute record at 2.5 kHz (the gated wrist record of
+tests/estimate_data.py, ``OUT_frf.csv`` 278 MB) waits 25.1 s with this writer and 37.6 s with
+``DataFrame.to_csv`` (its CSV writes 4.8 against 17.9 CPU-s; medians of 3 interleaved runs on the 2-core
+machine): half as long again. A study run's tables cost it little either way (the four paper studies'
+warm runs: 0.81 CPU-s more with pandas, under 1 % of ``make reproduce``'s ~92); they go through it too,
+so that every CSV output has one writer.
+
+pandas turns every float into its text in numpy's formatter, one cell at a time. Arrow's cast of a float
+column to text (:func:`pyarrow.compute.cast`) finds the same shortest round-trip digits in C++, but lays
+some of them out differently (``3`` for ``3.0``, ``0.00001`` for ``1e-05``, ``1.5e-7`` for ``1.5e-07``,
+``1.2e+10`` for ``12000000000.5``): :func:`csv_bytes` takes Arrow's text only where the layouts agree
+(finite, not a whole number, magnitude in :data:`_ARROW_RANGE`) and Python's ``repr`` (what pandas writes)
+for every other cell, so the file is the one pandas writes; tests/test_csv_text.py compares them byte for
+byte over random tables of every kind of value.
 
 Columns of float64, integers and booleans (numpy's or pandas' nullable ones) and text (``str`` or
 missing) take this path; a table with any other column (dates, categories, mixed objects), with column

@@ -12,7 +12,7 @@ from threadpoolctl import threadpool_limits
 
 
 @pytest.fixture(autouse=True)
-def one_blas_thread():
+def one_blas_thread_per_benchmark():
     with threadpool_limits(limits=1):
         yield
 

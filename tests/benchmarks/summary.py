@@ -6,7 +6,7 @@ benchmark's median, IQR, min and rounds, and its median as a ratio to the group'
 run (a benchmark named ``*baseline*`` or ``*naive*``; with several, the one whose name shares
 most words): on a shared, noisy machine the ratio is the figure to trust.
 Where a fast path also timed itself alternately against its baseline (``speedup`` fixture), that
-interleaved ratio is shown too, as are the other figures a benchmark records (targets, memory).
+interleaved ratio is shown too, as are the other figures a benchmark records (memory, accuracy).
 """
 from __future__ import annotations
 

@@ -1,9 +1,8 @@
 """Benchmark: one 50 s trial at 2500 Hz (van de Ruit et al.'s wrist with handle and contact, 125 000
 steps) on the MuJoCo backend, with the analytic backend on the same input as the same-run baseline.
 
-Target (issue 10): under 1 s median for the MuJoCo trial, aim 0.3 s. One trial is one
-``mujoco.rollout`` call (the whole control sequence at once, no Python loop over steps). Run with
-``make bench`` for timings; in ``make test`` each runs once, untimed.
+One trial is one ``mujoco.rollout`` call (the whole control sequence at once, no Python loop over
+steps). Run with ``make bench`` for timings; in ``make test`` each runs once, untimed.
 """
 import dataclasses
 
