@@ -171,11 +171,7 @@ class _Frozen:
     K: np.ndarray
 
     def coefficients_at(self, t):
-        """I, B, K linearly interpolated at ``t`` (:func:`numpy.interp`). At the grid's own instants (the
-        simulator asks for them once per run) that is the values themselves: returned as copies, no search."""
-        t = np.asarray(t, float)
-        if t.shape == self.t.shape and np.array_equal(t, self.t):
-            return tuple(np.array(v, float) for v in (self.I, self.B, self.K))
+        """I, B, K linearly interpolated at ``t`` (:func:`numpy.interp`)."""
         return tuple(np.interp(t, self.t, v) for v in (self.I, self.B, self.K))
 
 
