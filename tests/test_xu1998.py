@@ -157,33 +157,6 @@ def test_output_vafs_of_a_subset_are_those_of_all(elbow):
         assert X.output_vafs(fit, trial, keep, signals=(name,)) == {name: full[name]}
 
 
-def test_fits_are_kept_for_the_same_trial_and_settings_only(elbow, monkeypatch):
-    exp, est = elbow
-    exp = X.case_experiment(dataclasses.replace(exp, duration=10.0), _params())
-    monkeypatch.setattr(X, "_FITS", type(X._FITS)())
-    calls = []
-    real_fit = type(est).fit
-    monkeypatch.setattr(type(est), "fit", lambda self, trial: calls.append(1) or real_fit(self, trial))
-    trial = sims.simulate(exp, 0)
-    a, derived = X.fitted(est, exp, 0, False, trial)
-    assert X.fitted(est, dataclasses.replace(exp, where="elsewhere"), 0, False, trial)[0] is a and len(calls) == 1
-    other = type(est)(dataclasses.replace(est.settings, forgetting=est.settings.forgetting * 1.1))
-    b, _ = X.fitted(other, exp, 0, False, trial)
-    c, _ = X.fitted(est, exp, 1, False, sims.simulate(exp, 1))
-    d, _ = X.fitted(est, exp, 0, True, trial)
-    assert len(calls) == 4 and all(x is not a for x in (b, c, d))
-    assert not np.array_equal(b.K, a.K) and not np.array_equal(c.K, a.K)
-    for k in range(X._FITS_KEPT):
-        X.fitted(est, exp, 10 + k, False, trial)
-    assert len(X._FITS) == X._FITS_KEPT and X.fitted(est, exp, 0, False, trial)[0] is not a   # a was dropped
-    keep = X.scored_window(trial.n, trial.fs, 2.0, valid_mask(a))
-    first = X.kept_output_vafs(a, derived, trial, keep)
-    assert first == X.output_vafs(a, trial, keep) and len(derived) == 1
-    assert X.kept_output_vafs(a, derived, trial, keep) == first and len(derived) == 1
-    X.kept_output_vafs(a, derived, trial, keep, signals=("angle",))
-    assert len(derived) == 2
-
-
 # ----------------------------------------------------------------------------------------- smoke run
 @pytest.fixture(scope="module")
 def smoke(tmp_path_factory):

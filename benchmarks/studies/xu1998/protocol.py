@@ -18,9 +18,7 @@ Sec. IV-B (calibration arm, Fig. 5), Appendices A-B.
 """
 from __future__ import annotations
 
-import collections
 import dataclasses
-import pickle
 from typing import Literal
 
 import numpy as np
@@ -173,11 +171,7 @@ class _Frozen:
     K: np.ndarray
 
     def coefficients_at(self, t):
-        """I, B, K linearly interpolated at ``t`` (:func:`numpy.interp`). At the grid's own instants (the
-        simulator asks for them once per run) that is the values themselves: returned as copies, no search."""
-        t = np.asarray(t, float)
-        if t.shape == self.t.shape and np.array_equal(t, self.t):
-            return tuple(np.array(v, float) for v in (self.I, self.B, self.K))
+        """I, B, K linearly interpolated at ``t`` (:func:`numpy.interp`)."""
         return tuple(np.interp(t, self.t, v) for v in (self.I, self.B, self.K))
 
 
@@ -216,43 +210,6 @@ def output_vafs(fit, trial, keep: np.ndarray, signals=OUTPUTS) -> dict[str, floa
         ok = np.all(np.isfinite(resp.angle)) and np.max(np.abs(resp.angle)) <= 100 * np.max(np.abs(theta[i0:i1]))
         out["angle"] = vaf(theta[i0:i1], resp.angle) if ok else float("nan")   # NaN: the model diverged
     return out
-
-
-# ----------------------------------------------------------------------------------------- fits kept
-#: the last fits of this process, by (experiment, seed, measured_voluntary, estimator, settings): a trial is a
-#: function of its experiment and seed (sims.simulate) and the fit of its trial and settings, so a hit is the
-#: same estimate. Cases of one seed and response run one after another (one group); among them Fig. 3's
-#: paired noise-free record, the same for every NSR, and the readings part's variants that repeat a fit
-#: ('chosen' is Fig. 2's case; in movement 'posture_with_H' is 'chosen'). Each entry also keeps what was
-#: derived from the fit (the output VAFs), by the scored window and signals.
-_FITS: collections.OrderedDict = collections.OrderedDict()
-_FITS_KEPT = 6
-
-
-def fitted(est, exp: sims.Experiment, seed: int, measured_voluntary: bool, trial) -> tuple:
-    """``(est.fit(trial), derived)`` for the trial ``sims.simulate(exp, seed)`` (with ``measured_voluntary``
-    applied): the estimate kept from an earlier case of this process when there is one (read only: the
-    scoring does not change it), and the dict of what was derived from it (empty for a new fit)."""
-    try:
-        fields = tuple(getattr(exp, f.name) for f in dataclasses.fields(exp) if f.name != "where")  # 'where': text
-        key = pickle.dumps((fields, seed, measured_voluntary, type(est).__qualname__, est.settings), protocol=4)
-    except (pickle.PicklingError, TypeError, AttributeError):
-        return est.fit(trial), {}
-    if key in _FITS:
-        _FITS.move_to_end(key)
-        return _FITS[key]
-    entry = _FITS[key] = (est.fit(trial), {})
-    while len(_FITS) > _FITS_KEPT:
-        _FITS.popitem(last=False)
-    return entry
-
-
-def kept_output_vafs(fit, derived: dict, trial, keep: np.ndarray, signals=OUTPUTS) -> dict[str, float]:
-    """:func:`output_vafs`, kept in ``derived`` (of :func:`fitted`) by scored window and signals."""
-    key = ("output_vafs", keep.tobytes(), tuple(signals))
-    if key not in derived:
-        derived[key] = output_vafs(fit, trial, keep, signals)
-    return dict(derived[key])
 
 
 # ------------------------------------------------------------------------------- exact-derivative control
@@ -356,7 +313,7 @@ def track(ctx: Context) -> None:
     if p.measured_voluntary and exp.voluntary.active:
         trial = trial.replace(torque=trial.torque + np.asarray(trial.truth.signals["voluntary"]))
     if p.regressors == "filtered":
-        fit, derived = fitted(est, exp, ctx.seed, p.measured_voluntary, trial)
+        fit = est.fit(trial)
     else:
         fit = exact_fit(est, trial)
     keep = scored_window(trial.n, trial.fs, p.discard, valid_mask(fit) if p.regressors == "filtered" else None)
@@ -366,7 +323,7 @@ def track(ctx: Context) -> None:
         labels["f_v"] = p.f_v
     scores = _scores(fit, trial.truth, keep, dt)
     if p.regressors == "filtered":
-        outs = kept_output_vafs(fit, derived, trial, keep)
+        outs = output_vafs(fit, trial, keep)
         scores["vaf_output"] = outs[p.output]
         scores.update({f"vaf_output_{k}": v for k, v in outs.items()})
     else:   # the exact regression's own output: tau against Phi^T Theta_hat
@@ -377,9 +334,9 @@ def track(ctx: Context) -> None:
         clean = sims.simulate(exp0, ctx.seed)
         if p.measured_voluntary and exp.voluntary.active:
             clean = clean.replace(torque=clean.torque + np.asarray(clean.truth.signals["voluntary"]))
-        fit0, derived0 = fitted(est, exp0, ctx.seed, p.measured_voluntary, clean)   # the same for every nsr
+        fit0 = est.fit(clean)
         s0 = _scores(fit0, trial.truth, keep, dt)
-        o0 = kept_output_vafs(fit0, derived0, clean, keep, signals=(p.output,))   # only this drop is recorded
+        o0 = output_vafs(fit0, clean, keep, signals=(p.output,))   # only this drop is recorded
         s0["vaf_output"] = o0[p.output]
         for k in ("vafm_K", "vafv_K", "vafm_B", "vafv_B", "vafm_I", "vafv_I", "vaf_output"):
             scores[f"drop_{k}"] = s0[k] - scores[k]
