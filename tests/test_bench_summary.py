@@ -135,3 +135,20 @@ def test_a_ratio_beyond_the_factor_fails_only_when_the_re_run_repeats_it():
     withids = {"benchmarks": [{**b, "fullname": f"tests/benchmarks/t.py::{b['name']}"} for b in REPORT["benchmarks"]]}
     assert to_recheck(withids, ["test_bench_fast"]) == ["tests/benchmarks/t.py::test_bench_fast",
                                                        "tests/benchmarks/t.py::test_bench_slow_baseline"]
+
+
+def test_versus_medians_and_ratios_by_hand():
+    """The before/after table of tests/benchmarks/versus.py: medians of the successful runs per command and
+    pair of commits, a failed run counted and left out of the medians."""
+    from tests.benchmarks import versus
+
+    def row(label, wall, cpu, code=0, versus_="a1..b2", command="make reproduce"):
+        return {"versus": versus_, "label": label, "commit": {"before": "a1", "after": "b2"}[label],
+                "command": command, "wall_s": str(wall), "cpu_s": str(cpu), "exit": str(code)}
+    rows = [row("before", 50, 90), row("after", 60, 99), row("before", 52, 94), row("after", 55, 100),
+            row("before", 51, 92), row("after", 999, 999, code=1)]
+    (m,) = versus.medians(rows)
+    assert (m["n"], m["wall"], m["wall_after"], m["cpu"], m["cpu_after"], m["failed"]) == (2, 51, 57.5, 92, 99.5, 1)
+    text = versus.render(rows + [row("before", 1, 1, versus_="c3..d4", command="make test")])
+    assert "| make reproduce | `a1` | `b2` | 2 | 51.0 | 57.5 | 1.13 | 92.0 | 99.5 | 1.08 | 1 |" in text
+    assert "| make test | | | 0 |" in text                   # no successful 'after' run: no times, no ratio

@@ -196,4 +196,8 @@ def render(report: dict, studies: list[dict] | None = None, load: tuple[str, str
                   f"on {fresh['cpus']} cores: **{fresh['wall_s']} s wall**, {fresh['cpu_s']} CPU-s, exit "
                   f"{fresh['exit']}, 1-minute load average {fresh['load_before']} before and {fresh['load_after']} "
                   f"after."]
+    from tests.benchmarks import versus
+
+    if rows := versus.read():                     # the times a user waits, two commits side by side (committed)
+        lines += ["", versus.render(rows).rstrip("\n")]
     return "\n".join(lines) + "\n"

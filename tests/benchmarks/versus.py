@@ -35,7 +35,7 @@ from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[2]
 TABLE = REPO / "results" / "speed_versus.csv"
-FIELDS = ["date", "label", "commit", "command", "pair", "wall_s", "cpu_s", "exit", "load_before"]
+FIELDS = ["date", "versus", "label", "commit", "command", "pair", "wall_s", "cpu_s", "exit", "load_before"]
 WHAT = ("reproduce", "estimate", "matrix", "test")
 
 
@@ -118,7 +118,8 @@ def run_pairs(before: str, pairs: int, what: list[str]) -> list[dict]:
                             env.update(XDG_CACHE_HOME=str(cache), MPLCONFIGDIR=str(cache / "matplotlib"))
                         load = os.getloadavg()[0]
                         wall, cpu, code = timed(argv, where, env)
-                        row = {"date": datetime.datetime.now().isoformat(timespec="seconds"), "label": label,
+                        row = {"date": datetime.datetime.now().isoformat(timespec="seconds"),
+                               "versus": f"{commits['before']}..{commits['after']}", "label": label,
                                "commit": commits[label], "command": name, "pair": i, "wall_s": f"{wall:.2f}",
                                "cpu_s": f"{cpu:.2f}", "exit": code, "load_before": f"{load:.2f}"}
                         rows.append(row)
@@ -137,12 +138,12 @@ def append(rows: list[dict]) -> None:
 
 
 def medians(rows: list[dict]) -> list[dict]:
-    """Per command and commit pair: the medians of the successful runs and the after/before ratios."""
+    """Per command and pair of commits: the medians of the successful runs and the after/before ratios."""
     out = []
     by: dict = {}
     for r in rows:
-        by.setdefault(r["command"], []).append(r)
-    for name, rs in by.items():
+        by.setdefault((r["versus"], r["command"]), []).append(r)
+    for (_, name), rs in by.items():
         ok = {lab: [r for r in rs if r["label"] == lab and int(r["exit"]) == 0] for lab in ("before", "after")}
         failed = sum(int(r["exit"]) != 0 for r in rs)
         if not ok["before"] or not ok["after"]:
