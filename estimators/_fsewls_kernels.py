@@ -210,28 +210,23 @@ def solve_spd3(x: np.ndarray) -> np.ndarray:
     definite. Returns shape (n, 3).
 
     Columns scaled so that the mean diagonal of ``R`` is 1, then ``R = L D L^T`` written out for 3 x 3
-    (no pivoting is needed for a positive definite matrix) and two triangular solves, each step one numpy
-    pass over the samples.
+    (no pivoting is needed for a positive definite matrix) and two triangular solves, per sample in one
+    compiled loop (:func:`jointbench.estimators._ewls_loops.solve3`; tests/test_fsewls.py keeps the numpy
+    formulation it replaced, the same numbers to the last bit).
 
     Raises
     ------
     numpy.linalg.LinAlgError
         ``R`` is not positive definite at some sample.
     """
+    from jointbench.estimators import _ewls_loops
+
+    x = np.ascontiguousarray(x, dtype=float)
     s = 1.0 / np.sqrt(x[[0, 3, 5]].mean(axis=1))
-    a00, a01, a02, a11, a12, a22 = (x[m] * (s[i] * s[j]) for m, (i, j) in enumerate(zip(*UPPER3)))
-    b0, b1, b2 = (x[6 + i] * s[i] for i in range(3))
-    l10, l20 = a01 / a00, a02 / a00
-    d1, e12 = a11 - l10 * a01, a12 - l20 * a01
-    l21 = e12 / d1
-    d2 = a22 - l20 * a02 - l21 * e12
-    if not (np.all(a00 > 0) and np.all(d1 > 0) and np.all(d2 > 0)):
+    out = np.empty((x.shape[-1], 3))
+    if not _ewls_loops.solve3(x, s, out):
         raise np.linalg.LinAlgError("EWLS information matrix is not positive definite")
-    z1 = b1 - l10 * b0
-    x2 = (b2 - l20 * b0 - l21 * z1) / d2
-    x1 = (z1 - e12 * x2) / d1
-    x0 = (b0 - a01 * x1 - a02 * x2) / a00
-    return np.column_stack([x0 * s[0], x1 * s[1], x2 * s[2]])
+    return out
 
 
 def ewls(Phi: np.ndarray, y: np.ndarray, dt: float, lam: float, R0: np.ndarray,
@@ -241,8 +236,10 @@ def ewls(Phi: np.ndarray, y: np.ndarray, dt: float, lam: float, R0: np.ndarray,
     With ``R = P^-1`` and ``r = R Theta`` eq. 6 is linear: ``R' = -lam R + Phi Phi^T``,
     ``r' = -lam r + Phi y``, ``Theta = R^-1 r`` (records pool by summing ``Phi Phi^T`` and ``Phi y``).
     RK4 with ``Phi`` and ``y`` linearly interpolated at the mid-points is then exactly the recursion of
-    :func:`rk4_coefficients` on the products at the samples and at the mid-points (``scipy.signal.lfilter``
-    on the drive), followed by a column-scaled 3 x 3 solve per sample (:func:`solve_spd3`).
+    :func:`rk4_coefficients` on the products at the samples and at the mid-points (compiled:
+    :func:`jointbench.estimators._ewls_loops.recursion`, the numbers of ``scipy.signal.lfilter`` on the
+    drive; it pays for itself, issue 34), followed by a column-scaled 3 x 3 solve per sample
+    (:func:`solve_spd3`).
     RK4 is not invariant under the change of variables ``(P, Theta) -> (R, r)``: the result differs
     from RK4 on eq. 6 itself (:func:`ewls_riccati_rk4`) by RK4's truncation error, ``O(dt^4)``; the tests
     check they agree.
@@ -255,15 +252,15 @@ def ewls(Phi: np.ndarray, y: np.ndarray, dt: float, lam: float, R0: np.ndarray,
     ----------
     Xu & Hollerbach (1998), eqs. 5-6 and Sec. II-D.
     """
+    from jointbench.estimators import _ewls_loops
+
     c, w0, wm, w1 = rk4_coefficients(lam, dt)
-    P = np.ascontiguousarray(np.moveaxis(Phi, -1, 0), dtype=float)   # (3, n_records, n): a product per pass
-    y = np.asarray(y, dtype=float)
-    f = products(P, y)                                   # at the samples
-    fm = products((P[..., 1:] + P[..., :-1]) * 0.5, (y[..., 1:] + y[..., :-1]) * 0.5)   # at the mid-points
-    drive = np.empty_like(f)                             # x_k = c x_k-1 + w0 f_k-1 + wm fm_k + w1 f_k
-    drive[:, 0] = np.concatenate([R0[UPPER3], r0])       # from R0, r0
-    drive[:, 1:] = f[:, :-1] * w0 + fm * wm + f[:, 1:] * w1
-    return solve_spd3(sps.lfilter([1.0], [1.0, -c], drive, axis=-1))
+    P = np.ascontiguousarray(np.moveaxis(Phi, -1, 0), dtype=float)    # (3, n_records, n)
+    y = np.ascontiguousarray(y, dtype=float)
+    R = np.empty((9, y.shape[-1]))            # R(t) and r(t) from R0, r0: x_k = c x_k-1 + w0 f0 + wm fm + w1 f1
+    _ewls_loops.recursion(P, y, float(w0), float(wm), float(w1), float(c),
+                          np.ascontiguousarray(np.concatenate([R0[UPPER3], r0]), dtype=float), R)
+    return solve_spd3(R)
 
 
 def ewls_start(Phi: np.ndarray, y: np.ndarray, fs: float, init_window: float) -> tuple[np.ndarray, np.ndarray]:

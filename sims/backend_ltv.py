@@ -15,7 +15,10 @@ arrays instead of four matrix entries, and a product of two such matrices costs 
 doublings: E(2h) = E², J1(2h) = J1 + E J1, J2(2h) = J2 + h J1 + E J2). The recursion
 ``x_k+1 = E_k x_k + v_k`` is solved blockwise (:func:`affine_recursion`): each block of 32 steps runs
 from a zero state and from its true start state, and the block ends, themselves such a recursion 32
-times shorter, are solved the same way: each block step one vectorised numpy pass over all blocks.
+times shorter, are solved the same way. Both loops are compiled (:mod:`jointbench.sims._ltv_kernels`,
+numba; issue 22), with the operations of their numpy formulation in the same order, so the numbers are
+those of that formulation to the last bit (tests/test_sims_tv.py keeps it as the reference). They pay for
+themselves (issue 34 weighed them against the numpy passes: results/benchmarks.md).
 """
 from __future__ import annotations
 
@@ -68,23 +71,15 @@ def step_coefficients(p: np.ndarray, q: np.ndarray, h: float):
 
 
 def _series(p: np.ndarray, q: np.ndarray, h: float, m: int):
-    """:func:`step_coefficients` for a stack, with the number ``m`` of doublings given: the Taylor sums at
-    ``tau = h / 2^m`` by Horner's rule, then ``m`` doublings, each a few numpy passes over the steps."""
-    tau = h / 2.0 ** m
-    tp, tq = p * tau, q * tau
-    a, b = np.full_like(tp, _INV_FACT[-1]), np.zeros_like(tp)
-    for c in _INV_FACT[-2::-1]:                   # S_2 = a I + b A
-        a, b = tp * b + c, tau * a + tq * b
-    s1a, s1b = tp * b + 1.0, tau * a + tq * b     # S_1 = I + X S_2
-    E, J1, J2 = (tp * s1b + 1.0, tau * s1a + tq * s1b), (s1a * tau, s1b * tau), (a * (tau * tau), b * (tau * tau))
-    for _ in range(m):                            # E(2t) = E^2, J1(2t) = J1 + E J1, J2(2t) = J2 + t J1 + E J2
-        (ea, eb), (j1a, j1b), (j2a, j2b) = E, J1, J2
-        pe, qe = p * eb, q * eb
-        J2 = (j2a + tau * j1a + ea * j2a + pe * j2b, j2b + tau * j1b + ea * j2b + eb * j2a + qe * j2b)
-        J1 = (j1a + ea * j1a + pe * j1b, j1b + ea * j1b + eb * j1a + qe * j1b)
-        E = (ea * ea + pe * eb, 2.0 * ea * eb + qe * eb)
-        tau *= 2.0
-    return E, J1, J2
+    """:func:`step_coefficients` for a stack, with the number ``m`` of doublings given: the compiled loop
+    :func:`jointbench.sims._ltv_kernels.series` (the expressions of tests/test_sims_tv.py's
+    ``_series_plain``, bit for bit)."""
+    from jointbench.sims import _ltv_kernels
+
+    p, q = _same_type([np.ascontiguousarray(p, dtype=float), np.ascontiguousarray(q, dtype=float)])
+    out = np.empty((6, p.size))
+    _ltv_kernels.series(p, q, h / 2.0 ** m, m, _INV_FACT, out)
+    return (out[0], out[1]), (out[2], out[3]), (out[4], out[5])
 
 
 def step_matrices(p: np.ndarray, q: np.ndarray, h: float):
@@ -92,57 +87,51 @@ def step_matrices(p: np.ndarray, q: np.ndarray, h: float):
     return tuple((a, b, b * p, a + b * q) for a, b in step_coefficients(p, q, h))
 
 
-def affine_recursion(E, v0: np.ndarray, v1: np.ndarray, x0: tuple[float, float],
-                     block: int = BLOCK) -> tuple[np.ndarray, np.ndarray]:
+def affine_recursion(E, v0: np.ndarray, v1: np.ndarray, x0: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
     """States of ``x_k+1 = E_k x_k + v_k`` (k = 0 ... n-2) from ``x_0``, blockwise.
 
     ``E`` holds 4 component arrays (00, 01, 10, 11) of length n-1, ``v0``, ``v1`` the two components of
-    v_k. The steps are cut into blocks of ``block``; every block is run step by step from a zero state
-    (all blocks side by side, one numpy pass per step of a block), which gives its end state as an affine
-    map of its start state; the start states then follow from the same recursion over the block ends
-    (recursively, until at most ``block`` steps remain, which a plain loop does); a second pass runs every
-    block from its true start state. Each state is thus computed by the plain recursion from a nearby exact
-    start: the rounding differs from a sequential loop by a few ulp.
+    v_k. The steps are cut into blocks of :data:`BLOCK`; every block is run step by step from a zero state,
+    which gives its end state as an affine map of its start state; the start states then follow from the
+    same recursion over the block ends (recursively, until at most BLOCK steps remain, which a plain
+    loop does); a second pass runs every block from its true start state. Each state is thus computed by
+    the plain recursion from a nearby exact start: the rounding differs from a sequential loop by a few
+    ulp. (The block structure made the recursion a few vectorised numpy passes per block step; compiled
+    now, :func:`jointbench.sims._ltv_kernels.ends` and :func:`~jointbench.sims._ltv_kernels.from_starts` for each
+    level, it keeps the same operations, so the same numbers.)
     Returns the two state components, length n.
-
-    References
-    ----------
-    Blelloch 1990, "Prefix sums and their applications" (the blockwise scan of an affine recursion).
     """
-    n1 = len(v0)
-    if n1 <= block:
-        e00, e01, e10, e11 = (np.asarray(c, float).tolist() for c in E)
-        w0, w1 = np.asarray(v0, float).tolist(), np.asarray(v1, float).tolist()
-        x, y = float(x0[0]), float(x0[1])
-        xs, ys = [x], [y]
-        for k in range(n1):
-            x, y = e00[k] * x + e01[k] * y + w0[k], e10[k] * x + e11[k] * y + w1[k]
-            xs.append(x)
-            ys.append(y)
-        return np.array(xs), np.array(ys)
-    nb = -(-n1 // block)
+    from jointbench.sims import _ltv_kernels as kernels
 
-    def blocks(c, fill):                          # (block, nb): step j of every block in row j
-        return np.concatenate([np.asarray(c, float), np.full(nb * block - n1, fill)]).reshape(nb, block).T
-
-    e00, e01, e10, e11 = (blocks(c, f) for c, f in zip(E, (1.0, 0.0, 0.0, 1.0)))
-    w0, w1 = blocks(v0, 0.0), blocks(v1, 0.0)
-    x, y = w0[0].copy(), w1[0].copy()             # every block from a zero state: its end and its product
-    P00, P01, P10, P11 = e00[0].copy(), e01[0].copy(), e10[0].copy(), e11[0].copy()
-    for j in range(1, block):
-        a00, a01, a10, a11 = e00[j], e01[j], e10[j], e11[j]
-        x, y = a00 * x + a01 * y + w0[j], a10 * x + a11 * y + w1[j]
-        P00, P01, P10, P11 = (a00 * P00 + a01 * P10, a00 * P01 + a01 * P11,
-                              a10 * P00 + a11 * P10, a10 * P01 + a11 * P11)
-    sx, sy = affine_recursion((P00, P01, P10, P11), x, y, x0, block)    # the start of every block
-    X, Y = np.empty((block, nb)), np.empty((block, nb))
-    x, y = sx[:-1], sy[:-1]
-    for j in range(block):                        # every block from its start
-        x, y = e00[j] * x + e01[j] * y + w0[j], e10[j] * x + e11[j] * y + w1[j]
-        X[j], Y[j] = x, y
-    return np.concatenate([[x0[0]], X.T.ravel()[:n1]]), np.concatenate([[x0[1]], Y.T.ravel()[:n1]])
+    level = _same_type([np.ascontiguousarray(c, dtype=float) for c in (*E, v0, v1)])
+    levels = [level]                          # the steps, then the blocks as steps, ... until one block is left
+    while len(levels[-1][4]) > BLOCK:
+        P = np.empty((6, -(-len(levels[-1][4]) // BLOCK)))
+        kernels.ends(*levels[-1], BLOCK, P)
+        levels.append(_same_type(list(P)))
+    sx, sy = np.array([float(x0[0])]), np.array([float(x0[1])])
+    for level in reversed(levels):            # the states of each level, from the starts of its blocks
+        ox, oy = np.empty(len(level[4]) + 1), np.empty(len(level[4]) + 1)
+        kernels.from_starts(*level, BLOCK, *_same_type([sx, sy]), ox, oy)
+        sx, sy = ox, oy
+    return sx, sy
 
 
+def _same_type(arrays: list[np.ndarray]) -> list[np.ndarray]:
+    """The arrays as read-only views: numba compiles one specialization per signature, and a read-only
+    array (the memo of :func:`step_weights`) is typed apart from a writable one."""
+    out = []
+    for a in arrays:
+        if a.flags.writeable:
+            a = a.view()
+            a.flags.writeable = False
+        out.append(a)
+    return out
+
+
+#: the step weights of the last joints simulated in this process, by pickled (joint, coupling, n, h): trials of
+#: one joint time course with other perturbations (another seed) share them; arrays read-only, so a hit is
+#: the same numbers and no caller can change them
 _WEIGHTS: collections.OrderedDict = collections.OrderedDict()
 WEIGHTS_MAX_BYTES = 256e6
 WEIGHTS_MAX_KEY = 1 << 16

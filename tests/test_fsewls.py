@@ -11,6 +11,7 @@ import math
 
 import numpy as np
 import pytest
+import scipy.signal as sps
 
 from jointbench import estimators
 from jointbench.benchmarks.metrics import vafv
@@ -222,6 +223,42 @@ def test_information_form_equals_riccati_rk4(slow_elbow):
     assert (np.abs(fast - ref) / np.abs(ref)).max() < 1e-6
 
 
+def _solve_spd3_numpy(x):
+    """The 3 x 3 solve of ewls as numpy passes (its formulation before it was compiled, issue 22): the
+    reference for the compiled loop's order of operations."""
+    s = 1.0 / np.sqrt(x[[0, 3, 5]].mean(axis=1))
+    a = np.array([x[k] * (s[i] * s[j]) for k, (i, j) in enumerate(zip(*UPPER3))] + [x[6 + i] * s[i] for i in range(3)])
+    a00, a01, a02, a11, a12, a22, b0, b1, b2 = a
+    l10, l20 = a01 / a00, a02 / a00
+    d1, e12 = a11 - l10 * a01, a12 - l20 * a01
+    l21 = e12 / d1
+    d2 = a22 - l20 * a02 - l21 * e12
+    z1 = b1 - l10 * b0
+    x2 = (b2 - l20 * b0 - l21 * z1) / d2
+    x1 = (z1 - e12 * x2) / d1
+    x0 = (b0 - a01 * x1 - a02 * x2) / a00
+    return np.column_stack([x0 * s[0], x1 * s[1], x2 * s[2]])
+
+
+@pytest.mark.parametrize("records", [1, 3])
+def test_ewls_recursion_is_lfilter_on_the_rk4_drive(records):
+    """The compiled recursion of ewls gives exactly what its numpy formulation gave (issue 22): the products
+    at the samples and mid-points by numpy.einsum, the RK4 drive w0 f0 + wm fm + w1 f1, scipy.signal.lfilter."""
+    from jointbench.estimators import _ewls_loops
+    from jointbench.estimators._fsewls_kernels import products, rk4_coefficients
+    rng = np.random.default_rng(records)
+    P, y, start = rng.standard_normal((3, records, 5000)), rng.standard_normal((records, 5000)), rng.standard_normal(9)
+    c, w0, wm, w1 = rk4_coefficients(20.0, 1e-3)
+    f = products(P, y)
+    fm = products((P[..., 1:] + P[..., :-1]) * 0.5, (y[:, 1:] + y[:, :-1]) * 0.5)
+    drive = np.empty_like(f)
+    drive[:, 0] = start
+    drive[:, 1:] = f[:, :-1] * w0 + fm * wm + f[:, 1:] * w1
+    got = np.empty_like(f)
+    _ewls_loops.recursion(P, y, w0, wm, w1, c, start, got)
+    assert np.array_equal(got, sps.lfilter([1.0], [1.0, -c], drive, axis=-1))
+
+
 def test_spd_solve_equals_lapack_and_refuses_indefinite():
     """The written-out 3 x 3 LDL^T solve of ewls against numpy.linalg.solve (LU with pivoting)."""
     rng = np.random.default_rng(5)
@@ -231,6 +268,7 @@ def test_spd_solve_equals_lapack_and_refuses_indefinite():
     x = np.concatenate([R[:, UPPER3[0], UPPER3[1]], r], axis=1).T
     want = np.linalg.solve(R, r[..., None])[..., 0]
     assert np.abs(solve_spd3(x) - want).max() <= 1e-11 * np.abs(want).max()
+    assert np.array_equal(solve_spd3(x), _solve_spd3_numpy(x))   # the compiled loop: the same bits
     R[7] = np.diag([1.0, -1.0, 1.0])                       # indefinite at one sample
     x = np.concatenate([R[:, UPPER3[0], UPPER3[1]], r], axis=1).T
     with pytest.raises(np.linalg.LinAlgError, match="not positive definite"):

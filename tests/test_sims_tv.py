@@ -124,7 +124,7 @@ def test_step_coefficients_shortcuts_are_bit_identical():
 
 
 def _series_plain(p, q, h, m):
-    """_series as plain expressions, one pass over all steps: the reference for step_coefficients' shortcuts."""
+    """_series as plain expressions (no buffers): the reference for its in-place arithmetic."""
     import math
     from jointbench.sims.backend_ltv import _TAYLOR_TERMS
     tau = h / 2.0 ** m
@@ -142,6 +142,74 @@ def _series_plain(p, q, h, m):
         E = (ea * ea + pe * eb, 2.0 * ea * eb + qe * eb)
         tau *= 2.0
     return E, J1, J2
+
+
+@pytest.mark.parametrize("m", [0, 1, 2, 5])
+@pytest.mark.parametrize("n", [1, 255, 256, 1000])
+def test_compiled_series_is_the_plain_arithmetic(m, n):
+    """The compiled Taylor series and doublings (sims/_ltv_kernels.py, in groups of 256 steps) give exactly
+    the numbers of the plain numpy expressions, for stacks shorter than, equal to and longer than a group."""
+    from jointbench.sims.backend_ltv import _series
+    rng = np.random.default_rng(m)
+    p, q = -rng.uniform(0, 1e4, n), rng.uniform(-50, 50, n)
+    for got, want in zip(_series(p, q, 1e-3, m), _series_plain(p, q, 1e-3, m)):
+        assert all(np.array_equal(g, w) for g, w in zip(got, want))
+
+
+def _affine_numpy(E, v0, v1, x0, block=32):
+    """affine_recursion as numpy passes over blocks (its formulation before it was compiled, issue 22):
+    the reference for the compiled loop's order of operations."""
+    n1 = len(v0)
+    if n1 <= block:
+        e00, e01, e10, e11 = (c.tolist() for c in E)
+        w0, w1 = v0.tolist(), v1.tolist()
+        x, y = float(x0[0]), float(x0[1])
+        xs, ys = [x], [y]
+        for k in range(n1):
+            x, y = e00[k] * x + e01[k] * y + w0[k], e10[k] * x + e11[k] * y + w1[k]
+            xs.append(x)
+            ys.append(y)
+        return np.array(xs), np.array(ys)
+    nb = -(-n1 // block)
+
+    def blocks(c, fill):
+        return np.concatenate([c, np.full(nb * block - n1, fill)]).reshape(nb, block).T
+
+    e00, e01, e10, e11 = (blocks(c, f) for c, f in zip(E, (1.0, 0.0, 0.0, 1.0)))
+    w0, w1 = blocks(v0, 0.0), blocks(v1, 0.0)
+    x, y = w0[0].copy(), w1[0].copy()
+    P00, P01, P10, P11 = e00[0].copy(), e01[0].copy(), e10[0].copy(), e11[0].copy()
+    for j in range(1, block):
+        a00, a01, a10, a11 = e00[j], e01[j], e10[j], e11[j]
+        x, y = a00 * x + a01 * y + w0[j], a10 * x + a11 * y + w1[j]
+        P00, P01, P10, P11 = (a00 * P00 + a01 * P10, a00 * P01 + a01 * P11,
+                              a10 * P00 + a11 * P10, a10 * P01 + a11 * P11)
+    sx, sy = _affine_numpy((P00, P01, P10, P11), x, y, x0, block)
+    X, Y = np.empty((block, nb)), np.empty((block, nb))
+    x, y = sx[:-1], sy[:-1]
+    for j in range(block):
+        x, y = e00[j] * x + e01[j] * y + w0[j], e10[j] * x + e11[j] * y + w1[j]
+        X[j], Y[j] = x, y
+    return np.concatenate([[x0[0]], X.T.ravel()[:n1]]), np.concatenate([[x0[1]], Y.T.ravel()[:n1]])
+
+
+@pytest.mark.parametrize("n", [2, 20, 33, 35, 777, 32 * 32 + 3, 32 * 32 * 32 + 100])
+def test_compiled_affine_recursion_is_the_blockwise_numpy_arithmetic(n):
+    """The compiled recursion gives exactly the numbers of the blockwise numpy passes, read-only inputs
+    (the memo of step_weights) or not, and an overflow spreads as it did there."""
+    rng = np.random.default_rng(n)
+    E = tuple(rng.uniform(-0.5, 0.5, n - 1) for _ in range(4))
+    v0, v1 = rng.standard_normal(n - 1), rng.standard_normal(n - 1)
+    want = _affine_numpy(E, v0, v1, (0.3, -0.2))
+    for c in E[:2]:
+        c.flags.writeable = False
+    for got, ref in zip(affine_recursion(E, v0, v1, (0.3, -0.2)), want):
+        assert np.array_equal(got, ref)
+    v0[(n - 1) // 2] = np.inf
+    with np.errstate(invalid="ignore"):      # inf - inf in the reference, as in the simulation it was
+        want = _affine_numpy(E, v0, v1, (0.3, -0.2))
+    for got, ref in zip(affine_recursion(E, v0, v1, (0.3, -0.2)), want):
+        assert np.array_equal(got, ref, equal_nan=True)
 
 
 @pytest.mark.parametrize("n", [2, 20, 33, 35, 777, 32 * 32 + 3, 32 * 32 * 32 + 100])

@@ -66,8 +66,9 @@ def source_checkout() -> Path | None:
 #: the checkout of the running code (None: installed from a wheel)
 REPO = source_checkout()
 CASE_ENTRY = "jointbench.benchmarks.harness.case"
-#: libraries whose version is part of every cache key (their numerics are in every result)
-KEY_LIBRARIES = ("numpy", "scipy", "mujoco")
+#: libraries whose version is part of every cache key (their numerics are in every result; numba and llvmlite
+#: compile the loops of jointbench.core.compiled's users: another compiler may round otherwise)
+KEY_LIBRARIES = ("numpy", "scipy", "numba", "llvmlite", "mujoco")
 #: libraries recorded with each run (history), besides the key libraries
 RECORDED_LIBRARIES = ("pandas", "matplotlib", "pyyaml", "jinja2", "threadpoolctl", "dm-control", "tqdm")
 #: the tracked paths whose uncommitted changes can change a result; generated outputs (results/, the

@@ -112,7 +112,7 @@ def run_pairs(before: str, pairs: int, what: list[str]) -> list[dict]:
                         env = {**os.environ}
                         if fresh:
                             subprocess.run(["git", "checkout", "--quiet", "--", "results"], cwd=where, check=True)
-                            subprocess.run(["git", "clean", "-fdq", "results"], cwd=where, check=True)
+                            subprocess.run(["git", "clean", "-fdqx", "results"], cwd=where, check=True)
                             cache = tmp / f"cache-{label}-{i}"
                             shutil.rmtree(cache, ignore_errors=True)
                             env.update(XDG_CACHE_HOME=str(cache), MPLCONFIGDIR=str(cache / "matplotlib"))
