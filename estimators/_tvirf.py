@@ -228,29 +228,15 @@ def mdl_solve(Phi: np.ndarray, phi: np.ndarray, yvar: np.ndarray, n_obs: float, 
     order : ndarray of int (T,)
         Singular vectors kept.
 
-    Raises
-    ------
-    numpy.linalg.LinAlgError
-        A matrix has a non-finite entry (its eigenvalues are not defined).
+    Notes
+    -----
+    The eigendecompositions, orders and solutions are computed in one compiled loop over the stack
+    (:mod:`jointbench.estimators._small_eigh`; numpy's ``linalg.eigh``, one LAPACK call per matrix, cost
+    three quarters of an ensemble fit, issue 22, and a quarter of a cold vanderuit2018_table2, issue 34).
     """
-    if not np.isfinite(Phi).all():
-        bad = int(np.flatnonzero(~np.isfinite(Phi).all(axis=(1, 2)))[0])
-        raise np.linalg.LinAlgError(f"Eigenvalues did not converge (matrix {bad} of the stack is not finite)")
-    s, V = np.linalg.eigh(Phi)
-    s, V = s[:, ::-1], V[:, :, ::-1]                       # descending
-    proj = np.einsum("tli,tl->ti", V, phi)                  # phi on each eigenvector
-    kept = s > rcond * s[:, :1]
-    inv = np.divide(1.0, s, out=np.zeros_like(s), where=kept)
-    if solver == "full":
-        order = kept.sum(axis=1)
-    else:
-        # MDL(d) = (1 + d ln(n_obs) / n_obs) (yvar - explained_d), its first minimum over the kept d (none
-        # kept: order 1 with a zero coefficient)
-        d = np.arange(1, s.shape[1] + 1)
-        mdl = (1.0 + d * np.log(n_obs) / n_obs) * (yvar[:, None] - np.cumsum(proj ** 2 * inv, axis=1))
-        order = np.argmin(np.where(kept & ~np.isnan(mdl), mdl, np.inf), axis=1) + 1
-        inv[d[None, :] > order[:, None]] = 0.0
-    return np.einsum("tli,ti->tl", V, proj * inv), order
+    from jointbench.estimators._small_eigh import mdl_pinv       # numba: imported on first use
+
+    return mdl_pinv(Phi, phi, yvar, n_obs, solver == "full", rcond)
 
 
 def fill_invalid(h: np.ndarray, valid: np.ndarray) -> np.ndarray:

@@ -8,8 +8,7 @@ import numpy as np
 
 from jointbench.estimators import register
 from jointbench.estimators._resample import JackknifeSettings, realization_jackknife
-from jointbench.estimators._tvirf import (EnsembleEstimator, TVLagSettings, centred, fill_invalid, gram_stack, lagged,
-                                         mdl_solve)
+from jointbench.estimators._tvirf import EnsembleEstimator, TVLagSettings, centred, fill_invalid, lagged, mdl_solve
 from jointbench.core.ensemble import Ensemble
 from jointbench.core.errors import InputError
 from jointbench.core.estimate_tv import TVIRFEstimate
@@ -94,11 +93,13 @@ class EnsembleIRF(EnsembleEstimator):
                              f"and {2 * P} pooled samples leave {max(0, n - (L - 1) - 2 * P)} samples whose lags lie "
                              f"in the record, fewer than the lags (need {2 * L - 1 + 2 * P} samples; settings "
                              f"'lag_before', 'lag_after', 'pool'): too short a record to follow a time course")
+        from jointbench.estimators._small_eigh import lagged_gram          # compiled (numba): on first use
+
         U, Y = centred(self.name, ens, s.remove_mean)
         X = lagged(U, m1, m2)                       # (n - L + 1, R, L): row i is sample i + M2
         Yv = Y[m2:n - m1]
         n_obs = R * width
-        Phi = _moving_sum(gram_stack(X), width)                              # X[i]^T X[i] for every i
+        Phi = _moving_sum(lagged_gram(U, L), width)                          # X[i]^T X[i] for every i
         phi = _moving_sum(np.einsum("trl,tr->tl", X, Yv), width)
         yy = _moving_sum(np.einsum("tr,tr->t", Yv, Yv), width)
         for a in (Phi, phi, yy):                    # per observation (new arrays: in place)

@@ -1,8 +1,9 @@
 """How the compiled loops of the package are compiled: numba in nopython mode, cached on disk.
 
-One mechanism for every compiled kernel: the integrator loops of :mod:`jointbench.sims._ltv_kernels` and
-FSEWLS's EWLS loops of :mod:`jointbench.estimators._ewls_loops`, the two that pay for themselves (issue 34:
-without them `make reproduce` on a fresh clone waits far more than 10 % longer, results/benchmarks.md).
+One mechanism for every compiled kernel: the integrator loops of :mod:`jointbench.sims._ltv_kernels`,
+FSEWLS's EWLS loops of :mod:`jointbench.estimators._ewls_loops` and the ensemble estimators' eigensolver
+(:mod:`jointbench.estimators._small_eigh`), the three that pay for themselves (issue 34 weighed each against
+the time a user waits, results/benchmarks.md).
 Each kernel module imports this (and numba) on its first use, so that ``import jointbench``, the
 registries and the command line's start stay light.
 
@@ -37,3 +38,11 @@ def jit(fn):
                           stacklevel=2)
         _UNCACHED.append(fn.__name__)
         return njit(error_model="numpy")(fn)
+
+
+def jit_inline(fn):
+    """``fn`` compiled as :func:`jit` compiles, and inlined into each caller in numba's own representation
+    (``inline="always"``): no compiled function of its own, so its callees' code is not optimised and
+    generated once more for it (a fifth of the eigensolver's compile time when it was a compiled helper,
+    issue 22)."""
+    return njit(cache=True, error_model="numpy", inline="always")(fn)

@@ -8,7 +8,8 @@ clone with its own ``.venv`` (made first, not timed), alternately (before, after
 that both see the same load on the shared machine:
 
 - ``reproduce``: ``make reproduce`` with an empty cache (``XDG_CACHE_HOME`` and ``MPLCONFIGDIR`` new
-  folders), the results folder reset to the clone's committed one first (a newcomer's first run);
+  folders), the results folder reset to the clone's committed one and every ``__pycache__`` of the clone
+  (where numba caches the compiled loops) removed first: a newcomer's first run;
 - ``estimate``: ``jointbench estimate`` on a one-minute record (60 s at 1 kHz, simulated once by HEAD's
   API with a fixed seed) with ``fsewls``, and on an ensemble of ten one-minute records at 100 Hz with
   ``ensemble_irf`` (the two fits whose compiled loops were removed);
@@ -113,6 +114,8 @@ def run_pairs(before: str, pairs: int, what: list[str]) -> list[dict]:
                         if fresh:
                             subprocess.run(["git", "checkout", "--quiet", "--", "results"], cwd=where, check=True)
                             subprocess.run(["git", "clean", "-fdqx", "results"], cwd=where, check=True)
+                            for pyc in where.glob("[!.]*/**/__pycache__"):     # a fresh clone has none: numba's
+                                shutil.rmtree(pyc, ignore_errors=True)       # disk cache lives there too
                             cache = tmp / f"cache-{label}-{i}"
                             shutil.rmtree(cache, ignore_errors=True)
                             env.update(XDG_CACHE_HOME=str(cache), MPLCONFIGDIR=str(cache / "matplotlib"))
