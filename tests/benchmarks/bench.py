@@ -235,7 +235,9 @@ def write_summary(study_rows: list[dict], load: tuple[str, str] | None, referenc
         return
     out = REPO / "results" / "benchmarks.md"
     ref = json.loads(reference.read_text()) if reference is not None and reference.is_file() else None
-    out.write_text(render(json.loads(src.read_text()), study_rows, load, ref, RATIO_FACTOR, fresh))
+    from tests.benchmarks import versus
+
+    out.write_text(render(json.loads(src.read_text()), study_rows, load, ref, RATIO_FACTOR, fresh, versus.read()))
     print(f"wrote {out.relative_to(REPO)}")
 
 

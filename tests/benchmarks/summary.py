@@ -133,7 +133,8 @@ def to_recheck(report: dict, names: list[str]) -> list[str]:
 
 
 def render(report: dict, studies: list[dict] | None = None, load: tuple[str, str] | None = None,
-           reference: dict | None = None, factor: float = RATIO_FACTOR, fresh: dict | None = None) -> str:
+           reference: dict | None = None, factor: float = RATIO_FACTOR, fresh: dict | None = None,
+           versus_rows: list[dict] | None = None) -> str:
     """Markdown of a pytest-benchmark JSON ``report`` (and the study rows of the same run).
 
     Parameters
@@ -146,6 +147,8 @@ def render(report: dict, studies: list[dict] | None = None, load: tuple[str, str
         The 1-minute load average before and after the micro-benchmarks.
     reference : dict, optional
         The stored run this one was compared with (:func:`gate`, ratios grown by more than ``factor``).
+    versus_rows : list of dict, optional
+        Rows of results/speed_versus.csv (:mod:`tests.benchmarks.versus`): their before/after table.
     """
     docs = first_sentences()
     commit = report.get("commit_info", {})
@@ -196,8 +199,8 @@ def render(report: dict, studies: list[dict] | None = None, load: tuple[str, str
                   f"on {fresh['cpus']} cores: **{fresh['wall_s']} s wall**, {fresh['cpu_s']} CPU-s, exit "
                   f"{fresh['exit']}, 1-minute load average {fresh['load_before']} before and {fresh['load_after']} "
                   f"after."]
-    from tests.benchmarks import versus
+    if versus_rows:                               # the times a user waits, two commits side by side
+        from tests.benchmarks import versus
 
-    if rows := versus.read():                     # the times a user waits, two commits side by side (committed)
-        lines += ["", versus.render(rows).rstrip("\n")]
+        lines += ["", versus.render(versus_rows).rstrip("\n")]
     return "\n".join(lines) + "\n"

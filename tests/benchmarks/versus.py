@@ -36,7 +36,7 @@ from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[2]
 TABLE = REPO / "results" / "speed_versus.csv"
-FIELDS = ["date", "versus", "label", "commit", "command", "pair", "wall_s", "cpu_s", "exit", "load_before"]
+FIELDS = ["date", "versus", "label", "commit", "command", "pair", "wall_s", "cpu_s", "exit", "load_before", "note"]
 WHAT = ("reproduce", "estimate", "matrix", "test")
 
 
@@ -98,7 +98,7 @@ def commands(what: str, data: dict[str, list[Path]] | None) -> list[tuple[str, l
     return out
 
 
-def run_pairs(before: str, pairs: int, what: list[str]) -> list[dict]:
+def run_pairs(before: str, pairs: int, what: list[str], note: str = "") -> list[dict]:
     rows = []
     with tempfile.TemporaryDirectory(prefix="jointbench-versus-") as tmp:
         tmp = Path(tmp)
@@ -124,7 +124,7 @@ def run_pairs(before: str, pairs: int, what: list[str]) -> list[dict]:
                         row = {"date": datetime.datetime.now().isoformat(timespec="seconds"),
                                "versus": f"{commits['before']}..{commits['after']}", "label": label,
                                "commit": commits[label], "command": name, "pair": i, "wall_s": f"{wall:.2f}",
-                               "cpu_s": f"{cpu:.2f}", "exit": code, "load_before": f"{load:.2f}"}
+                               "cpu_s": f"{cpu:.2f}", "exit": code, "load_before": f"{load:.2f}", "note": note}
                         rows.append(row)
                         print(f"{name} [{label} {commits[label]}] pair {i}: {wall:.1f} s wall, {cpu:.1f} CPU-s, "
                               f"exit {code}", flush=True)
@@ -145,8 +145,9 @@ def medians(rows: list[dict]) -> list[dict]:
     out = []
     by: dict = {}
     for r in rows:
-        by.setdefault((r["versus"], r["command"]), []).append(r)
-    for (_, name), rs in by.items():
+        by.setdefault((r["versus"], r["command"], r.get("note") or ""), []).append(r)
+    for (_, command, note), rs in by.items():
+        name = f"{command} ({note})" if note else command
         ok = {lab: [r for r in rs if r["label"] == lab and int(r["exit"]) == 0] for lab in ("before", "after")}
         failed = sum(int(r["exit"]) != 0 for r in rs)
         if not ok["before"] or not ok["after"]:
@@ -193,12 +194,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("before", help="the commit to compare HEAD with")
     ap.add_argument("--pairs", type=int, default=3, help="interleaved pairs per command (default 3)")
     ap.add_argument("--what", default="reproduce,estimate", help=f"comma-separated, of {', '.join(WHAT)}")
+    ap.add_argument("--note", default="", help="what HEAD is, when it is not the commit on main (a variant)")
     a = ap.parse_args(argv)
     what = [w.strip() for w in a.what.split(",") if w.strip()]
     bad = [w for w in what if w not in WHAT]
     if bad:
         ap.error(f"--what {','.join(bad)}: not one of {', '.join(WHAT)}")
-    rows = run_pairs(a.before, a.pairs, what)
+    rows = run_pairs(a.before, a.pairs, what, a.note)
     append(rows)
     print(render(rows))
     return 0 if all(int(r["exit"]) == 0 for r in rows) else 1
