@@ -31,9 +31,8 @@ CHECK_KINDS = {
     "difference": ({"versus"}, {"versus", "by", "low", "high", "aggregate"}),
 }
 _KIND_NAMES = tuple(CHECK_KINDS)
-#: the defaults of the fields a check kind may take (:meth:`CheckEntry.to_check`)
-_KIND_DEFAULTS = {"low": -math.inf, "high": math.inf, "aggregate": "median", "over": "", "direction": "decreasing",
-                  "slack": 0.0, "versus": None, "by": ""}
+#: the fields a check kind may take (:data:`CHECK_KINDS`); left out, they take :func:`_kind_defaults`
+_KIND_FIELDS = tuple(sorted(set().union(*(allows for _, allows in CHECK_KINDS.values()))))
 
 @dataclasses.dataclass(frozen=True)
 class Check:
@@ -78,6 +77,13 @@ class Check:
         """The reading ids named by ``reading`` (``"R1, R2"`` -> ``("R1", "R2")``)."""
         return tuple(r.strip() for r in self.reading.split(",") if r.strip())
 
+
+
+def _kind_defaults() -> dict:
+    """The values of :data:`_KIND_FIELDS` left out of a check: :class:`Check`'s defaults, an open band."""
+    out = {f.name: f.default for f in dataclasses.fields(Check) if f.name in _KIND_FIELDS
+           and f.default is not dataclasses.MISSING}
+    return {"low": -math.inf, "high": math.inf, **out}
 
 @dataclasses.dataclass(frozen=True)
 class _Range:
@@ -151,15 +157,16 @@ class CheckEntry(Check):
 
     def _check_kind(self) -> None:
         needs, allows = CHECK_KINDS[self.kind]
-        given = {name for name in _KIND_DEFAULTS if getattr(self, name) not in (None, "")}
-        for name in sorted(needs - given):
-            raise ConfigError(f"check kind '{self.kind}' needs key {name!r}")
+        given = {name for name in _KIND_FIELDS if getattr(self, name) not in (None, "")}
+        missing = sorted(needs - given)
+        if missing:
+            raise ConfigError(f"check kind '{self.kind}' needs key {missing[0]!r}")
         extra = sorted(given - allows)
         if extra:
             raise ConfigError(f"key {extra[0]!r} does not apply to check kind '{self.kind}'; "
                               f"it takes: {', '.join(sorted(allows))}")
-        check = self.to_check()
-        low, high = check.low, check.high
+        low = -math.inf if self.low is None else self.low
+        high = math.inf if self.high is None else self.high
         if low > high:
             raise ConfigError(f"low {low} > high {high}")
 
@@ -182,7 +189,7 @@ class CheckEntry(Check):
     def to_check(self) -> Check:
         """The :class:`Check`, the fields not given at their defaults."""
         values = {f.name: getattr(self, f.name) for f in dataclasses.fields(Check)}
-        values.update({k: d for k, d in _KIND_DEFAULTS.items() if values[k] is None})
+        values.update({k: d for k, d in _kind_defaults().items() if values[k] is None})
         values.update(reading=self.reading.strip(), free_parameter=self.free_parameter.strip(),
                       tolerance_reason=self.tolerance_reason.strip())
         return Check(**values)

@@ -13,6 +13,7 @@ any). Beside them, shared by every study:
 from __future__ import annotations
 
 import dataclasses
+import functools
 import os
 import shutil
 import sys
@@ -229,9 +230,9 @@ class _Run:
     run_id: int | None = None
     keys: dict = dataclasses.field(default_factory=dict)      # case id -> cache key, of every case recorded
 
-    @property
+    @functools.cached_property
     def parts(self) -> list[str]:
-        """The parts whose cases this run runs."""
+        """The parts whose cases this run runs (worked out once: the cases do not change)."""
         return list(dict.fromkeys(c.part for c in self.cases))
 
     @property

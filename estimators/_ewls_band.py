@@ -18,15 +18,7 @@ from __future__ import annotations
 import numpy as np
 from scipy import signal as sps
 
-_IU = np.triu_indices(3)
-
-
-def _sym(x: np.ndarray) -> np.ndarray:
-    """(n, 6) unique entries -> (n, 3, 3) symmetric."""
-    out = np.empty(x.shape[:-1] + (3, 3))
-    out[..., _IU[0], _IU[1]] = x
-    out[..., _IU[1], _IU[0]] = x
-    return out
+from jointbench.estimators._fsewls_kernels import UPPER3, unpack
 
 
 def _decay(x: np.ndarray, c: float) -> np.ndarray:
@@ -69,10 +61,10 @@ def ewls_covariance(Phi: np.ndarray, y: np.ndarray, Theta: np.ndarray, dt: float
     kern = np.concatenate([h[:0:-1], h])                                    # lags -K ... K
     Pt = sps.fftconvolve(Phi, kern[None, :, None], mode="same", axes=1)      # Phitilde (records, n, 3)
     c = np.exp(-lam * dt)
-    om = 0.5 * (np.einsum("rni,rnj->nij", Phi, Pt) + np.einsum("rni,rnj->nij", Pt, Phi))[:, _IU[0], _IU[1]]
-    info = np.einsum("rni,rnj->nij", Phi, Phi)[:, _IU[0], _IU[1]] * dt
-    R = _sym(_decay(info, c))
-    S = _sym(_decay(om * dt * dt, c * c))
+    om = 0.5 * (np.einsum("rni,rnj->nij", Phi, Pt) + np.einsum("rni,rnj->nij", Pt, Phi))[:, UPPER3[0], UPPER3[1]]
+    info = np.einsum("rni,rnj->nij", Phi, Phi)[:, UPPER3[0], UPPER3[1]] * dt
+    R = unpack(_decay(info, c))[0]            # (n, 6) unique entries -> (n, 3, 3)
+    S = unpack(_decay(om * dt * dt, c * c))[0]
     scale = 1.0 / np.sqrt(np.maximum(np.einsum("nii->ni", R), 1e-300))
     Rs = R * scale[:, :, None] * scale[:, None, :] + 1e-12 * np.eye(3)   # the first samples hold no information
     Ri = np.linalg.inv(Rs) * scale[:, :, None] * scale[:, None, :]

@@ -17,7 +17,7 @@ Run a study (a shipped one, a study file or a mapping) and read its tidy rows an
 history, as DataFrames::
 
     run = api.run("westwick2012", parts=["fig2"], out="results")
-    run.rows, run.checks, api.history(out="results")
+    run.rows, run.checks, api.History("results").runs()
 
 This module is a room of its own above the harness (tests/test_architecture.py): it may use the core,
 ``jointbench.sims``, ``jointbench.estimators`` and ``jointbench.benchmarks``; only the command-line modules
@@ -315,7 +315,9 @@ def run(study: str | Path | Mapping[str, Any], *, parts: Sequence[str] | None = 
     ref = dict(study) if isinstance(study, Mapping) else study
     serial = executor == "serial"
     own = isinstance(executor, str)
-    exe = make_executor(executor, workers, scheduler) if own and not serial else (None if own else executor)
+    exe = make_executor(executor, workers, scheduler) if own else executor     # checks the arguments, each kind
+    if serial:
+        exe = None                                # the runner's own serial path (one BLAS thread)
     try:
         r = run_study(ref, parts=list(parts) if parts else None, out_root=Path(out) if out else None,
                       serial=serial, workers=workers, use_cache=use_cache, progress=progress, command=record_as,

@@ -159,3 +159,11 @@ def test_the_history_object_answers_what_the_command_prints(tmp_path):
     assert shown.returncode == 0 and f"run {first} (run" in shown.stdout
     with pytest.raises(Exception, match="history"):
         api.History(tmp_path / "nowhere").runs()
+
+
+@pytest.mark.parametrize("executor", ["serial", "process"])
+def test_run_refuses_a_scheduler_without_dask_in_python_words(executor):
+    """api.run checks its executor arguments for every kind, serial included (a serial run takes the runner's
+    own path, but a scheduler given with it is still an error, worded for a Python caller)."""
+    with pytest.raises(ConfigError, match=r"^scheduler applies to executor='dask', not "):
+        api.run("westwick2012", executor=executor, scheduler="tcp://127.0.0.1:1", progress=False)

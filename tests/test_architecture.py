@@ -328,20 +328,8 @@ def test_an_import_loop_is_caught():
 def private_imports(source: str, module: str, is_package: bool = False) -> list[str]:
     """``from M import _name`` in ``source`` where ``_name`` is not a module (a private helper of a package,
     ``from pkg import _mod``, is the package's own and allowed)."""
-    tree = ast.parse(source)
-    package = module if is_package else module.rpartition(".")[0]
-    bad = []
-    for node in ast.walk(tree):
-        if not isinstance(node, ast.ImportFrom):
-            continue
-        base = node.module or ""
-        if node.level:
-            parent = package.rsplit(".", node.level - 1)[0] if node.level > 1 else package
-            base = f"{parent}.{base}" if base else parent
-        for a in node.names:
-            if a.name.startswith("_") and not a.name.startswith("__") and f"{base}.{a.name}" not in MODULES:
-                bad.append(f"{base}.{a.name}")
-    return bad
+    return [f"{base}.{n}" for base, names in import_statements(source, module, is_package) for n in names
+            if n.startswith("_") and not n.startswith("__") and f"{base}.{n}" not in MODULES]
 
 
 MODULES = {module_of_file(f) for f in code_files()}

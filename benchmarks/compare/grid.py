@@ -59,7 +59,8 @@ from typing import Any, Callable, Mapping
 
 from jointbench import estimators
 from jointbench import sims
-from jointbench.benchmarks.compare.tuning import AXES, AxisValues, OnlyRule, candidates, check_search, grid_settings
+from jointbench.benchmarks.compare.tuning import (AXES, AxisValues, OnlyRule, candidates, check_known_estimators,
+                                                  check_search, grid_settings)
 from jointbench.core.errors import ConfigError, Incompatible
 from jointbench.core.schema import Problems, number, param, parse
 
@@ -189,16 +190,10 @@ def _scenarios(spec: GridSpec, experiment: Mapping | None, where: str,
         with problems.catch():
             if isinstance(exp.get("joint"), str):
                 exp["joint"] = resolve_joint(exp["joint"], f"{w}: experiment")
-            _known_estimators(sc.estimators, f"{w}: estimators")
+            check_known_estimators(sc.estimators, f"{w}: estimators")
         out[name] = dataclasses.replace(sc, experiment=exp)
     problems.raise_all()
     return out
-
-
-def _known_estimators(names, where: str) -> None:
-    unknown = [e for e in names if e not in estimators.REGISTRY]
-    if unknown:
-        raise ConfigError(f"{where}: unknown estimator {unknown[0]!r}; known: {', '.join(estimators.REGISTRY.names())}")
 
 
 def _check_names(axes: Mapping[str, tuple], scenarios: Mapping, spec: GridSpec, part_estimators: Mapping,
@@ -208,7 +203,7 @@ def _check_names(axes: Mapping[str, tuple], scenarios: Mapping, spec: GridSpec, 
     _names("scenario", axes["scenario"], scenarios, where, "scenario", native=False)
     _names("estimator", axes["estimator"], estimators.REGISTRY.names(), where, "estimator", native=False)
     # settings of an estimator not on the axis are kept (an axis shortened by --set)
-    _known_estimators(part_estimators, f"{where}: estimators")
+    check_known_estimators(part_estimators, f"{where}: estimators")
     _names("variation", axes.get("variation", ()), spec.variations, where, "variation")
     _names("perturbation", axes.get("perturbation", ()), spec.perturbations, where, "perturbation")
     for name, pert in spec.perturbations.items():

@@ -64,12 +64,19 @@ def grid_settings(part_estimators: Mapping[str, dict], est: str) -> dict:
     return dict(part_estimators.get(est) or {})
 
 
+def check_known_estimators(names, where: str) -> None:
+    """Every name is a registered estimator (built-in or plugin); a :class:`ConfigError` naming the first that
+    is not, otherwise."""
+    unknown = [e for e in names if e not in estimators.REGISTRY]
+    if unknown:
+        raise ConfigError(f"{where}: unknown estimator {unknown[0]!r}; known: {', '.join(estimators.REGISTRY.names())}")
+
+
 def check_search(search: Mapping[str, Mapping[str, tuple]], where: str) -> None:
     """A tuning search (estimator -> setting -> the values tried, as parsed) names known estimators and tries
     at least one value of each setting; a :class:`ConfigError` otherwise."""
+    check_known_estimators(search, where)
     for est, spec in search.items():
-        if est not in estimators.REGISTRY:
-            raise ConfigError(f"{where}: unknown estimator {est!r}; known: {', '.join(estimators.REGISTRY.names())}")
         empty = [k for k, v in spec.items() if not v]
         if empty:
             raise ConfigError(f"{where}.{est}.{empty[0]}: expected a value or a non-empty list of values")

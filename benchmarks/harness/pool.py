@@ -30,7 +30,7 @@ import time
 
 from jointbench.benchmarks.harness.case import limit_process_to_one_blas_thread, run_group
 from jointbench.benchmarks.harness.workers import WorkerMismatch, identity_problem, worker_identity
-from jointbench.core.errors import ConfigError
+from jointbench.core.errors import ConfigError, argument
 
 #: the executors :func:`make_executor` builds (``jointbench run --executor``)
 EXECUTORS = ("process", "serial", "dask")
@@ -159,9 +159,9 @@ def check_workers(kind: str, workers: int | None) -> None:
     """Refuse a worker count that would exhaust the machine (one line, before anything starts)."""
     cores = os.cpu_count() or 1
     if workers is not None and kind in ("process", "dask") and workers > MAX_WORKERS_PER_CORE * cores:
-        raise ConfigError(f"--workers {workers}: more than {MAX_WORKERS_PER_CORE} worker processes per core "
-                          f"({MAX_WORKERS_PER_CORE * cores} on this machine's {cores} cores); for more, run "
-                          f"`dask worker` processes on other machines and give --scheduler")
+        raise ConfigError(f"{argument('workers', workers)}: more than {MAX_WORKERS_PER_CORE} worker processes per "
+                          f"core ({MAX_WORKERS_PER_CORE * cores} on this machine's {cores} cores); for more, run "
+                          f"`dask worker` processes on other machines and give {argument('scheduler')}")
 
 
 def make_executor(kind: str, workers: int | None = None, scheduler: str | None = None):
@@ -169,9 +169,9 @@ def make_executor(kind: str, workers: int | None = None, scheduler: str | None =
     sized to the work). ``scheduler`` (dask only): the address of a running Dask scheduler
     (``tcp://host:8786``); without it a local Dask cluster of ``workers`` processes is started."""
     if kind not in EXECUTORS:
-        raise ConfigError(f"--executor: unknown executor {kind!r}; known: {', '.join(EXECUTORS)}")
+        raise ConfigError(f"{argument('executor')}: unknown executor {kind!r}; known: {', '.join(EXECUTORS)}")
     if scheduler is not None and kind != "dask":
-        raise ConfigError(f"--scheduler applies to --executor dask, not {kind!r}")
+        raise ConfigError(f"{argument('scheduler')} applies to {argument('executor', 'dask')}, not {kind!r}")
     check_workers(kind, workers if scheduler is None else None)
     if kind == "serial":
         return InlineExecutor()

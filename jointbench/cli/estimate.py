@@ -370,7 +370,9 @@ def _check_outputs(out: Path, plot: Path | None, inputs: Sequence[str]) -> None:
         raise ConfigError(f"--plot: must end in {', '.join(PLOT_SUFFIXES)}, got {str(plot)!r}")
     targets = [out, out.with_name(f"{out.stem}_irf{out.suffix}"), out.with_name(f"{out.stem}_frf{out.suffix}"),
                prediction_path(out)] + ([plot] if plot else [])
-    given = {os.path.abspath(p) for s in inputs for p in (s, s.rpartition(":")[0] or s)}
+    from jointbench.fitting.read import parse_source       # the one reading of FILE[:ARRAY]
+
+    given = {os.path.abspath(parse_source(s).path) for s in inputs}
     for t in targets:
         if os.path.abspath(t) in given:
             raise ConfigError(f"refusing to overwrite input file {t}")

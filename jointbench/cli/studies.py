@@ -68,7 +68,7 @@ def _run(args) -> int:
 
 #: how ``jointbench run`` words the arguments of :func:`jointbench.api.run` in its messages
 RUN_FLAGS = {"backend": "--backend", "plugins": "--plugin", "executor": "--executor", "workers": "--workers",
-             "scheduler": "--scheduler", "budget": "--budget", "overrides": "--set", "parts": "--parts"}
+             "scheduler": "--scheduler"}
 
 
 def _run_one(args, study: str) -> int:

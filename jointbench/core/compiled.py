@@ -23,7 +23,7 @@ import warnings
 
 from numba import njit
 
-_UNCACHED: list[str] = []
+_WARNED: list[bool] = []          # the warning below is given once per process
 
 
 def jit(fn):
@@ -32,11 +32,11 @@ def jit(fn):
     try:
         return njit(cache=True, error_model="numpy")(fn)
     except RuntimeError as exc:                   # numba: "cannot cache function ...: no locator available"
-        if not _UNCACHED:
+        if not _WARNED:
+            _WARNED.append(True)
             warnings.warn(f"jointbench: the compiled kernels are not cached ({exc}); each process compiles them "
                           f"again (a few seconds): set NUMBA_CACHE_DIR to a writable folder", RuntimeWarning,
                           stacklevel=2)
-        _UNCACHED.append(fn.__name__)
         return njit(error_model="numpy")(fn)
 
 

@@ -201,8 +201,10 @@ def each_names_one_file(lines: list[str]) -> bool:
     """Whether several lines are errors of one config file: each starts with the path of the file the
     first names (``<path>.yaml: ...``, the first after the command line's ``jointbench: error: ``). A line
     that does not name the file (a hint, a warning, an error that lost its origin) makes them unclear."""
+    if len(lines) < 2:
+        return False
     first = CONFIG_FILE.match(ERROR_PREFIX.sub("", lines[0], count=1))
-    if len(lines) < 2 or first is None:
+    if first is None:
         return False
     named = first.group("file") + ": "
     return all(ERROR_PREFIX.sub("", ln, count=1).startswith(named) for ln in lines)

@@ -104,14 +104,15 @@ def _experiment(**changes):
     return setup
 
 
-def _s_yaml(ws):
+def s_yaml(ws):
+    """``jointbench run`` of the study file ``s.yaml``."""
     return ["run", ws.path("configs", "s.yaml"), "--out", ws.out, "--quiet"]
 
 
 # every error of a file at once, one line each, each naming the file (core.clean_error)
-case(kind, "several errors in one experiment", args=_s_yaml, names=r"s\.yaml.*fs_sim",
+case(kind, "several errors in one experiment", args=s_yaml, names=r"s\.yaml.*fs_sim",
      setup=_experiment(joint={"model": "second_order", "I": "heavy", "B": 0.5, "K": -50}, fs_sim="2 kg"))
-case(kind, "several errors in one profile", args=_s_yaml, names=r"s\.yaml.*initial",
+case(kind, "several errors in one profile", args=s_yaml, names=r"s\.yaml.*initial",
      setup=_experiment(joint={"model": "time_varying", "I": 0.01, "B": 0.5, "K": {"shape": "ramp", "end": 80}}))
 
 kind = "published"
@@ -123,8 +124,6 @@ def _pub(value):
     return edit
 
 
-def s_yaml(ws):
-    return (["run", ws.path("configs", "s.yaml"), "--out", ws.out, "--quiet"])
 case(kind, "published: 123", setup=_edited(_pub(123)), args=s_yaml, names=r"published")
 case(kind, "published: a list", setup=_edited(_pub(["a.yaml", "b.yaml"])), args=s_yaml, names=r"published")
 case(kind, "published: a mapping", setup=_edited(_pub({"x": 1})), args=s_yaml, names=r"published")
