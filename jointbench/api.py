@@ -158,10 +158,7 @@ def score(estimate, data, *, fs: float | None = None, array: str | None = None,
     from jointbench.fitting import inputs, pipeline
 
     est = getattr(estimate, "estimate", estimate)
-    records = list(inputs.records(data, fs=fs, array=array))
-    if isinstance(torque_sign, bool) or torque_sign not in (1, -1):
-        raise ConfigError(f"torque_sign: must be 1 or -1, got {torque_sign!r}")
-    records = [t.replace(torque=torque_sign * t.torque) for t in records]
+    records = pipeline.signed(list(inputs.records(data, fs=fs, array=array)), torque_sign)
     for t in records:
         if t.fs != est.fs:
             raise ConfigError(f"data: record '{t.name}' is sampled at {t.fs:g} Hz, the estimate at {est.fs:g} Hz; "
@@ -387,7 +384,4 @@ class History:
 
         rules = load_config(Path(config) if config else DEFAULT_CONFIG).rules
         with self._open() as h:
-            a, b = h.run(before), h.run(after)
-            if a["study"] != b["study"]:
-                raise ConfigError(f"runs {before} and {after} are of different studies ({a['study']}, {b['study']})")
             return diff_runs(h, before, after, rules)

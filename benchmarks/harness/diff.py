@@ -17,6 +17,7 @@ import pandas as pd
 
 from jointbench.benchmarks.config import EVIDENCE
 from jointbench.benchmarks.harness.history import History
+from jointbench.core.errors import ConfigError
 
 
 @dataclasses.dataclass(frozen=True)
@@ -233,6 +234,8 @@ def diff_runs(history: History, before: int, after: int, rules: Rules | None = N
     """Everything that changed from run ``before`` to run ``after`` (both recorded in ``history``)."""
     rules = rules or Rules()
     a, b = history.run(before), history.run(after)
+    if a["study"] != b["study"]:
+        raise ConfigError(f"runs {before} and {after} are of different studies ({a['study']}, {b['study']})")
     checks, flipped = _checks(history, before, after)
     drift, drift_rows, coverage = _drift(history, before, after, rules)
     new_failures, fixed = _failures(history, before, after)

@@ -85,7 +85,7 @@ def _diff(args) -> int:
 
     h = _history(args)
     d = h.diff(args.run_a, args.run_b, config=args.config)
-    a, b = h.run(args.run_a), h.run(args.run_b)
+    a, b = d.before, d.after
     print(f"{d.study}: run {args.run_a} ({a['started'][:19]}, {a['status']}) -> run {args.run_b} "
           f"({b['started'][:19]}, {b['status']})")
     sections = [

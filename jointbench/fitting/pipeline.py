@@ -130,18 +130,29 @@ def ensemble_name(estimator, records, ensemble: bool | None) -> str | None:
     return f"{len(records)} records" if len(records) > 1 else records[0].name
 
 
+def checked_torque_sign(torque_sign) -> int:
+    """``torque_sign`` when it is 1 or -1; one line naming the argument otherwise."""
+    if isinstance(torque_sign, bool) or torque_sign not in (1, -1):
+        raise ConfigError(f"{argument('torque_sign')}: must be 1 or -1, got {torque_sign!r}")
+    return torque_sign
+
+
+def signed(records: list, torque_sign: int) -> list:
+    """The records with their torque negated when ``torque_sign`` is -1 (recordings whose torque is positive
+    opposite to the angle)."""
+    return [t.replace(torque=-t.torque) for t in records] if checked_torque_sign(torque_sign) == -1 else records
+
+
 def prepare(estimator, raw: list, *, torque_sign: int = 1, decimate: int = 1,
             window: tuple[float | None, float | None] | None = None) -> tuple[list, list[str]]:
     """The records as they are fitted, and notes on what was done unasked: magnitudes checked, the torque's
     sign, decimation, the crop (``window``, or a gated multisine's whole periods), then information and
     memory checked."""
-    if isinstance(torque_sign, bool) or torque_sign not in (1, -1):
-        raise ConfigError(f"{argument('torque_sign')}: must be 1 or -1, got {torque_sign!r}")
+    sign = checked_torque_sign(torque_sign)
     if isinstance(decimate, bool) or not isinstance(decimate, int) or decimate < 1:
         raise ConfigError(f"{argument('decimate')}: must be a whole number >= 1, got {decimate!r}")
     checks.check_magnitudes(raw)
-    if torque_sign == -1:
-        raw = [t.replace(torque=-t.torque) for t in raw]
+    raw = signed(raw, sign)
     trials = [checks.decimate_trial(t, decimate) for t in raw]
     notes: list[str] = []
     if window is not None:
