@@ -21,6 +21,28 @@ class InputError(JointBenchError, ValueError):
     """A data record cannot be used (NaN, non-uniform time, mismatched lengths, too short...)."""
 
 
+class Refused(InputError):
+    """An estimate was computed but is not returned as a result: it cannot be trusted (the output gate of
+    :func:`jointbench.fitting.pipeline.fit`). Its prediction of the record it was fitted on is worse than a
+    constant (VAF < 0), a parameter or a bound is not finite, or an interval has zero or non-finite width.
+
+    Attributes
+    ----------
+    reason : str
+        A short code: ``"negative_vaf"``, ``"non_finite"``, ``"degenerate_interval"``, ``"invalid_estimate"``.
+    diagnostics : dict
+        The numbers behind the refusal (e.g. ``{"vaf": [-303.4], "record": ["trial1"]}``), for a notebook.
+
+    The message is one line naming the cause and the setting to change; the CLI prints it and exits 2, the
+    harness records the case as ``refused`` with it.
+    """
+
+    def __init__(self, message: str, *, reason: str, diagnostics: Mapping | None = None):
+        super().__init__(message)
+        self.reason = reason
+        self.diagnostics = dict(diagnostics or {})
+
+
 class OutputError(JointBenchError, OSError):
     """A result or output file cannot be written (read-only folder, full disk, a path outside the
     results folder...)."""
