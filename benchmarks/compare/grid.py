@@ -52,6 +52,7 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+import collections
 import itertools
 import json
 import math
@@ -293,8 +294,22 @@ def _check_values(axes: dict[str, tuple], where: str) -> None:
 
 def _search(spec: GridSpec, scenarios: Mapping[str, _ScenarioSpec], axes: Mapping[str, tuple],
             part_estimators: Mapping, where: str) -> Search:
-    """The part's tuning search; with each scenario's over it, every candidate of every estimator parses."""
+    """The part's tuning search; with each scenario's over it, every candidate of every estimator parses. A
+    search that would have no effect is refused: one for an estimator not on the grid's estimator axis, or any
+    search when the tuning axis has no 'tuned' column."""
     check_search(spec.tuning, f"{where}: tuning")
+    searches = [(f"{where}: tuning", spec.tuning)] + [(f"{where}: scenarios.{s}.tuning", sc.tuning)
+                                                       for s, sc in scenarios.items()]
+    for at, search in searches:
+        idle = [e for e in search if e not in axes["estimator"]]
+        if idle:
+            raise ConfigError(f"{at}: {idle[0]!r} is not on the grid's estimator axis "
+                              f"({', '.join(axes['estimator'])}); its search would have no effect: add it to "
+                              f"grid.estimator or remove its search")
+        if search and "tuned" not in axes.get("tuning", ()):
+            raise ConfigError(f"{at}: a search, but the grid's tuning axis has no 'tuned' column "
+                              f"({', '.join(axes.get('tuning', ())) or 'none'}); add grid.tuning: [paper, tuned] "
+                              f"or remove the search")
     for sname, sc in scenarios.items():
         check_search(sc.tuning, f"{where}: scenarios.{sname}.tuning")
         for est in axes["estimator"]:
@@ -427,7 +442,20 @@ def expand_grid(study_id: str, part, backend: str | None = None) -> tuple[list[d
                                          params={k: v for k, v in params.items() if k not in ("data", "search")},
                                          sweep=scen, experiment=mapping, estimators={}, seed=seed,
                                          where=part.where, backend=combo["backend"])
+    if not cases:
+        raise ConfigError(f"{part.where}: nothing to run: {skip_summary(skipped)}; change the grid's axes or "
+                          f"its 'only' rules{' or --backend' if backend is not None else ''}")
     return cases + list(identified.values()), skipped
+
+
+def skip_summary(skipped: list[dict], most: int = 3) -> str:
+    """Why the combinations of ``skipped`` are skipped, in one line: each distinct reason with its count,
+    the commonest first (at most ``most``, then how many other reasons)."""
+    counts = collections.Counter(s["reason"] for s in skipped)
+    text = "; ".join(f"{n} x {reason}" for reason, n in counts.most_common(most))
+    rest = len(counts) - most
+    return (f"every one of the {len(skipped)} combinations is skipped: {text}"
+            + (f"; and {rest} other reason{'s' if rest > 1 else ''}" if rest > 0 else ""))
 
 
 
