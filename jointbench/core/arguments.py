@@ -27,7 +27,7 @@ MAX_WHOLE = 2**63 - 1
 
 def _fail(name: str, what: str, value: Any) -> ConfigError:
     shown = repr(value) if len(repr(value)) <= 60 else f"{type(value).__name__} {repr(value)[:50]}..."
-    return ConfigError(f"{argument(name)}: must be {what}, got {shown}")
+    return ConfigError(f"{argument(name)}: expected {what}, got {shown}")
 
 
 def whole(value: Any, name: str, *, minimum: int = 0, maximum: int = MAX_WHOLE) -> int:
@@ -45,11 +45,15 @@ def optional_whole(value: Any, name: str, *, minimum: int = 0, maximum: int = MA
     return None if value is None else whole(value, name, minimum=minimum, maximum=maximum)
 
 
+#: how a message names a quantity > 0 of a unit
+_POSITIVE = {"min": "minutes > 0", "Hz": "a rate > 0 Hz"}
+
+
 def positive(value: Any, name: str, unit: str) -> float:
-    """``value`` as a finite ``float`` > 0 (a number, or a text with a unit of ``unit``'s kind: ``"2 min"``)."""
+    """``value`` as a finite ``float`` > 0 (a number, or a text with a unit of ``unit``'s kind: ``"2 h"``)."""
     from jointbench.core.schema import number
 
-    what = f"a finite number > 0 ({unit})"
+    what = _POSITIVE.get(unit, f"a finite number > 0 {unit}")
     if isinstance(value, bool) or not isinstance(value, (numbers.Real, str)):
         raise _fail(name, what, value)
     try:

@@ -81,19 +81,20 @@ SPAN_OVER_NOISE = 2.0
 
 
 def noise_level(x: np.ndarray) -> float:
-    """The standard deviation of the white noise on a slowly varying signal ``x``, from its first differences:
-    ``1.4826 MAD(diff x) / sqrt(2)`` (the slow part's differences are small; the median makes a few steps
-    harmless).
+    """The standard deviation of the white noise on a smoothly varying signal ``x``, from its second
+    differences (pseudo-residuals, whose variance is ``6 sigma^2`` for white noise while a smooth signal's
+    nearly cancel): ``1.4826 MAD(diff(x, 2)) / sqrt(6)``, the median making a few steps harmless.
 
     References
     ----------
-    Rice, J. (1984). Bandwidth choice for nonparametric regression. Ann. Statist. 12(4), 1215-1230 (the
-    difference-based variance estimator); the MAD's factor 1.4826 for a Gaussian's standard deviation.
+    Gasser, T., Sroka, L. & Jennen-Steinmetz, C. (1986). Residual variance and residual pattern in nonlinear
+    regression. Biometrika 73(3), 625-633 (the difference-based variance estimator); 1.4826: the MAD's factor
+    for a Gaussian's standard deviation.
     """
-    d = np.diff(np.asarray(x, float))
+    d = np.diff(np.asarray(x, float), 2)
     if d.size == 0:
         return 0.0
-    return float(1.4826 * np.median(np.abs(d - np.median(d))) / np.sqrt(2.0))
+    return float(1.4826 * np.median(np.abs(d - np.median(d))) / np.sqrt(6.0))
 
 
 def check_span(x: np.ndarray, what: str) -> None:
