@@ -59,7 +59,7 @@ def test_a_plugin_cannot_take_a_builtin_estimator_name_after_it_is_imported(tmp_
     with pytest.raises(ConfigError) as exc:
         plugins.load(str(path))
     msg = str(exc.value)
-    assert "\n" not in msg and f"clash_after_{name}" in msg and f"jointbench.estimators." in msg, msg
+    assert "\n" not in msg and f"clash_after_{name}" in msg and "jointbench.estimators." in msg, msg
     assert "built-in" in msg
     assert estimators.REGISTRY.get(name) is builtin
 
@@ -85,7 +85,7 @@ def test_a_plugin_imported_before_the_builtin_cannot_take_its_name(tmp_path, nam
     assert r.returncode == 0, r.stderr
     assert f"ERROR --plugin: plugin '{path}': estimator '{name}' of clash_before_{name} clashes with the " \
            f"built-in" in r.stdout, r.stdout
-    assert f"MODULE jointbench.estimators." in r.stdout and "clash_before" not in r.stdout.split("MODULE")[1]
+    assert "MODULE jointbench.estimators." in r.stdout and "clash_before" not in r.stdout.split("MODULE")[1]
 
 
 def test_the_command_line_refuses_a_plugin_that_takes_a_builtin_name(tmp_path):
@@ -259,18 +259,33 @@ def test_every_public_function_refuses_wrong_arguments_in_one_line_naming_them(r
 
 
 def test_the_command_line_words_the_same_rules_by_its_flags():
-    from jointbench.cli.common import budget_minutes, positive_int, rate_hz
+    from jointbench.cli.common import budget_minutes, positive_int
 
     for parse, text, rule in ((positive_int, "0", lambda: arguments.whole(0, "x", minimum=1)),
                               (positive_int, "two", lambda: arguments.whole("two", "x", minimum=1)),
-                              (budget_minutes, "nan", lambda: arguments.positive("nan", "x", "min")),
-                              (rate_hz, "0 Hz", lambda: arguments.rate("0 Hz", "x"))):
+                              (budget_minutes, "nan", lambda: arguments.positive("nan", "x", "min"))):
         with pytest.raises(ConfigError) as want:
             rule()
         with pytest.raises(Exception) as got:               # argparse.ArgumentTypeError: argparse adds the flag
             parse(text)
         assert str(got.value) == str(want.value).split(": ", 1)[1]
-    assert positive_int("3") == 3 and budget_minutes("2 h") == 120.0 and rate_hz("1 kHz") == 1000.0
+    assert positive_int("3") == 3 and budget_minutes("2 h") == 120.0
+
+
+@pytest.mark.parametrize("fs, words", [("0", "--fs: expected a rate > 0 Hz, got '0'"),
+                                       ("nan", "--fs: expected a rate > 0 Hz, got 'nan'"),
+                                       ("100 s", "--fs: expected a rate > 0 Hz, got '100 s'")])
+def test_the_command_line_hands_the_text_to_the_api_which_decides(tmp_path, record, fs, words):
+    """``--fs`` is parsed as text and decided by the API's rule (worded by the flag): one rule, one message."""
+    from tests.harness_studies import cli_here
+
+    angle, torque = record
+    path = tmp_path / "rec.csv"
+    pd.DataFrame({"angle": angle, "torque": torque}).to_csv(path, index=False)
+    r = cli_here("estimate", "-e", "irf2_ls", "-i", path, "--fs", fs, "-o", tmp_path / "fit.csv")
+    assert r.returncode == 2 and r.stderr == f"jointbench: error: {words}\n", r.stderr
+    ok = cli_here("estimate", "-e", "irf2_ls", "-i", path, "--fs", "1 kHz", "-o", tmp_path / "fit.csv")
+    assert ok.returncode == 0 and (tmp_path / "fit.csv").is_file(), ok.stderr
 
 
 @pytest.mark.parametrize("given", [1000, 1000.0, np.float32(1000), np.int64(1000), "1000", "1000 Hz", "1 kHz"])

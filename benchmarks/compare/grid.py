@@ -52,7 +52,6 @@ from __future__ import annotations
 
 import copy
 import dataclasses
-import collections
 import itertools
 import json
 import math
@@ -61,7 +60,7 @@ from typing import Any, Callable, Mapping
 from jointbench import estimators
 from jointbench import sims
 from jointbench.benchmarks.compare.tuning import (AXES, AxisValues, OnlyRule, candidates, check_known_estimators,
-                                                  check_search, grid_settings)
+                                                  check_search, check_search_applies, grid_settings, skip_summary)
 from jointbench.core.errors import ConfigError, Incompatible
 from jointbench.core.schema import Problems, number, param, parse
 
@@ -298,18 +297,9 @@ def _search(spec: GridSpec, scenarios: Mapping[str, _ScenarioSpec], axes: Mappin
     search that would have no effect is refused: one for an estimator not on the grid's estimator axis, or any
     search when the tuning axis has no 'tuned' column."""
     check_search(spec.tuning, f"{where}: tuning")
-    searches = [(f"{where}: tuning", spec.tuning)] + [(f"{where}: scenarios.{s}.tuning", sc.tuning)
-                                                       for s, sc in scenarios.items()]
-    for at, search in searches:
-        idle = [e for e in search if e not in axes["estimator"]]
-        if idle:
-            raise ConfigError(f"{at}: {idle[0]!r} is not on the grid's estimator axis "
-                              f"({', '.join(axes['estimator'])}); its search would have no effect: add it to "
-                              f"grid.estimator or remove its search")
-        if search and "tuned" not in axes.get("tuning", ()):
-            raise ConfigError(f"{at}: a search, but the grid's tuning axis has no 'tuned' column "
-                              f"({', '.join(axes.get('tuning', ())) or 'none'}); add grid.tuning: [paper, tuned] "
-                              f"or remove the search")
+    for at, search in [(f"{where}: tuning", spec.tuning)] + [(f"{where}: scenarios.{s}.tuning", sc.tuning)
+                                                             for s, sc in scenarios.items()]:
+        check_search_applies(search, axes, at)
     for sname, sc in scenarios.items():
         check_search(sc.tuning, f"{where}: scenarios.{sname}.tuning")
         for est in axes["estimator"]:
@@ -446,16 +436,6 @@ def expand_grid(study_id: str, part, backend: str | None = None) -> tuple[list[d
         raise ConfigError(f"{part.where}: nothing to run: {skip_summary(skipped)}; change the grid's axes or "
                           f"its 'only' rules{' or --backend' if backend is not None else ''}")
     return cases + list(identified.values()), skipped
-
-
-def skip_summary(skipped: list[dict], most: int = 3) -> str:
-    """Why the combinations of ``skipped`` are skipped, in one line: each distinct reason with its count,
-    the commonest first (at most ``most``, then how many other reasons)."""
-    counts = collections.Counter(s["reason"] for s in skipped)
-    text = "; ".join(f"{n} x {reason}" for reason, n in counts.most_common(most))
-    rest = len(counts) - most
-    return (f"every one of the {len(skipped)} combinations is skipped: {text}"
-            + (f"; and {rest} other reason{'s' if rest > 1 else ''}" if rest > 0 else ""))
 
 
 

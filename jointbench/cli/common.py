@@ -56,11 +56,6 @@ def budget_minutes(text: str) -> float:
     return _decided(arguments.positive, text, "min")
 
 
-def rate_hz(text: str) -> float:
-    """A sampling rate (``--fs``: ``1000`` or ``1 kHz``), decided by :func:`jointbench.core.arguments.rate`."""
-    return _decided(arguments.positive, text, "Hz")
-
-
 def guarded(call, real: bool = False) -> int:
     """``call()``'s exit status, with the command's errors and interruptions turned into one line on stderr
     and their statuses (module docstring). ``real``: this process is the command line's own, which then

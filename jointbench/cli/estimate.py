@@ -27,7 +27,6 @@ import os
 from pathlib import Path
 from typing import TYPE_CHECKING, Sequence
 
-from jointbench.cli.common import positive_int, rate_hz
 from jointbench.core.errors import ConfigError, worded_as
 from jointbench.core.files import atomic_write_set
 
@@ -70,13 +69,13 @@ def add_parser(subparsers) -> None:
     p.add_argument("--set", action="append", metavar="KEY=VALUE", dest="settings", default=[],
                    help="estimator setting, repeatable; units allowed (lag_before=40ms); auto=true "
                         "chooses a time-varying method's smoothing from the data")
-    p.add_argument("--decimate", type=positive_int, default=1, metavar="Q",
+    p.add_argument("--decimate", type=int, default=1, metavar="Q",
                    help="decimate every record by the whole factor Q (anti-alias filtered)")
     p.add_argument("--window", metavar="START:END",
                    help="keep only this part of every record, in seconds from its first sample "
                         "(e.g. 5s:45s, 500ms:, :30)")
     p.add_argument("--array", metavar="NAME", help="N x 2 [angle, torque] array in NPZ/.mat inputs")
-    p.add_argument("--fs", type=rate_hz, metavar="HZ", help="sampling rate when the file has none")
+    p.add_argument("--fs", metavar="HZ", help="sampling rate when the file has none (1000, 1 kHz)")
     p.add_argument("--torque-sign", type=int, choices=(1, -1), default=1, metavar="{1,-1}",
                    help="-1 negates every torque record (for recordings whose torque is positive "
                         "opposite to the angle, e.g. the REKLAB ankle data)")
