@@ -436,6 +436,21 @@ def test_a_tuning_search_for_an_estimator_not_on_the_grid_is_refused(tmp_path, w
         load_study(_grid_study(tmp_path, edit))
 
 
+def test_a_grid_narrowed_by_set_keeps_its_other_searches_idle_without_error(tmp_path):
+    """``--set`` narrowing the estimator or tuning axis of a grid whose searches name the others (the matrix's
+    ``--set matrix.grid.estimator=[sds]``) is a choice, not a config with no effect."""
+    from jointbench.benchmarks.config import load_study
+
+    def edit(part):
+        part["grid"]["tuning"] = ["paper", "tuned"]
+        part["tuning"] = {"sds": {"window": ["0.5 s", "1 s"]}}
+    path = _grid_study(tmp_path, edit)
+    for narrowed, axis, values in (("grid.grid.estimator=[ibk_spectral]", "estimator", ("ibk_spectral",)),
+                                   ("grid.grid.tuning=[paper]", "tuning", ("paper",))):
+        grid = load_study(path, overrides=[narrowed]).parts["grid"].grid
+        assert grid.axes[axis] == values and list(grid.search) == ["sds"]
+
+
 def test_a_tuning_search_without_a_tuned_column_is_refused(tmp_path):
     from jointbench.benchmarks.config import load_study
 

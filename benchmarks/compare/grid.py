@@ -150,10 +150,11 @@ class Grid:
 
 
 def parse_grid(data: Mapping, experiment: Mapping | None, part_estimators: Mapping[str, dict], where: str,
-               resolve_joint: Callable[[Any, str], dict]) -> Grid:
+               resolve_joint: Callable[[Any, str], dict], overridden: bool = False) -> Grid:
     """The grid of a part from its grid keys ``data`` (:class:`GridSpec`: ``grid``, ``scenarios``,
     ``variations``, ``perturbations``, ``budget``, ``tuning``, ``only``), every name and value checked;
-    the errors name the part, the axis, the value and what is allowed, all of them at once."""
+    the errors name the part, the axis, the value and what is allowed, all of them at once. An idle tuning search
+    is an error as written, not when ``overridden`` (``--set matrix.grid.estimator=[sds]``: idle on purpose)."""
     spec = parse(GridSpec, data, where)
     scenarios = _scenarios(spec, experiment, where, resolve_joint)
     axes = spec.grid.given()
@@ -169,7 +170,7 @@ def parse_grid(data: Mapping, experiment: Mapping | None, part_estimators: Mappi
         _check_size(axes, where)
     problems.raise_all()
     found["settings"] = _settings(axes, scenarios, part_estimators, where)     # of the estimators named
-    found["search"] = _search(spec, scenarios, axes, part_estimators, where)
+    found["search"] = _search(spec, scenarios, axes, part_estimators, where, overridden)
     return Grid(axes=axes, scenarios=scenarios, variations=spec.variations, perturbations=spec.perturbations,
                 joints=found["joints"], settings=found["settings"], budget_minutes=float(spec.budget),
                 search=found["search"], only=spec.only)
@@ -292,13 +293,12 @@ def _check_values(axes: dict[str, tuple], where: str) -> None:
 
 
 def _search(spec: GridSpec, scenarios: Mapping[str, _ScenarioSpec], axes: Mapping[str, tuple],
-            part_estimators: Mapping, where: str) -> Search:
-    """The part's tuning search; with each scenario's over it, every candidate of every estimator parses. A
-    search that would have no effect is refused: one for an estimator not on the grid's estimator axis, or any
-    search when the tuning axis has no 'tuned' column."""
+            part_estimators: Mapping, where: str, overridden: bool = False) -> Search:
+    """The part's tuning search; with each scenario's over it, every candidate of every estimator parses; none
+    idle (:func:`check_search_applies`) unless the grid was narrowed by ``--set``."""
     check_search(spec.tuning, f"{where}: tuning")
-    for at, search in [(f"{where}: tuning", spec.tuning)] + [(f"{where}: scenarios.{s}.tuning", sc.tuning)
-                                                             for s, sc in scenarios.items()]:
+    for at, search in [] if overridden else [(f"{where}: tuning", spec.tuning)] + [
+            (f"{where}: scenarios.{s}.tuning", sc.tuning) for s, sc in scenarios.items()]:
         check_search_applies(search, axes, at)
     for sname, sc in scenarios.items():
         check_search(sc.tuning, f"{where}: scenarios.{sname}.tuning")
