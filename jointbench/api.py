@@ -167,13 +167,12 @@ def score(estimate, data, *, fs: float | None = None, array: str | None = None,
     estimate predicts; ``definition`` says what is compared). ``data`` as in :func:`fit`."""
     import pandas as pd
 
-    from jointbench.fitting import inputs, pipeline
-
     from jointbench.core.estimate import Estimate
+    from jointbench.fitting import inputs, pipeline
 
     est = getattr(estimate, "estimate", estimate)
     if not isinstance(est, Estimate):
-        raise ConfigError(f"{argument('estimate')}: must be an Estimate or a Fit (api.fit's result), got "
+        raise ConfigError(f"{argument('estimate')}: expected an Estimate or a Fit (api.fit's result), got "
                           f"{type(estimate).__name__}")
     fs, array = check.rate(fs), check.text(array, "array", optional=True)
     records = pipeline.signed(list(inputs.records(data, fs=fs, array=array)), torque_sign)
@@ -257,7 +256,7 @@ def experiment(config: Mapping[str, Any] | str | None = None, *, backend: str = 
     if isinstance(config, str):
         config = scenario(config)["experiment"]
     elif config is not None and not isinstance(config, Mapping):
-        raise ConfigError(f"{argument('config')}: must be a mapping (an experiment's config) or a scenario name "
+        raise ConfigError(f"{argument('config')}: expected a mapping (an experiment's config) or a scenario name "
                           f"('study:scenario', see api.scenarios()), got {type(config).__name__}")
     mapping = {**dict(config or {}), **changes}
     if isinstance(mapping.get("joint"), str):
@@ -272,9 +271,9 @@ def simulate(config: Mapping[str, Any] | str | Any = None, seed: int = 0, *, bac
     Experiment`; ``changes`` as in :func:`experiment`). The trial carries its truth: ``trial.truth`` and
     ``trial.frozen_stiffness()``, the stiffness an estimator should be scored against. Same config and
     seed, identical arrays."""
-    from jointbench import sims
-
     import numpy as np
+
+    from jointbench import sims
 
     seed = seed if isinstance(seed, np.random.SeedSequence) else check.whole(seed, "seed")
     realization, replicate = check.whole(realization, "realization"), check.whole(replicate, "replicate")
@@ -343,7 +342,7 @@ def run(study: str | Path | Mapping[str, Any], *, parts: Sequence[str] | None = 
     use_cache, confirm, progress = (check.flag(v, k) for k, v in (("use_cache", use_cache), ("confirm", confirm),
                                                                     ("progress", progress)))
     if not isinstance(executor, str) and not callable(getattr(executor, "submit", None)):
-        raise ConfigError(f"{argument('executor')}: must be 'process', 'serial', 'dask' or a concurrent.futures "
+        raise ConfigError(f"{argument('executor')}: expected 'process', 'serial', 'dask' or a concurrent.futures "
                           f"executor, got {type(executor).__name__}")
     for ref in plugins:
         _plugins.load(ref, argument("plugins"))
@@ -376,7 +375,7 @@ def _study_reference(study):
         return check.text(study, "study")
     if isinstance(study, os.PathLike):
         return Path(study)
-    raise ConfigError(f"{argument('study')}: must be a study id, a study file's path or a study mapping, got "
+    raise ConfigError(f"{argument('study')}: expected a study id, a study file's path or a study mapping, got "
                       f"{study!r}")
 
 
