@@ -270,7 +270,8 @@ def load_part(name: str, data: Mapping, where: str, models_dir: Path | Sequence[
         from jointbench.benchmarks.compare import grid as _grid
 
         grid = _grid.parse_grid(spec.grid_keys(), experiment, est, where,
-                                lambda m, w: _resolve_joint({"joint": m}, w, models_dir)["joint"])
+                                lambda m, w: _resolve_joint({"joint": m}, w, models_dir)["joint"],
+                                overridden=bool(overrides))
     return Part(name=name, protocol=spec.protocol, description=spec.description, report_section=spec.report_section,
                 backend=spec.backend, params=dict(params), experiment=experiment, estimators=est, seeds=spec.seeds,
                 sweep=spec.sweep, where=where, figure=spec.figure or "", grid=grid)

@@ -31,6 +31,7 @@ from jointbench.benchmarks.harness.history import History
 from jointbench.benchmarks.runner import CaseResult, RunInterrupted, expand, expand_study, group_cases, run_cases
 from jointbench.benchmarks.tables import cases_frame, curves_frame
 from jointbench.benchmarks.checks import judge, swap_survival
+from jointbench.core.arguments import positive
 from jointbench.core.csv_text import write_csv
 from jointbench.core.errors import ConfigError, OutputError
 from jointbench.core.files import atomic_write, replace_as_set, staging_folder, sweep_stale_temps, write_text
@@ -135,9 +136,8 @@ def check_budget(study: Study, cases: list, skipped: list, cache: Cache, workers
             continue
         seconds = estimate_seconds(todo, group_cases(todo))
         n_workers = max(1, workers or os.cpu_count() or 1)
-        limit = budget_minutes if budget_minutes is not None else part.grid.budget_minutes
-        if not limit > 0:                 # NaN compares false with everything: it must not skip the check
-            raise ConfigError(f"--budget: expected minutes > 0, got {limit!r}")
+        limit = positive(budget_minutes if budget_minutes is not None else part.grid.budget_minutes, "budget",
+                         "min")           # NaN too: it compares false with every estimate
         wall = seconds / min(n_workers, len(todo)) / 60
         n_skip = sum(1 for s in skipped if s["part"] == name)
         text = (f"{part.where}: {len(mine)} cases ({len(mine) - len(todo)} cached; {n_skip} combinations "

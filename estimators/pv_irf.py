@@ -13,7 +13,7 @@ from jointbench.estimators import Estimator, register
 from jointbench.estimators._reflex import solve_normal
 from jointbench.estimators._twosided import LagSettings, check_lengths, lag_samples, regressor, t_quantile
 from jointbench.core.estimate import Estimate, Intervals, Prediction
-from jointbench.core.errors import InputError
+from jointbench.core.errors import ConfigError, InputError
 from jointbench.core.schema import param
 from jointbench.core.types import Trial
 
@@ -227,6 +227,15 @@ class PVIRF(Estimator):
         offset: bool = param(True, doc="also expand an offset f(sigma) (the elastic torque of the slow movement)")
         level: float = param(0.95, gt=0, lt=1, doc="level of the pointwise band of K(sigma)")
         min_span: float = param(0.01, gt=0, lt=1, doc="the schedule must span at least this fraction of its range")
+
+        def __post_init__(self):
+            """A ``slow_cutoff`` other than the default with a schedule that is not ``angle_slow`` would be
+            accepted and have no effect (only the slow angle is low-passed): refused, naming both settings."""
+            if self.schedule != "angle_slow" and self.slow_cutoff != type(self).__dataclass_fields__[
+                    "slow_cutoff"].default:
+                raise ConfigError(f"pv_irf: slow_cutoff = {self.slow_cutoff:g} Hz has no effect with schedule "
+                                  f"'{self.schedule}' (it is the cutoff of the slow angle, schedule 'angle_slow'); "
+                                  f"remove slow_cutoff or schedule on 'angle_slow'")
 
     def _fit(self, trials: list[Trial]) -> PVIRFEstimate:
         s = self.settings

@@ -23,14 +23,20 @@ This module is a room of its own above the harness (tests/test_architecture.py):
 ``jointbench.sims``, ``jointbench.estimators`` and ``jointbench.benchmarks``; only the command-line modules
 sit on it. Everything heavy is imported inside the functions, and importing it changes nothing for the
 caller (no BLAS thread limits, no environment variables). Errors are
-:class:`~jointbench.core.errors.JointBenchError` subclasses whose messages name the arguments. See docs/api.md.
+:class:`~jointbench.core.errors.JointBenchError` subclasses whose messages name the arguments. Every public
+function checks its arguments where they enter (:mod:`jointbench.core.arguments`: a wrong type or value is one
+:class:`~jointbench.core.errors.ConfigError` line naming the argument); a rate may carry its unit (``fs="1 kHz"``),
+settings are a mapping (``{"lag_before": "40 ms"}``, not the command line's ``"lag_before=40ms"``), and one text
+may stand for a list of one name (``parts="fig2"``). See docs/api.md.
 """
 from __future__ import annotations
 
 import dataclasses
+import os
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Mapping, Sequence
 
+from jointbench.core import arguments as check
 from jointbench.core.errors import ConfigError, argument
 from jointbench.core.types import Trial
 
@@ -65,6 +71,7 @@ def settings(estimator: str) -> "pd.DataFrame":
     from jointbench import estimators as reg
     from jointbench.core.schema import describe
 
+    check.text(estimator, "estimator")
     return pd.DataFrame(describe(reg.REGISTRY.get(estimator).Settings), columns=["key", "type", "default", "meaning"])
 
 
@@ -73,7 +80,7 @@ def load_plugin(ref: str):
     return its :class:`jointbench.core.plugins.Plugin` record; its estimators are then registered."""
     from jointbench.core import plugins
 
-    return plugins.load(ref, "load_plugin")
+    return plugins.load(str(check.path(ref, "ref")), "load_plugin")
 
 
 # ---------------------------------------------------------------------------------------------- fitting
@@ -89,7 +96,8 @@ def read(path: str | Path | Sequence[str | Path], *, array: str | None = None, f
     :func:`fit`'s choice (``ensemble=``)."""
     from jointbench.fitting import inputs
 
-    return inputs.read_files(path, array=array, fs=fs, schedule=schedule)
+    return inputs.read_files(check.paths(path, "path"), array=check.text(array, "array", optional=True),
+                             fs=check.rate(fs), schedule=check.text(schedule, "schedule", optional=True))
 
 
 def fit(estimator, data=None, *, angle=None, torque=None, fs: float | None = None, array: str | None = None,
@@ -142,6 +150,10 @@ def fit(estimator, data=None, *, angle=None, torque=None, fs: float | None = Non
     """
     from jointbench.fitting import pipeline
 
+    fs, settings = check.rate(fs), check.mapping(settings, "settings", "{'lag_before': '40 ms'}")
+    decimate = check.whole(decimate, "decimate", minimum=1)
+    array, schedule = check.text(array, "array", optional=True), check.text(schedule, "schedule", optional=True)
+    ensemble = check.flag(ensemble, "ensemble", optional=True)
     return pipeline.fit(estimator, data, angle=angle, torque=torque, fs=fs, array=array, settings=settings,
                         decimate=decimate, window=window, torque_sign=torque_sign, ensemble=ensemble,
                         schedule=schedule)
@@ -155,9 +167,14 @@ def score(estimate, data, *, fs: float | None = None, array: str | None = None,
     estimate predicts; ``definition`` says what is compared). ``data`` as in :func:`fit`."""
     import pandas as pd
 
+    from jointbench.core.estimate import Estimate
     from jointbench.fitting import inputs, pipeline
 
     est = getattr(estimate, "estimate", estimate)
+    if not isinstance(est, Estimate):
+        raise ConfigError(f"{argument('estimate')}: expected an Estimate or a Fit (api.fit's result), got "
+                          f"{type(estimate).__name__}")
+    fs, array = check.rate(fs), check.text(array, "array", optional=True)
     records = pipeline.signed(list(inputs.records(data, fs=fs, array=array)), torque_sign)
     for t in records:
         if t.fs != est.fs:
@@ -174,6 +191,7 @@ def joint(name: str) -> dict:
     its mapping, ready for an experiment's ``joint``."""
     from jointbench.benchmarks.config import load_yaml, resolve_joint
 
+    name = str(check.path(name, "name")) if not isinstance(name, str) else check.text(name, "name")
     if name.endswith((".yaml", ".yml")):
         return load_yaml(Path(name))
     return resolve_joint(name, where="joint")
@@ -209,7 +227,7 @@ def scenario(name: str) -> dict:
     edit and pass to :func:`simulate`, :func:`experiment` or a study's ``scenarios``."""
     from jointbench.benchmarks.config import load_study
 
-    sid, sep, key = name.partition(":")
+    sid, sep, key = check.text(name, "name").partition(":")
     if not sep or not key:
         raise ConfigError(f"scenario: expected 'study:scenario' or 'study:part' (see api.scenarios()), got {name!r}")
     study = load_study(sid)
@@ -234,8 +252,12 @@ def experiment(config: Mapping[str, Any] | str | None = None, *, backend: str = 
     from jointbench import sims
     from jointbench.benchmarks.config import check_backend, resolve_joint
 
+    backend = check.text(backend, "backend")
     if isinstance(config, str):
         config = scenario(config)["experiment"]
+    elif config is not None and not isinstance(config, Mapping):
+        raise ConfigError(f"{argument('config')}: expected a mapping (an experiment's config) or a scenario name "
+                          f"('study:scenario', see api.scenarios()), got {type(config).__name__}")
     mapping = {**dict(config or {}), **changes}
     if isinstance(mapping.get("joint"), str):
         mapping["joint"] = joint(mapping["joint"]) if mapping["joint"].endswith((".yaml", ".yml")) else \
@@ -249,8 +271,13 @@ def simulate(config: Mapping[str, Any] | str | Any = None, seed: int = 0, *, bac
     Experiment`; ``changes`` as in :func:`experiment`). The trial carries its truth: ``trial.truth`` and
     ``trial.frozen_stiffness()``, the stiffness an estimator should be scored against. Same config and
     seed, identical arrays."""
+    import numpy as np
+
     from jointbench import sims
 
+    seed = seed if isinstance(seed, np.random.SeedSequence) else check.whole(seed, "seed")
+    realization, replicate = check.whole(realization, "realization"), check.whole(replicate, "replicate")
+    name, backend = check.text(name, "name"), check.text(backend, "backend", optional=True)
     exp = config if isinstance(config, sims.Experiment) and not changes else \
         experiment(config, backend=backend or "analytic", **changes)
     return sims.simulate(exp, seed, backend, name=name, replicate=replicate, realization=realization)
@@ -305,6 +332,18 @@ def run(study: str | Path | Mapping[str, Any], *, parts: Sequence[str] | None = 
     from jointbench.benchmarks.study import run_study
     from jointbench.core import plugins as _plugins
 
+    study = _study_reference(study)
+    parts, overrides, plugins = check.texts(parts, "parts"), check.texts(overrides, "overrides"), \
+        check.texts(plugins, "plugins")
+    out = check.path(out, "out", optional=True)
+    workers = check.optional_whole(workers, "workers", minimum=1)
+    scheduler, record_as = check.text(scheduler, "scheduler", optional=True), check.text(record_as, "record_as")
+    budget = None if budget is None else check.positive(budget, "budget", "min")
+    use_cache, confirm, progress = (check.flag(v, k) for k, v in (("use_cache", use_cache), ("confirm", confirm),
+                                                                    ("progress", progress)))
+    if not isinstance(executor, str) and not callable(getattr(executor, "submit", None)):
+        raise ConfigError(f"{argument('executor')}: expected 'process', 'serial', 'dask' or a concurrent.futures "
+                          f"executor, got {type(executor).__name__}")
     for ref in plugins:
         _plugins.load(ref, argument("plugins"))
     if backend is not None:
@@ -328,6 +367,18 @@ def run(study: str | Path | Mapping[str, Any], *, parts: Sequence[str] | None = 
     return StudyResult(r.study.id, r.folder, r.rows, r.checks, cases, r.run_id, r.wall_s, r.study.expected_failures)
 
 
+def _study_reference(study):
+    """``study`` of :func:`run` when it is a study id, a path or a mapping; one line naming it otherwise."""
+    if isinstance(study, Mapping):
+        return study
+    if isinstance(study, str):
+        return check.text(study, "study")
+    if isinstance(study, os.PathLike):
+        return Path(study)
+    raise ConfigError(f"{argument('study')}: expected a study id, a study file's path or a study mapping, got "
+                      f"{study!r}")
+
+
 # ------------------------------------------------------------------------------------------------ history
 class History:
     """The run history of a results folder, ``<out>/history.sqlite`` (default ``./results``): every run of
@@ -342,7 +393,7 @@ class History:
     def __init__(self, out: str | Path | None = None):
         from jointbench.benchmarks.study import HISTORY_FILE, results_root
 
-        self.path = results_root(Path(out) if out else None) / HISTORY_FILE
+        self.path = results_root(check.path(out, "out", optional=True)) / HISTORY_FILE
 
     def _open(self):
         from jointbench.benchmarks.harness.history import History as Store
@@ -352,26 +403,32 @@ class History:
     def runs(self, study: str | None = None, kind: str | None = None, limit: int | None = None) -> "pd.DataFrame":
         """One row per recorded run: its study, status, commit, code hash, counts of cases and checks, wall
         time and versions."""
+        study, kind = check.text(study, "study", optional=True), check.text(kind, "kind", optional=True)
+        limit = check.optional_whole(limit, "limit", minimum=1)
         with self._open() as h:
             return h.runs(study=study, kind=kind, limit=limit)
 
     def run(self, run_id: int) -> dict:
         """Recorded run ``run_id`` in full (parts, commit, environment, command, counts, error)."""
+        run_id = check.whole(run_id, "run_id", minimum=1)
         with self._open() as h:
             return h.run(run_id)
 
     def rows(self, run_id: int) -> "pd.DataFrame":
         """The tidy rows of run ``run_id`` (case labels as columns)."""
+        run_id = check.whole(run_id, "run_id", minimum=1)
         with self._open() as h:
             return h.rows(run_id)
 
     def checks(self, run_id: int) -> "pd.DataFrame":
         """The checks of run ``run_id`` (outcome, band, evidence)."""
+        run_id = check.whole(run_id, "run_id", minimum=1)
         with self._open() as h:
             return h.checks(run_id)
 
     def cases(self, run_id: int) -> "pd.DataFrame":
         """The cases of run ``run_id`` (status, error, wall time, cached, cache key)."""
+        run_id = check.whole(run_id, "run_id", minimum=1)
         with self._open() as h:
             return h.cases(run_id)
 
@@ -382,6 +439,7 @@ class History:
         from jointbench.benchmarks.harness.diff import diff_runs
         from jointbench.benchmarks.nightly import DEFAULT_CONFIG, load_config
 
-        rules = load_config(Path(config) if config else DEFAULT_CONFIG).rules
+        before, after = check.whole(before, "before", minimum=1), check.whole(after, "after", minimum=1)
+        rules = load_config(check.path(config, "config", optional=True) or DEFAULT_CONFIG).rules
         with self._open() as h:
             return diff_runs(h, before, after, rules)

@@ -51,7 +51,7 @@ def test_errors_name_the_arguments_and_the_command_names_its_flags(gated_record,
         api.fit("irf2_ls", trial, window=(5, 3))
     with pytest.raises(ConfigError, match=r"^window: .*5x"):
         api.fit("irf2_ls", trial, window="5x:")
-    with pytest.raises(ConfigError, match=r"^decimate: must be a whole number >= 1"):
+    with pytest.raises(ConfigError, match=r"^decimate: expected a whole number >= 1"):
         api.fit("irf2_ls", trial, decimate=0)
     with pytest.raises(ConfigError, match=r"^settings \(estimator 'irf2_ls'\): key 'lag_before': must be >= 0"):
         api.fit("irf2_ls", trial, settings={"lag_before": -1})

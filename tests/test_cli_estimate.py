@@ -205,7 +205,7 @@ def test_unknown_estimator_names_known_ones(tmp_path, rec, capsys):
     (["-e", "stub_irf", "-o", "{tmp}/o.csv"], "missing --input"),
     (["-e", "stub_irf", "-i", "{rec}", "-o", "{tmp}/o.txt"], "--output: must name a .csv file"),
     (["-e", "stub_irf", "-i", "{rec}", "-o", "{tmp}/o.csv", "--plot", "{tmp}/f.gif"], "--plot: must end in"),
-    (["-e", "stub_irf", "-i", "{rec}", "-o", "{tmp}/o.csv", "--decimate", "0"], "--decimate: must be"),
+    (["-e", "stub_irf", "-i", "{rec}", "-o", "{tmp}/o.csv", "--decimate", "0"], "--decimate: expected a whole number"),
     (["-e", "stub_irf", "-i", "{tmp}/none.npz", "-o", "{tmp}/o.csv"], "none.npz: no such file"),
     (["-e", "stub_irf", "-i", "{rec}:z", "-o", "{tmp}/o.csv"], "syn.npz: no array 'z'"),
     (["-e", "stub_irf", "-i", "{rec}", "-o", "{tmp}/o.csv", "--decimate", "5000"], "at least 2 samples"),

@@ -138,7 +138,7 @@ def test_budget_must_be_minutes_above_zero(tmp_path, budget):
 def test_nan_budget_cannot_bypass_the_check_from_python(tmp_path):
     from jointbench.benchmarks.study import run_study
 
-    with pytest.raises(ConfigError, match="--budget: expected minutes > 0"):
+    with pytest.raises(ConfigError, match="^budget: expected minutes > 0"):
         run_study(_grid(tmp_path), parts=["grid"], out_root=tmp_path / "out", serial=True, progress=False,
                   budget_minutes=float("nan"))
 

@@ -60,7 +60,7 @@ from typing import Any, Callable, Mapping
 from jointbench import estimators
 from jointbench import sims
 from jointbench.benchmarks.compare.tuning import (AXES, AxisValues, OnlyRule, candidates, check_known_estimators,
-                                                  check_search, grid_settings)
+                                                  check_search, check_search_applies, grid_settings, skip_summary)
 from jointbench.core.errors import ConfigError, Incompatible
 from jointbench.core.schema import Problems, number, param, parse
 
@@ -150,10 +150,11 @@ class Grid:
 
 
 def parse_grid(data: Mapping, experiment: Mapping | None, part_estimators: Mapping[str, dict], where: str,
-               resolve_joint: Callable[[Any, str], dict]) -> Grid:
+               resolve_joint: Callable[[Any, str], dict], overridden: bool = False) -> Grid:
     """The grid of a part from its grid keys ``data`` (:class:`GridSpec`: ``grid``, ``scenarios``,
     ``variations``, ``perturbations``, ``budget``, ``tuning``, ``only``), every name and value checked;
-    the errors name the part, the axis, the value and what is allowed, all of them at once."""
+    the errors name the part, the axis, the value and what is allowed, all of them at once. An idle tuning search
+    is an error as written, not when ``overridden`` (``--set matrix.grid.estimator=[sds]``: idle on purpose)."""
     spec = parse(GridSpec, data, where)
     scenarios = _scenarios(spec, experiment, where, resolve_joint)
     axes = spec.grid.given()
@@ -169,7 +170,7 @@ def parse_grid(data: Mapping, experiment: Mapping | None, part_estimators: Mappi
         _check_size(axes, where)
     problems.raise_all()
     found["settings"] = _settings(axes, scenarios, part_estimators, where)     # of the estimators named
-    found["search"] = _search(spec, scenarios, axes, part_estimators, where)
+    found["search"] = _search(spec, scenarios, axes, part_estimators, where, overridden)
     return Grid(axes=axes, scenarios=scenarios, variations=spec.variations, perturbations=spec.perturbations,
                 joints=found["joints"], settings=found["settings"], budget_minutes=float(spec.budget),
                 search=found["search"], only=spec.only)
@@ -292,9 +293,13 @@ def _check_values(axes: dict[str, tuple], where: str) -> None:
 
 
 def _search(spec: GridSpec, scenarios: Mapping[str, _ScenarioSpec], axes: Mapping[str, tuple],
-            part_estimators: Mapping, where: str) -> Search:
-    """The part's tuning search; with each scenario's over it, every candidate of every estimator parses."""
+            part_estimators: Mapping, where: str, overridden: bool = False) -> Search:
+    """The part's tuning search; with each scenario's over it, every candidate of every estimator parses; none
+    idle (:func:`check_search_applies`) unless the grid was narrowed by ``--set``."""
     check_search(spec.tuning, f"{where}: tuning")
+    for at, search in [] if overridden else [(f"{where}: tuning", spec.tuning)] + [
+            (f"{where}: scenarios.{s}.tuning", sc.tuning) for s, sc in scenarios.items()]:
+        check_search_applies(search, axes, at)
     for sname, sc in scenarios.items():
         check_search(sc.tuning, f"{where}: scenarios.{sname}.tuning")
         for est in axes["estimator"]:
@@ -427,6 +432,9 @@ def expand_grid(study_id: str, part, backend: str | None = None) -> tuple[list[d
                                          params={k: v for k, v in params.items() if k not in ("data", "search")},
                                          sweep=scen, experiment=mapping, estimators={}, seed=seed,
                                          where=part.where, backend=combo["backend"])
+    if not cases:
+        raise ConfigError(f"{part.where}: nothing to run: {skip_summary(skipped)}; change the grid's axes or "
+                          f"its 'only' rules{' or --backend' if backend is not None else ''}")
     return cases + list(identified.values()), skipped
 
 

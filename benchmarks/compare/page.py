@@ -10,13 +10,12 @@ drawn), which the browser test reads (tests/test_comparison_page.py).
 """
 from __future__ import annotations
 
-import json
 import math
 
 import numpy as np
 import pandas as pd
 
-from jointbench.benchmarks.harness.pages import table, template_env
+from jointbench.benchmarks.harness.pages import script_json, table, template_env
 
 #: columns of the page's table: (key in the full table, header)
 COLUMNS = (("cell", "scenario"), ("backend", "backend"), ("method", "method"), ("tuning", "tuning"),
@@ -89,9 +88,7 @@ def page_data(full: pd.DataFrame, curves: dict, order: dict | None = None) -> di
 def render(title: str, intro: list[str], data: dict, static: list[tuple[str, pd.DataFrame]]) -> str:
     """The page as one HTML string: ``intro`` paragraphs (inline markdown), the interactive table and plots
     of ``data`` (:func:`page_data`) and the ``static`` tables."""
-    from markupsafe import Markup
-
-    blob = Markup(json.dumps(data, separators=(",", ":"), allow_nan=False).replace("</", "<\\/"))
+    blob = script_json(data)
     note = (f"Mean estimate over realizations of the {PLOT_METHODS} methods with the highest median VAF of k per "
             f"scenario (the plot's legend; all methods' values are in the table); shaded: the 5th to 95th "
             f"percentile over realizations for the best {BANDS}, where the run stored it.")

@@ -11,6 +11,7 @@ type: every error of the part at once).
 """
 from __future__ import annotations
 
+import collections
 import dataclasses
 import itertools
 import json
@@ -80,6 +81,30 @@ def check_search(search: Mapping[str, Mapping[str, tuple]], where: str) -> None:
         empty = [k for k, v in spec.items() if not v]
         if empty:
             raise ConfigError(f"{where}.{est}.{empty[0]}: expected a value or a non-empty list of values")
+
+
+def check_search_applies(search: Mapping[str, Mapping], axes: Mapping[str, tuple], where: str) -> None:
+    """A tuning search that would have no effect is a :class:`ConfigError`: one for an estimator not on the
+    grid's estimator axis, or any search when the tuning axis has no 'tuned' column."""
+    idle = [e for e in search if e not in axes["estimator"]]
+    if idle:
+        raise ConfigError(f"{where}: {idle[0]!r} is not on the grid's estimator axis "
+                          f"({', '.join(axes['estimator'])}); its search would have no effect: add it to "
+                          f"grid.estimator or remove its search")
+    if search and "tuned" not in axes.get("tuning", ()):
+        raise ConfigError(f"{where}: a search, but the grid's tuning axis has no 'tuned' column "
+                          f"({', '.join(axes.get('tuning', ())) or 'none'}); add grid.tuning: [paper, tuned] "
+                          f"or remove the search")
+
+
+def skip_summary(skipped: list[dict], most: int = 3) -> str:
+    """Why the combinations of ``skipped`` are skipped, in one line: each distinct reason with its count,
+    the commonest first (at most ``most``, then how many other reasons)."""
+    counts = collections.Counter(s["reason"] for s in skipped)
+    text = "; ".join(f"{n} x {reason}" for reason, n in counts.most_common(most))
+    rest = len(counts) - most
+    return (f"every one of the {len(skipped)} combinations is skipped: {text}"
+            + (f"; and {rest} other reason{'s' if rest > 1 else ''}" if rest > 0 else ""))
 
 
 def candidates(est: str, settings: Mapping, search: Mapping[str, list]) -> list[dict]:

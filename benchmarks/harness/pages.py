@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import base64
 import dataclasses
+import json
 import math
 import os
 import re
@@ -164,8 +165,38 @@ _INLINE = re.compile(r"`(?P<code>[^`]+)`"
                      r"|\[(?P<text>[^\]]+)\]\((?P<href>[^)\s]+)\)")
 
 
+#: the schemes a page's link may have (a relative link has none): never ``javascript:``, ``data:``, ``vbscript:``
+SAFE_SCHEMES = frozenset({"http", "https", "mailto"})
+#: a URL's scheme, as a browser reads it (after dropping ASCII whitespace and control characters)
+_SCHEME = re.compile(r"([A-Za-z][A-Za-z0-9+.\-]*):")
+
+
+def safe_href(href: Any) -> str | None:
+    """``href`` when a page may link to it: relative (no scheme) or of a :data:`SAFE_SCHEMES` scheme; ``None``
+    otherwise (``javascript:alert(1)``, ``JaVa\tScript:...``, ``data:...``). Every link of every page passes
+    here (:func:`inline_html`, the ``href`` filter of the templates)."""
+    text = str(href).strip()
+    m = _SCHEME.match(re.sub(r"[\x00-\x20\x7f]", "", text))
+    return text if m is None or m.group(1).lower() in SAFE_SCHEMES else None
+
+
+def script_json(data: Any):
+    """``data`` as JSON that is safe inside an HTML ``<script>`` block: ``<``, ``>``, ``&``, U+2028 and U+2029
+    written as ``\\u`` escapes, so that no text (``</script>``, ``<!--<script``, ``]]>``) can end or
+    re-open the block; a NaN or an infinity is an error (JSON has none). The one writer of a page's
+    embedded data."""
+    from markupsafe import Markup
+
+    text = json.dumps(data, separators=(",", ":"), allow_nan=False)
+    for ch, code in (("&", "\\u0026"), ("<", "\\u003c"), (">", "\\u003e"), ("\u2028", "\\u2028"),
+                     ("\u2029", "\\u2029")):
+        text = text.replace(ch, code)
+    return Markup(text)
+
+
 def inline_html(text: Any):
-    """Inline markdown as escaped HTML: code, strong, emphasis and links; everything else is text."""
+    """Inline markdown as escaped HTML: code, strong, emphasis and links (only to :func:`safe_href` targets:
+    any other link is its text); everything else is text."""
     from markupsafe import Markup, escape
 
     text = str(text)
@@ -178,8 +209,10 @@ def inline_html(text: Any):
             out.append(Markup("<strong>%s</strong>") % inline_html(m["strong"]))
         elif m["em"] is not None:
             out.append(Markup("<em>%s</em>") % inline_html(m["em"]))
+        elif safe_href(m["href"]) is None:
+            out.append(inline_html(m["text"]))
         else:
-            out.append(Markup('<a href="%s">%s</a>') % (m["href"], inline_html(m["text"])))
+            out.append(Markup('<a href="%s">%s</a>') % (safe_href(m["href"]), inline_html(m["text"])))
         pos = m.end()
     out.append(escape(text[pos:]))
     return Markup("").join(out)
@@ -202,6 +235,7 @@ def template_env():
                              keep_trailing_newline=True)
     env.filters["md"] = inline_html
     env.filters["md_cell"] = md_cell
+    env.filters["href"] = lambda href: safe_href(href) or "#"
     return env
 
 

@@ -6,7 +6,8 @@ import argparse
 import os
 import sys
 
-from jointbench.core.errors import JointBenchError
+from jointbench.core import arguments
+from jointbench.core.errors import ConfigError, JointBenchError
 
 #: one BLAS thread per process for the command (cases already run in parallel, and results do not depend
 #: on the thread count); set by :func:`jointbench.cli.command.main` on the real command line only, before numpy is
@@ -31,24 +32,28 @@ class OneLineParser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
 
 
+def _decided(rule, value, *args, **kwargs):
+    """``rule(value, "value", ...)`` of :mod:`jointbench.core.arguments` (the API's own rule for the argument),
+    its error as argparse's (which names the flag)."""
+    try:
+        return rule(value, "value", *args, **kwargs)
+    except ConfigError as exc:
+        raise argparse.ArgumentTypeError(str(exc).split(": ", 1)[-1]) from None
+
+
 def positive_int(text: str) -> int:
+    """A whole number >= 1 (``--workers``, ``--limit``, a run id...): the text parsed here, decided by
+    :func:`jointbench.core.arguments.whole`."""
     try:
         value = int(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {value}")
-    return value
+        value = text
+    return _decided(arguments.whole, value, minimum=1)
 
 
 def budget_minutes(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected minutes > 0, got {text!r}") from None
-    if not value > 0:              # NaN as well: it would compare false with every estimate
-        raise argparse.ArgumentTypeError(f"expected minutes > 0, got {text!r}")
-    return value
+    """Minutes > 0 (``--budget``; a unit allowed: ``2h``), decided by :func:`jointbench.core.arguments.positive`."""
+    return _decided(arguments.positive, text, "min")
 
 
 def guarded(call, real: bool = False) -> int:

@@ -75,7 +75,7 @@ def add_parser(subparsers) -> None:
                    help="keep only this part of every record, in seconds from its first sample "
                         "(e.g. 5s:45s, 500ms:, :30)")
     p.add_argument("--array", metavar="NAME", help="N x 2 [angle, torque] array in NPZ/.mat inputs")
-    p.add_argument("--fs", type=float, metavar="HZ", help="sampling rate when the file has none")
+    p.add_argument("--fs", metavar="HZ", help="sampling rate when the file has none (1000, 1 kHz)")
     p.add_argument("--torque-sign", type=int, choices=(1, -1), default=1, metavar="{1,-1}",
                    help="-1 negates every torque record (for recordings whose torque is positive "
                         "opposite to the angle, e.g. the REKLAB ankle data)")

@@ -28,7 +28,7 @@ import importlib.metadata
 import sys
 from pathlib import Path
 
-from jointbench.core.errors import ConfigError
+from jointbench.core.errors import ConfigError, JointBenchError
 
 #: the entry-point group of outside estimators
 ESTIMATORS_GROUP = "jointbench.estimators"
@@ -87,6 +87,8 @@ def load(ref: str, where: str = "--plugin") -> Plugin:
             raise ConfigError(f"{where}: plugin {ref!r} failed to import: ModuleNotFoundError: {exc}") from None
         raise ConfigError(f"{where}: plugin {ref!r}: no module named {name!r}; install it (pip install ...) or "
                           f"give the path of its .py file") from None
+    except JointBenchError as exc:       # e.g. a name taken from a built-in (jointbench.core.registry)
+        raise ConfigError(f"{where}: plugin {ref!r}: {exc}") from None
     except Exception as exc:  # noqa: BLE001 - any error of outside code becomes one line naming it
         raise ConfigError(f"{where}: plugin {ref!r} failed to import: {type(exc).__name__}: {exc}") from None
     dist = distribution_of(module.__name__)

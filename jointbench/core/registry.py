@@ -14,6 +14,20 @@ from jointbench.core.errors import ConfigError
 
 T = TypeVar("T")
 
+#: a registered name: letters, digits and ``_``, not starting with a digit, in parts joined by ``.`` or ``-``
+#: (``irf2_ls``, ``xu1998.track``); what a config file, ``-e`` or ``--list`` can name unambiguously
+NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*(?:[.-][A-Za-z0-9_]+)*")
+
+
+def check_name(kind: str, name: object, module: str | None = None) -> str:
+    """``name`` if it is a valid registered name (:data:`NAME`), else a one-line :class:`ConfigError` naming
+    the ``kind`` and the ``module`` that registers it."""
+    if isinstance(name, str) and NAME.fullmatch(name):
+        return name
+    by = f" (registered by {module})" if module else ""
+    raise ConfigError(f"{kind} name {name!r}{by} is not a name: use letters, digits and '_' (not starting with a "
+                      f"digit), parts joined by '.' or '-', e.g. 'my_method'")
+
 
 class Registry(Generic[T]):
     """A tagged registry of named objects.
@@ -45,9 +59,15 @@ class Registry(Generic[T]):
         """Know these names before their modules are imported; :meth:`get` imports a module on first use.
 
         :meth:`names`, :meth:`tags` and :meth:`summary` answer from the registrations without importing
-        anything (e.g. ``jointbench estimate --list``); the decorator still does the registering.
+        anything (e.g. ``jointbench estimate --list``); the decorator still does the registering. A deferred
+        name is owned by its module (the built-ins): no other module may register it (:meth:`register`).
         """
         for r in registrations:
+            check_name(self.kind, r.name, r.module)
+            other = self._deferred.get(r.name)
+            if other is not None and other.module != r.module:
+                raise ConfigError(f"{self.kind} {r.name!r} is registered by both {other.module} and {r.module}; "
+                                  f"rename one")
             self._deferred.setdefault(r.name, r)
 
     def _load(self, name: str) -> None:
@@ -58,18 +78,39 @@ class Registry(Generic[T]):
                 raise RuntimeError(f"{self.kind} {name!r}: module {r.module} did not register it")
 
     def register(self, name: str, *, tags: Iterable[str] = (), module: str | None = None) -> Callable[[T], T]:
-        """Decorator registering ``obj`` under ``name`` (names are unique); ``module``: the module that
-        defines it (default ``obj.__module__``)."""
+        """Decorator registering ``obj`` under ``name``; ``module``: the module that defines it (default
+        ``obj.__module__``).
+
+        Names are owned: a name is registered by one module only, whatever the order of imports. A built-in's
+        name (known to :meth:`defer` before any plugin is imported) cannot be taken by another module, and two
+        modules (two plugins) registering one name is an error: a one-line :class:`ConfigError` naming both
+        modules. The owner registering again (its module re-imported) replaces its own entry. ``name`` must be
+        a :data:`NAME`.
+        """
 
         def deco(obj: T) -> T:
-            if name in self._items and self._items[name] is not obj:
-                raise RuntimeError(f"{self.kind} {name!r} registered twice")
+            owner = module or getattr(obj, "__module__", None)
+            check_name(self.kind, name, owner)
+            self._check_owner(name, owner)
             self._items[name] = obj
             self._tags[name] = frozenset(tags)
-            self._modules[name] = module or getattr(obj, "__module__", None)
+            self._modules[name] = owner
             return obj
 
         return deco
+
+    def _check_owner(self, name: str, module: str | None) -> None:
+        """Refuse ``module`` registering ``name`` when another module owns it (the built-in or an earlier one)."""
+        deferred = self._deferred.get(name)
+        if deferred is not None and deferred.module != module:
+            raise ConfigError(f"{self.kind} {name!r} of {module} clashes with the built-in {self.kind} {name!r} "
+                              f"({deferred.module}); a plugin cannot replace a built-in: rename the plugin's")
+        held = self._modules.get(name)
+        if name in self._items and held != module:
+            if str(held).startswith("jointbench."):
+                raise ConfigError(f"{self.kind} {name!r} of {module} clashes with the built-in {self.kind} {name!r} "
+                                  f"({held}); a plugin cannot replace a built-in: rename the plugin's")
+            raise ConfigError(f"{self.kind} {name!r} is registered by both {held} and {module}; rename one of them")
 
     def get(self, name: str) -> T:
         """Return the object registered as ``name`` or raise a :class:`ConfigError` listing the names."""

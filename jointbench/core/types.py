@@ -13,6 +13,9 @@ Imposed = Literal["angle", "torque"]
 
 
 def _as_series(name: str, x, where: str) -> np.ndarray:
+    if np.iscomplexobj(x):
+        raise InputError(f"{where}: '{name}' is complex; give real values (its real part, np.real, or its "
+                         f"magnitude, np.abs, whichever the record means)")
     try:
         a = np.asarray(x, dtype=float)
     except (TypeError, ValueError):

@@ -13,6 +13,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Sequence
 
+from jointbench.core.arguments import rate
 from jointbench.core.ensemble import Ensemble
 from jointbench.core.errors import ConfigError, argument
 from jointbench.core.types import Trial
@@ -40,17 +41,6 @@ def read_files(paths: str | Path | Sequence[str | Path], *, array: str | None = 
     return records
 
 
-def check_rate(fs) -> float | None:
-    """``fs`` (Hz) as a float: a finite rate > 0, or None."""
-    import numpy as np
-
-    if fs is None:
-        return None
-    if isinstance(fs, bool) or not isinstance(fs, (int, float, np.integer, np.floating)) or not 0 < fs < np.inf:
-        raise ConfigError(f"{argument('fs')}: must be a finite rate > 0 Hz, got {fs!r}")
-    return float(fs)
-
-
 def from_arrays(angle, torque, fs: float | None) -> list[Trial] | Ensemble:
     """One record from 1-D arrays, an ensemble from 2-D ones (samples x realizations), sampled at ``fs`` Hz."""
     import numpy as np
@@ -66,7 +56,7 @@ def records(data=None, *, angle=None, torque=None, fs: float | None = None, arra
             schedule: str | None = None) -> list[Trial] | Ensemble:
     """The records in ``data`` (a trial, a list of trials, an ensemble, or file paths) or in the arrays
     ``angle`` and ``torque``: a list of trials, or an ensemble (given as one, or read from one file)."""
-    fs = check_rate(fs)
+    fs = rate(fs)
     if data is not None and (angle is not None or torque is not None):
         raise ConfigError(f"give either {argument('data')} (records, an ensemble or file paths) or the arrays "
                           f"angle= and torque=, not both")

@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING, Any, Mapping
 
 from jointbench.core.ensemble import Ensemble
 from jointbench.core.errors import ConfigError, InputError, argument
+from jointbench.core.arguments import whole
 from jointbench.core.schema import boolean
 from jointbench.fitting import checks, inputs
 
@@ -149,8 +150,7 @@ def prepare(estimator, raw: list, *, torque_sign: int = 1, decimate: int = 1,
     sign, decimation, the crop (``window``, or a gated multisine's whole periods), then information and
     memory checked."""
     sign = checked_torque_sign(torque_sign)
-    if isinstance(decimate, bool) or not isinstance(decimate, int) or decimate < 1:
-        raise ConfigError(f"{argument('decimate')}: must be a whole number >= 1, got {decimate!r}")
+    decimate = whole(decimate, "decimate", minimum=1)
     checks.check_magnitudes(raw)
     raw = signed(raw, sign)
     trials = [checks.decimate_trial(t, decimate) for t in raw]
