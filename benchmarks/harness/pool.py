@@ -239,6 +239,20 @@ class CaseProcess:
                 break
         return got
 
+    def alive(self) -> bool:
+        """The process is still running (one forked by a thread that has since ended is not: Linux kills it
+        with that thread)."""
+        if not self.pid:
+            return False
+        try:
+            done, _ = os.waitpid(self.pid, os.WNOHANG)
+        except ChildProcessError:
+            done = self.pid
+        if done:
+            self.pid = 0
+            self._close_pipes()
+        return not done
+
     def _failed_by_death(self, case, wall: float) -> CaseResult:
         how = _how_it_ended(self.pid)
         self.pid = 0
@@ -287,7 +301,7 @@ def run_supervised(cases: list, on_result=None, time_limit_s: float | None = DEF
     out: list = []
     try:
         while len(out) < len(cases):
-            if proc is None or not proc.pid:
+            if proc is None or not proc.alive():
                 _import_what_they_use(cases[len(out):])
                 proc = CaseProcess()
             out += proc.run(cases[len(out):], on_result, time_limit_s)
