@@ -25,6 +25,7 @@ from pathlib import Path
 from typing import Any, Literal, Mapping, Sequence
 
 from jointbench.benchmarks import overrides as _overrides
+from jointbench.benchmarks.harness.workers import DEFAULT_CASE_TIME_LIMIT_S
 from jointbench.benchmarks.locate import (find_file, find_model, load_plugins, model_dirs, search_roots,
                                           study_path)
 # the one YAML reader of configs: strict and within limits (benchmarks/config_yaml.py)
@@ -112,6 +113,7 @@ class Study:
     method_swap: MethodSwap | None = None
     plugins: tuple[str, ...] = ()      # outside modules with estimators (jointbench.core.plugins), imported
     expected_failures: bool = False   # cases are expected to fail: `jointbench run` exits 0 all the same
+    case_time_limit_s: float = DEFAULT_CASE_TIME_LIMIT_S    # seconds a case may run (inf: no limit)
 
 
 
@@ -294,6 +296,10 @@ class StudyFile:
     # true: the study expects some cases to fail (a study of where methods break down); without it a run in
     # which any case failed exits non-zero (the exit status tells a scheduler the truth)
     expected_failures: bool = param(False, doc="cases are expected to fail")
+    # a case still running after this is killed and fails "timed out after ..." (a plugin that never returns
+    # must not hang the run); "90 s", "20 min", or .inf for no limit
+    case_time_limit: float = param(DEFAULT_CASE_TIME_LIMIT_S, unit="s", gt=0, allow_inf=True,
+                                   doc="the time one case may run before it is killed and fails")
 
     def __post_init__(self):
         if not self.parts:
@@ -301,7 +307,9 @@ class StudyFile:
 
 
 def _load_parts(parts_data: Any, path: Path, roots: list[Path], overrides) -> dict[str, Part]:
-    """Every part of study file ``path``, every error of every part at once."""
+    """Every part of study file ``path``, every error of every part at once. A part whose name is not text
+    (``5:``, ``null:``) is left out here: the study file's own parse reports it (:class:`StudyFile`)."""
+    parts_data = {name: p for name, p in parts_data.items() if isinstance(name, str)}
     models_dir = model_dirs(roots)
     per_part = _overrides.for_parts(overrides, list(parts_data), str(path))
     problems, parts = Problems(), {}
@@ -356,4 +364,5 @@ def load_study(path: str | Path | Mapping, overrides=()) -> Study:
     _cross_references(spec, path, parts, pub, checks)
     return Study(id=spec.study, title=spec.title, paper=spec.paper, path=path, parts=parts,
                  readings=tuple(spec.readings or ()), checks=checks, not_reproduced=spec.not_reproduced,
-                 method_swap=spec.method_swap, plugins=plugin_specs, expected_failures=spec.expected_failures)
+                 method_swap=spec.method_swap, plugins=plugin_specs, expected_failures=spec.expected_failures,
+                 case_time_limit_s=spec.case_time_limit)

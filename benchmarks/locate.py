@@ -43,6 +43,9 @@ def study_path(ref: str | Path, studies_dir: Path = STUDIES) -> Path:
     path = Path(ref)
     if path.is_dir() and (path / STUDY_FILE).is_file():
         return path / STUDY_FILE
+    if path.is_dir():
+        raise ConfigError(f"{path}: is a folder, not a file, and holds no {STUDY_FILE}; give a study file (e.g. "
+                          f"my_study.yaml) or a folder holding a {STUDY_FILE}")
     if path.suffix:
         return path
     shipped = Path(studies_dir) / str(path) / STUDY_FILE
@@ -88,13 +91,15 @@ def find_model(name: str, dirs: Sequence[Path], where: str) -> Path:
 def find_file(ref: str | Path, roots: Sequence[Path], where: str, key: str) -> Path:
     """A path named in a study file: absolute, or the first ``root / ref`` that exists."""
     ref = Path(ref)
+    found = [ref] if ref.is_absolute() else [root / ref for root in roots]
+    for cand in found:
+        if cand.is_file():
+            return cand
+    for cand in found:
+        if cand.is_dir():
+            raise ConfigError(f"{where}: key {key!r}: {cand}: is a folder; the key names a file (a .yaml)")
     if ref.is_absolute():
-        if not ref.is_file():
-            raise ConfigError(f"{where}: key {key!r}: {ref}: file not found")
-        return ref
-    for root in roots:
-        if (root / ref).is_file():
-            return root / ref
+        raise ConfigError(f"{where}: key {key!r}: {ref}: file not found")
     raise ConfigError(f"{where}: key {key!r}: {ref} not found beside the study or in the package's configs "
                       f"(looked in {', '.join(str(r) for r in roots)})")
 

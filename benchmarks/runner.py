@@ -18,17 +18,24 @@ from typing import Callable, Iterable
 from jointbench.benchmarks import protocols
 from jointbench.benchmarks.config import Part, Study
 from jointbench.benchmarks.harness.cache import Cache, case_key
-from jointbench.benchmarks.harness.case import Case, CaseResult, parse_inputs, run_case, run_group
-from jointbench.benchmarks.harness.pool import InlineExecutor, WorkerPool, run_task
-from jointbench.benchmarks.harness.workers import ExecutorLost, WorkerMismatch
+from jointbench.benchmarks.harness.case import Case, CaseResult, parse_inputs, run_case
+from jointbench.benchmarks.harness.pool import (InlineExecutor, WorkerPool, close_case_processes, run_supervised,
+                                                run_task)
+from jointbench.benchmarks.harness.workers import DEFAULT_CASE_TIME_LIMIT_S, ExecutorLost, WorkerMismatch
 from jointbench.core.errors import ConfigError
 from jointbench.core.schema import parse
 
 __all__ = ["Case", "CaseResult", "Cache", "RunInterrupted", "expand", "expand_study", "group_cases", "run_case",
            "run_cases"]
 
-#: most cases one run may expand to (a typo in a sweep or seed count must not exhaust the memory)
-MAX_CASES = 1_000_000
+#: failed cases whose reasons :func:`failure_summary` prints (the rest are counted, and all are in failures.log)
+FAILURES_SHOWN = 5
+
+#: most fits one run may expand to: cases (combinations x seeds) times the estimators each case fits. Each
+#: case is built, checked and keyed before anything runs (about 0.3 ms, more in a grid), so a typo in a sweep
+#: or seed count (10^4 combinations x 100 seeds) would spend many minutes there before any refusal; 10^5
+#: fits of even a second each are more than a day on a 2-core machine
+MAX_FITS = 100_000
 
 
 class RunInterrupted(KeyboardInterrupt):
@@ -56,6 +63,19 @@ class _Lost(KeyboardInterrupt):
         self.what = what
 
 
+def failure_summary(failed: Iterable[tuple[str, str]], log: str, shown: int = FAILURES_SHOWN) -> list[str]:
+    """The lines that end a run with failed cases: each ``(case id, error)``'s reason on one line (the first
+    line of the error, at most 300 characters), the first ``shown`` of them, then "N more in LOG"."""
+    failed = list(failed)
+    lines = []
+    for case_id, error in failed[:shown]:
+        first = (str(error).strip().splitlines() or ["(no reason recorded)"])[0]
+        lines.append(f"  failed  {case_id}: {first[:300] + ('...' if len(first) > 300 else '')}")
+    if len(failed) > shown:
+        lines.append(f"  ... {len(failed) - shown} more in {log}")
+    return lines
+
+
 def _check_estimators(part: Part, experiment, ests: dict) -> None:
     """An estimator that cannot run on the part's perturbation is a config error, not a failed case."""
     if experiment is None:
@@ -66,6 +86,17 @@ def _check_estimators(part: Part, experiment, ests: dict) -> None:
         if reason:
             raise ConfigError(f"{part.where}: estimators.{name}: cannot run on this part's experiment: "
                               f"{reason}; remove it from the part or change the perturbation")
+
+
+def part_size(part: Part) -> tuple[int, int]:
+    """(cases, fits) a part expands to, counted before it is expanded: its combinations (of the grid's axes,
+    the estimator among them, or of the sweep) times its seeds, and those times the estimators each case
+    fits (one in a grid; every estimator of the part in a sweep)."""
+    if part.grid is not None:
+        cases = part.grid.size() * len(part.seeds)
+        return cases, cases
+    cases = math.prod(len(v) for v in part.sweep.values()) * len(part.seeds)
+    return cases, cases * max(1, len(part.estimators))
 
 
 def expand_study(study: Study, parts: Iterable[str] | None = None,
@@ -79,12 +110,13 @@ def expand_study(study: Study, parts: Iterable[str] | None = None,
     unknown = [p for p in names if p not in study.parts]
     if unknown:
         raise ConfigError(f"{study.path}: unknown part {unknown[0]!r}; parts: {', '.join(study.parts)}")
-    total = sum((study.parts[n].grid.size() if study.parts[n].grid is not None else
-                 math.prod(len(v) for v in study.parts[n].sweep.values())) * len(study.parts[n].seeds)
-                for n in names)
-    if total > MAX_CASES:
-        raise ConfigError(f"{study.path}: the selected parts expand to {total} cases, more than the "
-                          f"{MAX_CASES} a run may hold; lower the seeds or the sweeps")
+    sizes = {n: part_size(study.parts[n]) for n in names}
+    n_cases, n_fits = sum(c for c, _ in sizes.values()), sum(f for _, f in sizes.values())
+    if n_fits > MAX_FITS:
+        big = max(sizes, key=lambda n: sizes[n][1])
+        raise ConfigError(f"{study.path}: the selected parts expand to {n_cases} cases, {n_fits} fits with their "
+                          f"estimators ({big}: {sizes[big][0]} cases, {sizes[big][1]} fits), more than the "
+                          f"{MAX_FITS} fits a run may hold; lower the seeds, the sweeps or the grid's axes")
     cases, skipped = [], []
     for name in names:
         part: Part = study.parts[name]
@@ -304,13 +336,16 @@ def _slots(executor: cf.Executor | None, workers: int, serial: bool, n_tasks: in
     return _Slots(WorkerPool(n), 2 * n, f"{n} worker processes", own=True)
 
 
-def _submitter(executor: cf.Executor, cases: list[Case], todo: list[int], cache: Cache) -> Callable:
-    """How a task (a group of cases) is submitted: :func:`run_group` in this process; elsewhere
-    :func:`~benchmarks.harness.pool.run_task` with the run's code hash and key environment (a worker running
-    other code refuses), the cache folder when the executor's workers store cases themselves and the plugins
-    the workers must import."""
+def _submitter(executor: cf.Executor, cases: list[Case], todo: list[int], cache: Cache,
+               time_limit_s: float | None) -> Callable:
+    """How a task (a group of cases) is submitted: :func:`~benchmarks.harness.pool.run_supervised` from this
+    process; elsewhere :func:`~benchmarks.harness.pool.run_task` with the run's code hash and key environment
+    (a worker running other code refuses), the cache folder when the executor's workers store cases
+    themselves and the plugins the workers must import. Either way each case runs in a child process within
+    ``time_limit_s`` seconds."""
     if isinstance(executor, InlineExecutor):
-        return lambda batch: executor.submit(run_group, batch)
+        key = ("run in this process", id(todo))        # this run's: closed when it ends (run_cases)
+        return lambda batch: executor.submit(run_supervised, batch, None, time_limit_s, key)
     from jointbench.benchmarks.harness.fingerprint import code_hash, key_environment
 
     code = code_hash()
@@ -318,7 +353,7 @@ def _submitter(executor: cf.Executor, cases: list[Case], todo: list[int], cache:
     store = (os.path.abspath(cache.folder) if cache.enabled and getattr(executor, "stores_on_worker", False)
              else None)                          # absolute: a worker has its own cwd
     env = dict(key_environment())
-    return lambda batch: executor.submit(run_task, batch, code, env, store, outside)
+    return lambda batch: executor.submit(run_task, batch, code, env, store, outside, time_limit_s)
 
 
 def _drive(slots: _Slots, tasks: list[list[int]], submit: Callable, got: _Results, inflight: dict) -> None:
@@ -354,7 +389,8 @@ def _drive(slots: _Slots, tasks: list[list[int]], submit: Callable, got: _Result
 
 def run_cases(cases: list[Case], cache: Cache, workers: int | None = None, serial: bool = False,
               progress: bool = True, on_result: Callable[[CaseResult], None] | None = None,
-              executor: cf.Executor | None = None, info: dict | None = None) -> list[CaseResult]:
+              executor: cf.Executor | None = None, info: dict | None = None,
+              time_limit_s: float | None = DEFAULT_CASE_TIME_LIMIT_S) -> list[CaseResult]:
     """Run cases (verified cached ones are reused); order is preserved.
 
     Parameters
@@ -375,6 +411,10 @@ def run_cases(cases: list[Case], cache: Cache, workers: int | None = None, seria
         that error. Any other failure of a task fails its cases.
     info
         Filled with ``workers``: what the cases ran on (for the report), e.g. ``2 worker processes``.
+    time_limit_s
+        Seconds one case may run (a study's ``case_time_limit``; None: no limit): every executor runs each
+        case in a child process (:func:`~benchmarks.harness.pool.run_supervised`), killed past the limit
+        (the case fails "timed out after ..."); a case whose process dies fails with how it died.
 
     Raises
     ------
@@ -395,7 +435,7 @@ def run_cases(cases: list[Case], cache: Cache, workers: int | None = None, seria
     slots = _slots(executor, workers or os.cpu_count() or 1, serial, len(tasks))
     inflight: dict = {}
     try:
-        _drive(slots, tasks, _submitter(slots.executor, cases, todo, cache), got, inflight)
+        _drive(slots, tasks, _submitter(slots.executor, cases, todo, cache, time_limit_s), got, inflight)
     except KeyboardInterrupt as exc:
         _stop(slots.executor)
         got.keep_finished(inflight)
@@ -409,6 +449,7 @@ def run_cases(cases: list[Case], cache: Cache, workers: int | None = None, seria
         raise
     finally:
         slots.restore_blas()
+        close_case_processes(("run in this process", id(todo)))
     slots.done(info)
     got.close()
     return [got.by_index[i] for i in range(len(cases))]

@@ -196,6 +196,9 @@ class RunOptions:
         ``results/set-runs/<study>-set-<hash>/``, never over the study's own results.
     budget_minutes, confirm
         The budget of a comparison grid (None: the part's own) and ``--yes`` (:func:`check_budget`).
+    case_time_limit_s
+        Seconds one case may run before it is killed and fails "timed out after ..." (None: the study's
+        ``case_time_limit``, default 600 s; ``math.inf``: no limit).
     """
 
     parts: list[str] | None = None
@@ -213,6 +216,7 @@ class RunOptions:
     overrides: tuple = ()
     budget_minutes: float | None = None
     confirm: bool = False
+    case_time_limit_s: float | None = None
 
 
 @dataclasses.dataclass
@@ -320,7 +324,8 @@ def _run_cases(run: _Run) -> tuple[list[CaseResult], float, str | None]:
     ran: dict = {}
     try:
         results = run_cases(run.cases, run.cache, workers=opts.workers, serial=opts.serial, progress=opts.progress,
-                            on_result=on_result, executor=opts.executor, info=ran)
+                            on_result=on_result, executor=opts.executor, info=ran,
+                            time_limit_s=_time_limit(run))
     except RunInterrupted as exc:
         run.history.finish_run(run.run_id, "interrupted", exc.finished, run.keys, wall_s=time.perf_counter() - t0,
                                error=exc.reason)
@@ -331,6 +336,16 @@ def _run_cases(run: _Run) -> tuple[list[CaseResult], float, str | None]:
                                error=f"{type(exc).__name__}: {exc}")
         raise
     return results, time.perf_counter() - t0, ran.get("workers")
+
+
+def _time_limit(run: _Run) -> float | None:
+    """Seconds one case of the run may run (None: no limit): the option, else the study's
+    ``case_time_limit``."""
+    limit = run.options.case_time_limit_s
+    limit = run.study.case_time_limit_s if limit is None else limit
+    if not limit > 0:                     # NaN compares false: it must not disable the limit unnoticed
+        raise ConfigError(f"case_time_limit: expected a time > 0 (or inf for none), got {limit!r}")
+    return None if limit == float("inf") else float(limit)
 
 
 def _cached_parts(run: _Run) -> tuple[list[CaseResult], list[str]]:

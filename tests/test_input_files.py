@@ -93,11 +93,12 @@ def test_a_recording_that_is_a_device_or_fifo_is_never_opened(tmp_path, suffix, 
 
 
 def test_a_zip_bomb_is_refused_from_its_headers(tmp_path, monkeypatch):
-    """Members that claim more samples than a record may have are refused before they are decompressed
-    (the limit is lowered here so that the bomb is small; the real one is 2 GiB of zeros per member)."""
+    """Members that would not fit in half the memory available are refused from their headers, before they
+    are decompressed (the memory is lowered here so that the bomb is small; the real one is 2 GiB of zeros
+    per member)."""
     from numpy.lib import format as npf
 
-    monkeypatch.setattr(read_limits, "MAX_VALUES", 10_000)
+    monkeypatch.setattr(read_limits, "available_memory", lambda: 2_000_000)
     p = tmp_path / "bomb.npz"
     n = 200_000
     with zipfile.ZipFile(p, "w", compression=zipfile.ZIP_DEFLATED) as zf:
@@ -106,16 +107,17 @@ def test_a_zip_bomb_is_refused_from_its_headers(tmp_path, monkeypatch):
                 npf.write_array_header_1_0(f, {"descr": "<f8", "fortran_order": False, "shape": (n,)})
                 f.write(bytes(8 * n))
     assert p.stat().st_size < 10_000                    # a few kB on disk
-    with pytest.raises(InputError, match=r"bomb\.npz: member '(angle|torque)' is 200000, more than the 5000000 "
-                                         r"samples per channel \(10000 values\)"):
+    with pytest.raises(InputError, match=r"bomb\.npz: member '(angle|torque)' is 1\.53 MiB \(200000\), more than "
+                                         r"half the memory available \(1\.91 MiB\)"):
         read.read_trial(p)
 
 
-def test_a_csv_of_too_many_rows_is_refused_before_pandas_reads_it(tmp_path, monkeypatch):
-    monkeypatch.setattr(read_limits, "MAX_SAMPLES", 1000)
+def test_a_csv_too_large_for_the_memory_is_refused_before_pandas_reads_it(tmp_path, monkeypatch):
+    monkeypatch.setattr(read_limits, "available_memory", lambda: 1_000_000)    # 5001 lines x 3 need 1.8 MB
     p = tmp_path / "big.csv"
     p.write_text("time,angle,torque\n" + "".join(f"{i / 1000},0.01,0.5\n" for i in range(5000)))
-    with pytest.raises(InputError, match=r"big\.csv: more than 1000 lines"):
+    with pytest.raises(InputError, match=r"big\.csv: reading it needs more than .* \(5001 lines so far, 3 columns\), "
+                                         r"more than half the memory available"):
         read.read_trial(p)
 
 
@@ -137,10 +139,10 @@ def test_a_corrupt_hdf5_mat_file_is_one_line(tmp_path, body):
 
 
 def test_an_npz_member_larger_than_the_limit_in_an_ensemble_file(tmp_path, monkeypatch):
-    monkeypatch.setattr(read_limits, "MAX_SAMPLES", 100)
+    monkeypatch.setattr(read_limits, "available_memory", lambda: 20_000)          # a member is 12 000 bytes
     p = tmp_path / "ens.npz"
     np.savez(p, angle=np.zeros((500, 3)), torque=np.zeros((500, 3)), fs=500.0)
     from jointbench.fitting.read_ensemble import read_ensemble
 
-    with pytest.raises(InputError, match=r"ens\.npz: member '(angle|torque)' is 500x3"):
+    with pytest.raises(InputError, match=r"ens\.npz: member '(angle|torque)' is 11\.7 KiB \(500x3\), more than half"):
         read_ensemble(p)

@@ -109,7 +109,7 @@ def test_a_nearly_full_disk_gives_the_old_set_or_a_whole_new_one(tmp_path):
         assert now == good
 
 
-def test_every_case_failing_exits_non_zero_with_the_count(tmp_path):
+def test_every_case_failing_exits_non_zero_with_the_count_and_each_reason(tmp_path):
     prof = tmp_path / "short.csv"
     prof.write_text("time,value\n0,50\n2,50\n")                  # ends before the 4 s record
     path = tiny_study(tmp_path / "cfg", seeds=2)
@@ -119,11 +119,15 @@ def test_every_case_failing_exits_non_zero_with_the_count(tmp_path):
     path.write_text(yaml.safe_dump(data, sort_keys=False))
     r = cli("run", path, "--out", tmp_path / "out", "--quiet")
     assert r.returncode == 1, r.stderr
-    assert r.stderr.startswith("jointbench: 2 of 2 cases failed (tracebacks in ") and r.stderr.count("\n") == 1
+    lines = r.stderr.splitlines()
+    assert len(lines) == 3 and lines[2].startswith("jointbench: 2 of 2 cases failed (tracebacks in "), r.stderr
+    for seed, line in enumerate(lines[:2]):                       # each case's reason on screen (issue 33)
+        assert line.startswith(f"  failed  fit-seed{seed}: ConfigError: profile file ") and "short.csv" in line
     data["expected_failures"] = True
     path.write_text(yaml.safe_dump(data, sort_keys=False))
     r = cli("run", path, "--out", tmp_path / "out", "--quiet")
     assert r.returncode == 0 and "2 failed" in r.stdout, r.stderr
+    assert r.stderr.count("  failed  fit-seed") == 2                # expected failures: still said, exit 0
 
 
 def test_estimate_outputs_are_one_set(tmp_path, monkeypatch):

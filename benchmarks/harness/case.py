@@ -171,7 +171,8 @@ def parse_inputs(case: Case):
 
 
 def run_case(case: Case) -> CaseResult:
-    """Run one case; never raises: a failure is returned as ``status='failed'`` with its error.
+    """Run one case; never raises but KeyboardInterrupt: a failure (any exception, ``SystemExit`` of a
+    plugin's ``sys.exit`` included) is returned as ``status='failed'`` with its error.
 
     Trials of the case that share a response (an estimation and a validation trial, a record with and
     without noise) simulate it once (:mod:`sims.reuse`), inside the group's block when one is open."""
@@ -184,7 +185,9 @@ def run_case(case: Case) -> CaseResult:
             proto.fn(ctx)
         return CaseResult(case, "ok", ctx.rows, ctx.curves, time.perf_counter() - t0,
                           sim_times=[[b, round(t, 6), int(r)] for b, t, r in log])
-    except Exception as exc:  # noqa: BLE001 - a failing case must not stop the others
+    except BaseException as exc:  # noqa: BLE001 - a failing case (sys.exit in a plugin too) must not stop the others
+        if isinstance(exc, KeyboardInterrupt):
+            raise                                  # Ctrl-C is the run's to handle, not a failed case
         return CaseResult(case, "failed", [], [], time.perf_counter() - t0,
                           error=f"{type(exc).__name__}: {exc}", detail=traceback.format_exc())
 

@@ -124,6 +124,11 @@ def _why(exc: sqlite3.Error, path: Path | None = None) -> str:
     return text
 
 
+def _locked(exc: sqlite3.Error) -> bool:
+    """SQLite's answer when another process holds the lock it needs."""
+    return "locked" in str(exc) or "busy" in str(exc)
+
+
 def _num(v) -> float | None:
     try:
         v = float(v)
@@ -148,45 +153,66 @@ class History:
         if problem == "file not found" and not create:
             raise ConfigError(f"{self.path}: no run history yet (it is written by `jointbench run` and "
                               "`jointbench nightly`)")
+        if problem is None and not create and self.path.stat().st_size == 0:
+            raise ConfigError(f"{self.path}: no run history yet (the file is empty; `jointbench run` and "
+                              "`jointbench nightly` write it)")
         if problem is not None and problem != "file not found":
             raise OutputError(f"{self.path}: cannot use the run history: it {problem}")
         try:
-            self.db = sqlite3.connect(self.path, timeout=LOCK_WAIT_S, isolation_level=None)
-            self.db.row_factory = sqlite3.Row
-            self.db.execute(f"PRAGMA busy_timeout = {LOCK_WAIT_S * 1000}")
-            version = SCHEMA_VERSION
-            if self.reader:
-                row = (self.db.execute("SELECT value FROM meta WHERE key = 'schema_version'").fetchone()
-                       if self._has_meta() else None)
-                version = self._check_version(row)
-                self.reader = version != 1           # a version-1 history is upgraded once, even by a reader
-            if not self.reader:
-                self._wal()
-                self.db.execute("PRAGMA synchronous = NORMAL")
-                self.db.execute("PRAGMA foreign_keys = ON")
-                with self._tx():
-                    for stmt in SCHEMA.split(";"):
-                        if stmt.strip():
-                            self.db.execute(stmt)
-                    row = self.db.execute("SELECT value FROM meta WHERE key = 'schema_version'").fetchone()
-                    if row is None:
-                        self.db.execute("INSERT INTO meta VALUES ('schema_version', ?)", (str(SCHEMA_VERSION),))
-                    elif self._check_version(row) == 1:
-                        self.db.execute("ALTER TABLE checks ADD COLUMN evidence TEXT")
-                        self.db.execute("UPDATE meta SET value = ? WHERE key = 'schema_version'",
-                                        (str(SCHEMA_VERSION),))
-                self.reader = not create
+            try:
+                self._open(min(QUIET_WAIT_S, LOCK_WAIT_S), create)
+            except sqlite3.OperationalError as exc:
+                if not _locked(exc):
+                    raise
+                self.db.close()
+                print(f"jointbench: {self.path}: another process holds the run history (a run or nightly "
+                      f"recording its results, `jointbench cache prune`, or an SQLite shell); waiting up to "
+                      f"{LOCK_WAIT_S} s for it", file=sys.stderr, flush=True)
+                self._open(LOCK_WAIT_S, create)
         except sqlite3.Error as exc:
-            raise OutputError(f"{self.path}: cannot use the run history: {_why(exc, self.path)}") from None
+            why = (f"another process has held it locked for more than {LOCK_WAIT_S} s; try again when it has "
+                   f"finished (or end it)" if isinstance(exc, sqlite3.OperationalError) and _locked(exc)
+                   else _why(exc, self.path))
+            raise OutputError(f"{self.path}: cannot use the run history: {why}") from None
         self._mark_crashed()
 
-    def _wal(self) -> None:
+    def _open(self, wait_s: float, create: bool) -> None:
+        """Connect, check the schema version (a reader) or create and upgrade the tables (a writer),
+        waiting at most ``wait_s`` for another process's lock (then ``sqlite3.OperationalError``)."""
+        self.db = sqlite3.connect(self.path, timeout=wait_s, isolation_level=None)
+        self.db.row_factory = sqlite3.Row
+        self.db.execute(f"PRAGMA busy_timeout = {int(wait_s * 1000)}")
+        version = SCHEMA_VERSION
+        if self.reader:
+            row = (self.db.execute("SELECT value FROM meta WHERE key = 'schema_version'").fetchone()
+                   if self._has_meta() else None)
+            version = self._check_version(row)
+            self.reader = version != 1           # a version-1 history is upgraded once, even by a reader
+        if not self.reader:
+            self._wal(wait_s)
+            self.db.execute("PRAGMA synchronous = NORMAL")
+            self.db.execute("PRAGMA foreign_keys = ON")
+            with self._tx():
+                for stmt in SCHEMA.split(";"):
+                    if stmt.strip():
+                        self.db.execute(stmt)
+                row = self.db.execute("SELECT value FROM meta WHERE key = 'schema_version'").fetchone()
+                if row is None:
+                    self.db.execute("INSERT INTO meta VALUES ('schema_version', ?)", (str(SCHEMA_VERSION),))
+                elif self._check_version(row) == 1:
+                    self.db.execute("ALTER TABLE checks ADD COLUMN evidence TEXT")
+                    self.db.execute("UPDATE meta SET value = ? WHERE key = 'schema_version'",
+                                    (str(SCHEMA_VERSION),))
+            self.reader = not create
+        self.db.execute(f"PRAGMA busy_timeout = {int(LOCK_WAIT_S * 1000)}")
+
+    def _wal(self, wait_s: float = LOCK_WAIT_S) -> None:
         """``PRAGMA journal_mode = WAL``, retried while another process holds the file: SQLite answers a
         change of journal mode with "database is locked" at once, without its busy wait, when a neighbour is
         opening the same new history (studies side by side start together; one of them failed so)."""
         import time
 
-        deadline = time.monotonic() + LOCK_WAIT_S
+        deadline = time.monotonic() + wait_s
         while True:
             try:
                 self.db.execute("PRAGMA journal_mode = WAL")

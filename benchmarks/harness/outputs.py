@@ -7,7 +7,8 @@
 - Two runs of one study may run at once (cases and cache entries are written atomically under unique
   names); each writes its outputs under an exclusive lock of the study folder, so every set of
   ``cases.csv``, ``checks.csv``, report and figures comes from one run. The second waits for the
-  first to finish writing (a few seconds) and says so.
+  first to finish writing (a few seconds) and says so, naming it; a holder that has not finished after
+  :data:`LOCK_WAIT_S` (stuck) ends the wait with one line naming it.
 """
 from __future__ import annotations
 
@@ -60,9 +61,25 @@ def ensure_writable(*folders: Path) -> None:
                               f"writable or choose another results folder with --out DIR") from None
 
 
+#: seconds a run waits for another run of the same study to finish writing its outputs (a few seconds when
+#: all is well); then it stops with one line naming the holder
+LOCK_WAIT_S = 300.0
+#: seconds between two tries of a held lock
+LOCK_POLL_S = 0.2
+
+
+def lock_holder(text: bytes) -> str:
+    """What a lock file says of its holder (``run 12 (pid 345)``), as printable text of at most 100
+    characters: the file is anyone's to write, and its bytes must not reach a terminal raw."""
+    shown = "".join(c if c.isprintable() else "?" for c in text.decode("utf-8", errors="replace")).strip()
+    return (shown[:100] + "...") if len(shown) > 100 else (shown or "another run")
+
+
 @contextlib.contextmanager
 def study_lock(folder: Path, owner: str, wait_message: bool = True):
-    """Hold an exclusive lock on ``folder/.lock`` (blocks while another run holds it)."""
+    """Hold an exclusive lock on ``folder/.lock`` while the outputs are written. Another run holding it is
+    waited for, saying so (with its holder, :func:`lock_holder`), at most :data:`LOCK_WAIT_S`; then
+    :class:`OutputError` names the holder and the lock file."""
     path = folder / ".lock"
     try:
         fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
@@ -74,23 +91,35 @@ def study_lock(folder: Path, owner: str, wait_message: bool = True):
         except ImportError:            # not POSIX: no lock (atomic writes still keep each file whole)
             fcntl = None
         if fcntl is not None:
-            try:
-                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-            except BlockingIOError:
-                holder = os.pread(fd, 200, 0).decode(errors="replace").strip() or "another run"
-                if wait_message:
-                    print(f"jointbench: {folder.name}: {holder} is writing the results; waiting for it to "
-                          "finish", file=sys.stderr)
-                t0 = time.monotonic()
-                fcntl.flock(fd, fcntl.LOCK_EX)
-                if wait_message:
-                    print(f"jointbench: {folder.name}: lock acquired after {time.monotonic() - t0:.1f} s",
-                          file=sys.stderr)
+            _acquire(fcntl, fd, path, wait_message)
         os.ftruncate(fd, 0)
         os.pwrite(fd, owner.encode(), 0)
         yield
     finally:
         os.close(fd)                   # closing releases the lock
+
+
+def _acquire(fcntl, fd: int, path: Path, wait_message: bool) -> None:
+    """Take the lock of ``fd``, waiting at most :data:`LOCK_WAIT_S` (see :func:`study_lock`)."""
+    t0 = time.monotonic()
+    holder = None
+    while True:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            break
+        except BlockingIOError:
+            if holder is None:
+                holder = lock_holder(os.pread(fd, 400, 0))
+                if wait_message:
+                    print(f"jointbench: {path.parent.name}: {holder} is writing the results; waiting up to "
+                          f"{LOCK_WAIT_S:g} s for it to finish", file=sys.stderr, flush=True)
+            if time.monotonic() - t0 > LOCK_WAIT_S:
+                raise OutputError(f"{path}: {holder} has held the results' lock for more than {LOCK_WAIT_S:g} s; "
+                                  f"if it is stuck, end it (the lock goes with its process) and run again") \
+                    from None
+            time.sleep(LOCK_POLL_S)
+    if holder is not None and wait_message:
+        print(f"jointbench: {path.parent.name}: lock acquired after {time.monotonic() - t0:.1f} s", file=sys.stderr)
 
 
 #: where runs with ``--set`` and no ``--out`` write (``<results>/set-runs/<study>-set-<hash8>/``): beside, not

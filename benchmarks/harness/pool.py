@@ -13,8 +13,12 @@ futures with ``add_done_callback``, ``shutdown``); a pool that can be stopped at
 - a worker uses one BLAS thread (:func:`benchmarks.harness.case.limit_process_to_one_blas_thread`).
 
 A task is a group of cases (:func:`run_task`): cases that share a simulated response run together in one
-worker (:func:`benchmarks.harness.case.run_group`). :func:`make_executor` builds the executor a run asks
-for: ``process`` (this module's pool, the default), ``serial`` or ``dask``
+worker (:func:`benchmarks.harness.case.run_group`). Every executor runs a task's cases in a child process of
+its own (:func:`run_supervised`), never in the process that runs the executor: a case that outlives its
+time limit (``case_time_limit``, :data:`DEFAULT_CASE_TIME_LIMIT_S`) is killed and fails "timed out after
+...", and a case whose process dies (``os._exit`` in a plugin, a crash in compiled code, the OS's
+out-of-memory killer) fails with how it died; the other cases of the run go on. :func:`make_executor`
+builds the executor a run asks for: ``process`` (this module's pool, the default), ``serial`` or ``dask``
 (:mod:`benchmarks.harness.dask_executor`, a Dask cluster: a local one or the scheduler at an address).
 """
 from __future__ import annotations
@@ -23,13 +27,17 @@ import concurrent.futures as cf
 import ctypes
 import ctypes.util
 import os
+import pickle
+import select
 import signal
+import struct
 import sys
 import threading
 import time
 
-from jointbench.benchmarks.harness.case import limit_process_to_one_blas_thread, run_group
-from jointbench.benchmarks.harness.workers import WorkerMismatch, identity_problem, worker_identity
+from jointbench.benchmarks.harness.case import CaseResult, limit_process_to_one_blas_thread, parse_inputs, run_group
+from jointbench.benchmarks.harness.workers import (DEFAULT_CASE_TIME_LIMIT_S, WorkerMismatch, identity_problem,
+                                                   worker_identity)
 from jointbench.core.errors import ConfigError, argument
 
 #: the executors :func:`make_executor` builds (``jointbench run --executor``)
@@ -122,8 +130,220 @@ def _import_plugins(plugins: dict, who: str) -> None:
                                  f"the same plugin on every worker")
 
 
+_FRAME = struct.Struct("<Q")
+
+
+def _send(fd: int, obj) -> None:
+    """``obj`` pickled onto pipe ``fd`` as one frame (its length, then its bytes)."""
+    data = pickle.dumps(obj, protocol=pickle.HIGHEST_PROTOCOL)
+    view = memoryview(_FRAME.pack(len(data)) + data)
+    while view:
+        view = view[os.write(fd, view):]
+
+
+def _read_frame(fd: int, deadline: float = float("inf")) -> bytes | None:
+    """One frame of pipe ``fd``; None at end of file; ``TimeoutError`` past ``deadline`` (monotonic)."""
+    buf = b""
+    need, size = _FRAME.size, None
+    while True:
+        while len(buf) < need:
+            if deadline != float("inf"):
+                left = deadline - time.monotonic()
+                if left <= 0 or not select.select([fd], [], [], left)[0]:
+                    raise TimeoutError
+            chunk = os.read(fd, min(need - len(buf), 1 << 20))
+            if not chunk:
+                return None
+            buf += chunk
+        if size is not None:
+            return buf[_FRAME.size:]
+        size = _FRAME.unpack(buf)[0]
+        need = _FRAME.size + size
+
+
+def _serve(tasks_fd: int, results_fd: int, parent: int) -> None:
+    """The loop of a case process (:class:`CaseProcess`): read a group of cases, run it
+    (:func:`run_group`), send each result as it finishes; until the parent closes the pipe. Leaves with
+    ``os._exit``, never back into the caller's stack."""
+    code = 0
+    try:
+        signal.signal(signal.SIGINT, signal.SIG_IGN)     # Ctrl-C is the parent's to handle
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
+        _die_with(parent)
+        while True:
+            frame = _read_frame(tasks_fd)
+            if frame is None:
+                break
+            run_group(pickle.loads(frame), lambda res: _send(results_fd, res))
+    except BaseException:  # noqa: BLE001 - whatever happened, this process must not return to the caller
+        code = 70
+    finally:
+        try:
+            sys.stdout.flush()
+            sys.stderr.flush()
+        finally:
+            os._exit(code)
+
+
+def _how_it_ended(pid: int) -> str:
+    """How a child that sent no result ended: its exit code or the signal that killed it."""
+    _, status = os.waitpid(pid, 0)
+    if os.WIFSIGNALED(status):
+        sig = os.WTERMSIG(status)
+        name = signal.Signals(sig).name if sig in signal.Signals._value2member_map_ else str(sig)
+        extra = " (the OS's out-of-memory killer, or kill -9)" if sig == signal.SIGKILL else ""
+        return f"killed by {name}{extra}"
+    return f"exited with code {os.WEXITSTATUS(status)} (os._exit or a crash in the case's code)"
+
+
+class CaseProcess:
+    """A forked child process that runs groups of cases for this process, one group at a time, and is
+    kept for the next group (its imports and compiled kernels stay warm) until a case times out or dies."""
+
+    def __init__(self):
+        tasks_r, self.tasks_w = os.pipe()
+        self.results_r, results_w = os.pipe()
+        parent = os.getpid()
+        self.pid = os.fork()
+        if self.pid == 0:
+            os.close(self.tasks_w)
+            os.close(self.results_r)
+            _serve(tasks_r, results_w, parent)          # never returns
+        os.close(tasks_r)
+        os.close(results_w)
+
+    def run(self, cases: list, on_result, time_limit_s: float | None) -> list:
+        """The results of ``cases``: every one, or those up to the case that timed out or whose process
+        died (that one included, failed; this process is then gone: :attr:`pid` is 0)."""
+        got: list = []
+        try:
+            _send(self.tasks_w, cases)
+        except BrokenPipeError:
+            return [self._failed_by_death(cases[0], 0.0)]
+        while len(got) < len(cases):
+            started = time.monotonic()
+            try:
+                frame = _read_frame(self.results_r, started + (time_limit_s or float("inf")))
+            except TimeoutError:
+                self.close()
+                res = _failed(cases[len(got)], time.monotonic() - started,
+                              f"CaseTimeout: timed out after {time_limit_s:g} s (the study's case_time_limit); "
+                              f"the case was killed")
+            else:
+                res = (pickle.loads(frame) if frame is not None
+                       else self._failed_by_death(cases[len(got)], time.monotonic() - started))
+            got.append(res)
+            if on_result is not None:
+                on_result(res)
+            if not self.pid:
+                break
+        return got
+
+    def alive(self) -> bool:
+        """The process is still running (one forked by a thread that has since ended is not: Linux kills it
+        with that thread)."""
+        if not self.pid:
+            return False
+        try:
+            done, _ = os.waitpid(self.pid, os.WNOHANG)
+        except ChildProcessError:
+            done = self.pid
+        if done:
+            self.pid = 0
+            self._close_pipes()
+        return not done
+
+    def _failed_by_death(self, case, wall: float) -> CaseResult:
+        how = _how_it_ended(self.pid)
+        self.pid = 0
+        self._close_pipes()
+        return _failed(case, wall, f"CaseProcessDied: the case's process {how} before writing its result")
+
+    def _close_pipes(self) -> None:
+        for fd in (self.tasks_w, self.results_r):
+            try:
+                os.close(fd)
+            except OSError:
+                pass
+
+    def close(self) -> None:
+        """Kill the process now (a case timed out, Ctrl-C, the run ended)."""
+        if self.pid:
+            try:
+                os.kill(self.pid, signal.SIGKILL)
+                os.waitpid(self.pid, 0)
+            except OSError:
+                pass
+            self.pid = 0
+        self._close_pipes()
+
+
+#: this process's case processes, by what they must share with the cases they run (see run_supervised)
+_CASE_PROCESSES: dict = {}
+_CASE_PROCESSES_LOCK = threading.Lock()
+
+
+def run_supervised(cases: list, on_result=None, time_limit_s: float | None = DEFAULT_CASE_TIME_LIMIT_S,
+                   key=None) -> list:
+    """Run a group of cases (:func:`~benchmarks.harness.case.run_group`) in a :class:`CaseProcess` (a
+    forked child of this process), each case within ``time_limit_s`` seconds (None: no limit): a case that
+    outlives it is killed and fails with "timed out after ..."; a case whose process ends without its
+    result fails with how it ended; the cases after it run in a new case process. ``key``: what the case
+    process must share with the cases (the run; with the thread, since a process forked by a thread
+    dies with that thread): the same key reuses it, warm. Without ``os.fork`` (Windows) the cases run in
+    this process, with no time limit. Never raises for a case; on KeyboardInterrupt the case process is
+    killed."""
+    if not hasattr(os, "fork"):
+        return run_group(cases, on_result)
+    key = (key, threading.get_ident())
+    with _CASE_PROCESSES_LOCK:
+        proc = _CASE_PROCESSES.pop(key, None)
+    out: list = []
+    try:
+        while len(out) < len(cases):
+            if proc is None or not proc.alive():
+                _import_what_they_use(cases[len(out):])
+                proc = CaseProcess()
+            out += proc.run(cases[len(out):], on_result, time_limit_s)
+    except BaseException:
+        if proc is not None:
+            proc.close()
+        raise
+    with _CASE_PROCESSES_LOCK:
+        old = _CASE_PROCESSES.pop(key, None)
+        _CASE_PROCESSES[key] = proc
+    if old is not None:
+        old.close()
+    return out
+
+
+def close_case_processes(key=None) -> None:
+    """Kill this process's case processes (of ``key`` only, when given): the end of a run in this process."""
+    with _CASE_PROCESSES_LOCK:
+        keys = [k for k in _CASE_PROCESSES if key is None or k[0] == key]
+        procs = [_CASE_PROCESSES.pop(k) for k in keys]
+    for proc in procs:
+        proc.close()
+
+
+def _import_what_they_use(cases: list) -> None:
+    """Import the modules the cases' protocols and estimators live in (registered lazily) here, before the
+    fork, so that each new case process starts with them imported. A case whose inputs do not parse fails
+    in its case process, with the error."""
+    for case in {(c.protocol, tuple(c.estimators)): c for c in cases}.values():
+        try:
+            parse_inputs(case)
+        except Exception:  # noqa: BLE001 - reported by the case itself
+            pass
+
+
+def _failed(case, wall: float, error: str) -> CaseResult:
+    return CaseResult(case, "failed", [], [], wall, error=error, detail=error)
+
+
 def run_task(cases: list, code_hash: str | None = None, env: dict | None = None,
-             cache_dir: str | None = None, plugins: dict | None = None) -> list:
+             cache_dir: str | None = None, plugins: dict | None = None,
+             time_limit_s: float | None = DEFAULT_CASE_TIME_LIMIT_S) -> list:
     """What a worker runs: one group of cases (:func:`~benchmarks.harness.case.run_group`) with one BLAS
     thread. ``code_hash`` and ``env`` are the run's: a worker that runs other code or other libraries (a
     remote Dask worker on another checkout) refuses (:class:`WorkerMismatch`), instead of computing
@@ -152,7 +372,8 @@ def run_task(cases: list, code_hash: str | None = None, env: dict | None = None,
                 pass
     if plugins:
         _import_plugins(plugins, f"worker {os.uname().nodename}:{os.getpid()}")
-    return run_group(cases, on_result)
+    key = (code_hash, repr(sorted((plugins or {}).items())))     # another run's code or plugins: a new one
+    return run_supervised(cases, on_result, time_limit_s, key)
 
 
 def check_workers(kind: str, workers: int | None) -> None:

@@ -11,6 +11,10 @@ from __future__ import annotations
 
 from jointbench.core.errors import JointBenchError
 
+#: seconds one case may run before it is killed and fails "timed out after ..." (a study's
+#: ``case_time_limit``, :func:`benchmarks.harness.pool.run_supervised`): ten times the slowest shipped case
+DEFAULT_CASE_TIME_LIMIT_S = 600.0
+
 
 class ExecutorLost(RuntimeError):
     """The executor can no longer run tasks (its Dask scheduler is gone): lost infrastructure, not a failed

@@ -93,6 +93,11 @@ def _run_one(args, study: str) -> int:
     lines.append(f"wrote {run.folder}/report.md, checks.csv, cases.csv, cases.parquet; history run {run.run_id}")
     sys.stdout.write("\n".join(lines) + "\n")       # one write: under PYTHONUNBUFFERED print() makes two,
     sys.stdout.flush()                                # and a study side by side could land between them
+    if failed:
+        from jointbench.benchmarks.runner import failure_summary
+
+        print("\n".join(failure_summary(run.failures.itertuples(index=False), run.folder / "failures.log")),
+              file=sys.stderr)
     if failed and not run.expected_failures:
         print(f"jointbench: {failed} of {len(run.cases)} cases failed (tracebacks in "
               f"{run.folder / 'failures.log'}); exit 1 (a study whose failures are expected says "

@@ -192,6 +192,24 @@ def decode_text(data: bytes, where: str, error=ValueError) -> str:
                     f"save the file as UTF-8") from None
 
 
+def _check_targets(folder: Path, names: list[Path]) -> None:
+    """Refuse, before anything moves, a target of :func:`replace_as_set` that a file cannot replace: a
+    folder (or anything but a file or a link) where a file goes, or a file where a folder goes."""
+    from jointbench.core.errors import OutputError
+
+    for name in names:
+        dest = folder / name
+        for parent in list(reversed(dest.relative_to(folder).parents))[1:]:
+            above = folder / parent
+            if above.exists() and not above.is_dir():
+                raise OutputError(f"{above}: is a file where the outputs need a folder; move it away and run again")
+        if dest.is_symlink() or not dest.exists():
+            continue
+        if not dest.is_file():
+            what = "a folder" if dest.is_dir() else "not a regular file"
+            raise OutputError(f"{dest}: is {what} where the outputs write a file; move it away and run again")
+
+
 def replace_as_set(folder: str | os.PathLike, staged: str | os.PathLike) -> list[Path]:
     """Move every file of ``staged`` (a folder written beside ``folder``'s files) into ``folder``, replacing
     files of the same names, then remove ``staged``. Each move is a rename within one file system, which
@@ -199,8 +217,10 @@ def replace_as_set(folder: str | os.PathLike, staged: str | os.PathLike) -> list
     into place as a whole (or, if the renames are interrupted, every file is still a whole file of one
     run). Returns the files moved."""
     folder, staged = Path(folder), Path(staged)
+    sources = sorted(p for p in staged.rglob("*") if p.is_file())
+    _check_targets(folder, [src.relative_to(staged) for src in sources])
     moved = []
-    for src in sorted(p for p in staged.rglob("*") if p.is_file()):
+    for src in sources:
         dest = folder / src.relative_to(staged)
         dest.parent.mkdir(parents=True, exist_ok=True)
         os.replace(src, dest)

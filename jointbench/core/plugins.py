@@ -79,7 +79,7 @@ def load(ref: str, where: str = "--plugin") -> Plugin:
             raise ConfigError(f"{where}: plugin {ref!r}: a module named {name!r} is already imported from "
                               f"{getattr(old, '__file__', '?')}; rename the plugin")
         if folder not in sys.path:
-            sys.path.insert(0, folder)
+            sys.path.append(folder)     # appended: a yaml.py beside the plugin must not replace PyYAML
     try:
         module = importlib.import_module(name)
     except ModuleNotFoundError as exc:
@@ -91,10 +91,21 @@ def load(ref: str, where: str = "--plugin") -> Plugin:
         raise ConfigError(f"{where}: plugin {ref!r}: {exc}") from None
     except Exception as exc:  # noqa: BLE001 - any error of outside code becomes one line naming it
         raise ConfigError(f"{where}: plugin {ref!r} failed to import: {type(exc).__name__}: {exc}") from None
+    if folder is not None:
+        _check_origin(module, Path(folder), ref, where)
     dist = distribution_of(module.__name__)
     plugin = Plugin(spec, module.__name__, dist[0], dist[1])
     _LOADED[spec] = plugin
     return plugin
+
+
+def _check_origin(module, folder: Path, ref: str, where: str) -> None:
+    """Refuse a plugin path whose name an installed module answers to (the plugin folder is searched after
+    every installed one, so ``numpy.py`` would import numpy, not the plugin)."""
+    here = Path(getattr(module, "__file__", "") or "").resolve()
+    if here.parent not in (folder, folder / module.__name__.split(".")[0]):
+        raise ConfigError(f"{where}: plugin {ref!r}: the name {module.__name__!r} is taken by the installed "
+                          f"module at {here}; rename the plugin")
 
 
 def loaded() -> list[Plugin]:

@@ -183,7 +183,7 @@ def check_memory(estimator, trials: list) -> None:
     if plan is None:
         return
     need = plan(trials)
-    from jointbench.fitting.read import available_memory
+    from jointbench.fitting.read_limits import available_memory
 
     budget = MEMORY_FRACTION * available_memory()
     if need <= budget:

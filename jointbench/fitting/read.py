@@ -20,7 +20,7 @@ The angle is taken as the imposed signal (``Trial.imposed == "angle"``). Every p
 MATLAB files of versions 4 to 7.2 are read with :func:`scipy.io.loadmat`, version 7.3 (HDF5) with
 ``h5py`` (an extra: ``pip install 'jointbench[hdf5]'``). An NPZ member is loaded only after its header's
 claimed size has been checked against the bytes stored and the memory available.
-Limits (a regular file, samples per channel) are checked before anything is loaded:
+Limits (a regular file, the memory that loading it takes) are checked before anything is loaded:
 :mod:`jointbench.fitting.read_limits`.
 """
 from __future__ import annotations
@@ -34,6 +34,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from jointbench.fitting import read_limits as limits
+from jointbench.fitting.read_limits import size_text
 from jointbench.core.errors import InputError
 from jointbench.core.types import Trial
 
@@ -206,18 +207,6 @@ def _read_csv(path: Path) -> dict[str, np.ndarray]:
     return out
 
 
-def available_memory() -> int:
-    """Bytes of memory available (``MemAvailable`` on Linux; 8 GiB when unknown)."""
-    try:
-        with open("/proc/meminfo") as f:
-            for line in f:
-                if line.startswith("MemAvailable:"):
-                    return int(line.split()[1]) * 1024
-    except OSError:
-        pass
-    return 8 << 30
-
-
 def _npy_header(zf: zipfile.ZipFile, member: str) -> tuple[tuple[int, ...], np.dtype]:
     """Shape and dtype of an ``.npy`` member, read from its header alone."""
     from numpy.lib import format as npf
@@ -266,12 +255,11 @@ def read_npz(path: Path) -> dict[str, np.ndarray]:
             stored = sizes[name + ".npy"]
             shown = "x".join(map(str, shape)) or "scalar"
             if nbytes > stored:
-                raise InputError(f"{where}: member '{name}' claims shape {shown} ({_size(nbytes)}), more than the "
-                                 f"{_size(stored)} the archive holds for it: the file is corrupt")
-            if nbytes > available_memory() // 2:
-                raise InputError(f"{where}: member '{name}' is {_size(nbytes)} ({shown}), more than half the memory "
-                                 f"available ({_size(available_memory())}); split the recording")
-            limits.check_shape(where, f"member '{name}'", shape)
+                raise InputError(f"{where}: member '{name}' claims shape {shown} ({size_text(nbytes)}), more than the "
+                                 f"{size_text(stored)} the archive holds for it: the file is corrupt")
+            if nbytes > limits.available_memory() // 2:
+                raise InputError(f"{where}: member '{name}' is {size_text(nbytes)} ({shown}), more than half the "
+                                 f"memory available ({size_text(limits.available_memory())}); split the recording")
         with np.load(path, allow_pickle=False) as data:
             out = {}
             for k in data.files:
@@ -292,13 +280,6 @@ def read_npz(path: Path) -> dict[str, np.ndarray]:
         raise InputError(f"{where}: cannot read as NPZ: not a zip archive (numpy.savez writes one)") from None
     except (ValueError, OSError, EOFError, KeyError) as exc:
         raise InputError(f"{where}: cannot read as NPZ: {exc}") from None
-
-
-def _size(nbytes: int) -> str:
-    for unit, k in (("GiB", 30), ("MiB", 20), ("KiB", 10)):
-        if nbytes >= 1 << k:
-            return f"{nbytes / (1 << k):.3g} {unit}"
-    return f"{nbytes} bytes"
 
 
 def read_mat(path: Path) -> dict[str, np.ndarray]:
@@ -341,16 +322,16 @@ def read_mat73(path: Path) -> dict[str, np.ndarray]:
                     out[name] = np.array([], dtype=object)
                     continue
                 nbytes = int(np.prod(obj.shape, dtype=object)) * obj.dtype.itemsize
-                limits.check_shape(where, f"variable '{name}'", obj.shape)
-                if nbytes > available_memory() // 2:
-                    raise InputError(f"{where}: variable '{name}' is {_size(nbytes)}, more than half the memory "
-                                     f"available; split the recording")
+                if nbytes > limits.available_memory() // 2:
+                    raise InputError(f"{where}: variable '{name}' is {size_text(nbytes)}, more than half the "
+                                     f"memory available; split the recording")
                 out[name] = np.asarray(obj[()]).T
             return out
     except InputError:
         raise
-    except (OSError, ValueError, KeyError, TypeError) as exc:
-        raise InputError(f"{where}: cannot read as a MATLAB v7.3 (HDF5) .mat file: {exc}") from None
+    except Exception as exc:  # noqa: BLE001 - h5py on a damaged file raises RuntimeError, AttributeError, ...
+        text = " ".join(str(exc).split()) or type(exc).__name__
+        raise InputError(f"{where}: cannot read as a MATLAB v7.3 (HDF5) .mat file (damaged?): {text}") from None
 
 
 # --- layouts: {name: ndarray} -> Trial -----------------------------------------------------------

@@ -1,25 +1,46 @@
 """Limits of a recording, checked before anything is loaded (each refusal one line naming the file).
 
 - a regular file: not a device such as ``/dev/zero``, a FIFO or a socket (reading one may never end);
-- at most :data:`MAX_SAMPLES` samples per channel and :data:`MAX_VALUES` values per variable: a CSV's
-  lines are counted first, an NPZ member's header and a .mat v7.3 dataset's shape are read before their
-  data (a zip bomb's members of 2 GiB of zeros are refused from their headers);
+- what loading it costs in memory, not a count of rows: a CSV's lines and columns are counted first (about
+  :data:`CSV_BYTES_PER_VALUE` each while pandas reads it), an NPZ member's header and a .mat v7.3 dataset's
+  shape are read before their data (a zip bomb's members of 2 GiB of zeros are refused from their headers
+  when they would not fit); each must fit in half the memory available (:func:`available_memory`). Whether
+  the fit fits is the method's own estimate (``memory_bytes``, :func:`jointbench.fitting.checks.check_memory`):
+  a record of 10^7 rows is read, and fitted by a method that can;
 - a CSV in UTF-8 (latin-1 or UTF-16 is one line, not a decoding error of pandas).
 """
 from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
-
 from jointbench.core.errors import InputError
 from jointbench.core.files import decode_text, file_problem
 
-#: most samples per channel a record may have: 5 million is 33 minutes at 2.5 kHz, far beyond the records
-#: the estimators are built for (the papers' longest is 60 s); longer recordings are fitted in windows
-MAX_SAMPLES = 5_000_000
-#: most values per variable (an ensemble holds realizations x samples): 400 MB of float64
-MAX_VALUES = 50_000_000
+#: bytes one value of a CSV costs at the peak of reading it (its text held as Python strings, then the float64
+#: array): the peak resident memory grew by 110 bytes per value reading a 3-column CSV of 10^6 rows
+CSV_BYTES_PER_VALUE = 120
+#: the share of the available memory one recording may take to load
+LOAD_FRACTION = 0.5
+
+
+def available_memory() -> int:
+    """Bytes of memory available (``MemAvailable`` on Linux; 8 GiB when unknown)."""
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    return 8 << 30
+
+
+def size_text(nbytes: int) -> str:
+    """``nbytes`` in the largest binary unit it reaches (``1.5 GiB``)."""
+    for unit, k in (("GiB", 30), ("MiB", 20), ("KiB", 10)):
+        if nbytes >= 1 << k:
+            return f"{nbytes / (1 << k):.3g} {unit}"
+    return f"{nbytes} bytes"
 
 
 def check_file(path: Path) -> None:
@@ -29,25 +50,23 @@ def check_file(path: Path) -> None:
         raise InputError(f"{path}: {problem}" if problem != "file not found" else f"{path}: no such file")
 
 
-def check_shape(where: str, what: str, shape) -> None:
-    """An array of ``shape`` within the limits (before it is loaded)."""
-    shape = tuple(int(n) for n in shape)
-    if int(np.prod(shape, dtype=object)) > MAX_VALUES or (shape and max(shape) > MAX_SAMPLES):
-        raise InputError(f"{where}: {what} is {'x'.join(map(str, shape))}, more than the {MAX_SAMPLES} samples "
-                         f"per channel ({MAX_VALUES} values) a record may have; read it in windows or resample it")
-
-
 def check_csv(path: Path) -> None:
-    """A regular file of at most :data:`MAX_SAMPLES` lines, whose start decodes as UTF-8."""
+    """A regular file whose start decodes as UTF-8, and whose values (lines times the columns of its first
+    line) can be read in :data:`LOAD_FRACTION` of the memory available."""
     check_file(path)
-    n = 0
     with open(path, "rb") as f:
         head = f.read(1 << 16)
-        f.seek(0)
-        for block in iter(lambda: f.read(1 << 22), b""):
-            n += block.count(b"\n")
-            if n > MAX_SAMPLES + 1000:
-                raise InputError(f"{path}: more than {MAX_SAMPLES} lines, more than the {MAX_SAMPLES} samples a "
-                                 f"record may have; read it in windows or resample it")
     cut = head.rfind(b"\n") + 1 if len(head) == 1 << 16 else len(head)
     decode_text(head[:cut] or head, str(path), InputError)
+    first = head.split(b"\n", 1)[0]
+    columns = 1 + max(first.count(sep) for sep in (b",", b";", b"\t"))
+    budget = int(LOAD_FRACTION * available_memory())
+    lines = 0
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 22), b""):
+            lines += block.count(b"\n")
+            need = lines * columns * CSV_BYTES_PER_VALUE
+            if need > budget:
+                raise InputError(f"{path}: reading it needs more than {size_text(need)} ({lines} lines so far, "
+                                 f"{columns} columns), more than half the memory available "
+                                 f"({size_text(available_memory())}); read it in windows or resample it")
