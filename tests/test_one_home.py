@@ -121,7 +121,8 @@ def second_homes(files: dict[str, str]) -> list[str]:
                 out.append(f"{where}: the coherence threshold outside {BAND}")
             if path != INTERVALS and _pinv_of_gram(node):
                 out.append(f"{where}: a pseudo-inverse of a Gram matrix outside {INTERVALS} (psd_pinv, psd_solve)")
-            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) and path != SCORES and (path, node.name) not in ALLOWED and "vaf" in node.name.lower():
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) and path != SCORES and \
+                    (path, node.name) not in ALLOWED and "vaf" in node.name.lower():
                 calls = {_called(c) for c in ast.walk(node) if isinstance(c, ast.Call)}
                 if "vaf" not in calls:
                     out.append(f"{where}: {node.name} is named a VAF but does not call the core's vaf")

@@ -30,14 +30,21 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numpy as np
 
 from jointbench.core.intervals import LEVEL
 
-if TYPE_CHECKING:
-    from jointbench.core.estimate import FRFEstimate
+
+class Spectrum(Protocol):
+    """What the band is read from (a :class:`jointbench.core.estimate.FRFEstimate`): frequencies (Hz), the
+    squared coherence, its effective averages and the input's power (None: unknown)."""
+
+    freq: np.ndarray
+    coherence: np.ndarray
+    n_averages: float | None
+    input_power: np.ndarray | None
 
 #: a frequency has input power when its power is above this fraction of the strongest frequency's (-60 dB)
 POWER_FLOOR = 1e-6
@@ -119,10 +126,10 @@ class InputBand:
                 f"{self.excited} frequencies, resolution {self.resolution:g} Hz)")
 
 
-def input_band(frf: "FRFEstimate", lo: float = 0.0, hi: float = np.inf) -> InputBand | None:
+def input_band(frf: Spectrum, lo: float = 0.0, hi: float = np.inf) -> InputBand | None:
     """The input's band of a frequency response (module docstring), or None when no run of :data:`MIN_RUN`
     adjacent excited frequencies exists; only the frequencies from ``lo`` to ``hi`` Hz when given. Groups are
-    ranked by their input power (:attr:`FRFEstimate.input_power`; when unknown, by their count)."""
+    ranked by their input power (``input_power``; when unknown, by their count)."""
     f = np.asarray(frf.freq, float)
     res = float(f[1] - f[0]) if len(f) > 1 else 0.0
     inside = (f >= lo) & (f <= hi)
@@ -151,7 +158,7 @@ def input_band(frf: "FRFEstimate", lo: float = 0.0, hi: float = np.inf) -> Input
     return InputBand(lo=float(f[at[a]]), hi=float(f[at[b]]), excited=int(n), powered=len(at), resolution=res)
 
 
-def excited_share(frf: "FRFEstimate", lo: float, hi: float) -> tuple[int, int]:
+def excited_share(frf: Spectrum, lo: float, hi: float) -> tuple[int, int]:
     """``(excited, powered)``: frequencies of ``lo ... hi`` Hz (inclusive) that are excited (:func:`excited`),
     of those at which the input has power."""
     f = np.asarray(frf.freq, float)
