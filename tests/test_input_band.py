@@ -79,10 +79,10 @@ def test_fsewls_reports_the_low_band_through_the_api_and_the_cli(tmp_path):
 def test_the_threshold_and_its_edges():
     assert band.coherence_threshold(2) == pytest.approx(0.95)
     assert band.coherence_threshold(11) == pytest.approx(1 - 0.05 ** 0.1)
-    assert band.coherence_threshold(1) == 1.0                           # one average: nothing significant
     coh = np.array([0.0, 0.2, 0.5, 1.0])
     assert band.significant(coh, None).tolist() == [False, True, True, True]   # unknown averages: coh > 0
-    assert band.significant(coh, 1).tolist() == [False] * 4
+    assert band.significant(coh, 1).tolist() == [False, True, True, True]      # one: no test (as before)
+    assert band.significant(coh, 11).tolist() == [False, False, True, True]
     assert band.has_power(np.array([1.0, 1e-7, 2e-6])).tolist() == [True, False, True]
 
 
@@ -97,3 +97,4 @@ def test_a_real_ankle_records_band_holds_its_strongest_frequency(key):
     assert found is not None and found.lo <= strongest(frf) <= found.hi
     est = estimators.make("spectral").fit(tr)
     assert band.input_band(est) == found           # the spectral estimate and the band check agree
+

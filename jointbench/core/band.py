@@ -59,19 +59,21 @@ MAX_GAP = 2
 
 def coherence_threshold(n_averages: float, level: float = LEVEL) -> float:
     """Squared coherence exceeded with probability ``1 - level`` under zero coherence for ``n_averages``
-    independent averages: ``1 - (1 - level)^(1/(n - 1))``; 1 (nothing significant) for a single average,
-    whose squared coherence is 1 at every frequency.
+    independent averages: ``1 - (1 - level)^(1/(n - 1))``. Fewer than 2 averages: no test can be made and
+    the threshold is 0 (every nonzero coherence counts, as with the averages unknown). Beware: the squared
+    coherence of a single average is 1 at every frequency, so it then tells nothing about the input's band
+    (kept so for the fits of one segment that the studies and tests make; issue 33's report).
 
     References
     ----------
     Carter, Knapp & Nuttall (1973), eq. 30 (the distribution of the squared coherence under zero coherence).
     """
-    return 1.0 if n_averages <= 1 else 1.0 - (1.0 - level) ** (1.0 / (n_averages - 1.0))
+    return 0.0 if n_averages <= 1 else 1.0 - (1.0 - level) ** (1.0 / (n_averages - 1.0))
 
 
 def significant(coherence, n_averages: float | None) -> np.ndarray:
     """Frequencies whose squared coherence is above :func:`coherence_threshold`; with ``n_averages`` unknown
-    (None), every frequency with nonzero coherence."""
+    (None) or below 2, every frequency with nonzero coherence."""
     coh = np.asarray(coherence, float)
     return coh > 0 if n_averages is None else coh > coherence_threshold(n_averages)
 

@@ -281,8 +281,8 @@ class FRFEstimate(Estimate):
         """Frequencies whose squared coherence is significantly above zero
         (:func:`jointbench.core.band.significant` for :attr:`n_averages`: under zero coherence the squared
         coherence of ``n`` independent averages exceeds ``1 - 0.05^(1/(n - 1))`` with probability 0.05,
-        Carter, Knapp & Nuttall 1973; none for a single average; with ``n_averages`` unknown, every
-        frequency with nonzero coherence)."""
+        Carter, Knapp & Nuttall 1973; with ``n_averages`` unknown or below 2, every frequency with nonzero
+        coherence)."""
         return band.significant(self.coherence, self.n_averages)
 
     def segment_samples(self) -> int:
