@@ -9,6 +9,7 @@ read the judged ``status``; nothing re-judges a check.
 """
 from __future__ import annotations
 
+import dataclasses
 from typing import Mapping
 
 import numpy as np
@@ -102,6 +103,28 @@ CHECK_COLUMNS = ["check", "description", "published", "reproduced", "low", "high
                       "source", "tolerance_reason", "domain_reason", "note", "count", "target", "cause", "commit"]
 
 
+def verdict(c: Check, rows: pd.DataFrame, part: str | None = None) -> tuple[float, str, int, float, float, str]:
+    """One check judged on ``rows``: ``(reproduced, spread, n, low, high, status)``, the one place a
+    pass or a miss is decided (:func:`judge` for ``checks.csv``; a figure showing a check's bounds against
+    another part's rows passes that ``part``, the check's own ``aggregate`` applied to them).
+    ``status`` is ``"pass"`` when the reproduced value lies in ``[low, high]``, ``"miss"`` otherwise (a
+    non-finite one included: no result)."""
+    if part is not None and part != c.part:
+        c = dataclasses.replace(c, part=part)
+    if c.kind == "value":
+        v = select(rows, c.part, {**c.select, **(c.domain or {})})["value"].to_numpy(float)
+        v = v[np.isfinite(v)]
+        n = len(v)
+        rep = aggregate(v, c.aggregate)
+        spread = f"{v.min():.4g} to {v.max():.4g}" if n > 1 else ""
+        low, high = c.low, c.high
+    else:
+        rep, spread, n = _trend(c, rows) if c.kind == "trend" else _difference(c, rows)
+        low, high = (-np.inf, c.slack) if c.kind == "trend" else (c.low, c.high)
+    status = "pass" if np.isfinite(rep) and low <= rep <= high else "miss"
+    return rep, spread, n, low, high, status
+
+
 def judge(checks: tuple[Check, ...], rows: pd.DataFrame, parts_run: set[str], commit: str = "") -> pd.DataFrame:
     """One row per check: published, reproduced, tolerance, pass/miss, and the kind of evidence.
 
@@ -116,21 +139,10 @@ def judge(checks: tuple[Check, ...], rows: pd.DataFrame, parts_run: set[str], co
     for c in checks:
         if c.part not in parts_run:
             continue
-        if c.kind == "value":
-            v = select(rows, c.part, {**c.select, **(c.domain or {})})["value"].to_numpy(float)
-            v = v[np.isfinite(v)]
-            n = len(v)
-            rep = aggregate(v, c.aggregate)
-            spread = f"{v.min():.4g} to {v.max():.4g}" if n > 1 else ""
-            low, high = c.low, c.high
-        else:
-            rep, spread, n = _trend(c, rows) if c.kind == "trend" else _difference(c, rows)
-            low, high = (-np.inf, c.slack) if c.kind == "trend" else (c.low, c.high)
+        rep, spread, n, low, high, status = verdict(c, rows)
         if not np.isfinite(rep):
-            status = "miss"
             note = "no result: the case failed or produced no such metric (see the failed cases)"
         else:
-            status = "pass" if low <= rep <= high else "miss"
             note = "" if status == "pass" else c.if_missed
         out.append({"check": c.id, "description": c.description, "published": c.published,
                     "reproduced": rep, "low": low, "high": high, "status": status,

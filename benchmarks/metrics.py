@@ -1,24 +1,15 @@
-"""Pure metric functions (hand-checkable; see ``tests/test_metrics.py``)."""
+"""Pure metric functions (hand-checkable; see ``tests/test_metrics.py``).
+
+The VAF itself has one home, :func:`jointbench.core.scores.vaf`;
+the metrics below that are VAFs (:func:`stiffness_vaf`) call it. :func:`vafm` and :func:`vafv` are Xu &
+Hollerbach's scores, not a VAF: their denominators are floored at 1 (the paper's rule).
+"""
 from __future__ import annotations
 
 import numpy as np
 
+from jointbench.core.scores import vaf
 
-def vaf(y: np.ndarray, yhat: np.ndarray) -> float:
-    """Variance accounted for, in percent: ``100 (1 - var(y - yhat) / var(y))``.
-
-    References
-    ----------
-    van de Ruit et al. (2018), eq. 17; Westwick & Perreault (2012), Table I (%VAF).
-    """
-    y = np.asarray(y, float)
-    yhat = np.asarray(yhat, float)
-    if y.shape != yhat.shape:
-        raise ValueError(f"vaf: shapes differ: {y.shape} vs {yhat.shape}")
-    vy = np.var(y)
-    if vy == 0:
-        raise ValueError("vaf: the reference signal has zero variance")
-    return float(100.0 * (1.0 - np.var(y - yhat) / vy))
 
 
 def rmse(x: np.ndarray, xhat: np.ndarray) -> float:
@@ -106,7 +97,9 @@ def _realizations(name: str, k, khats) -> tuple[np.ndarray, np.ndarray]:
 
 def stiffness_vaf(k: np.ndarray, khat: np.ndarray) -> float:
     """VAF (%) of one estimated stiffness against the simulated one: ``100 (1 - sum (k_hat - k)^2 /
-    sum (k - mean k)^2)``. Unlike :func:`vaf`, an offset counts as an error (a bias lowers it).
+    sum (k - mean k)^2)``: :func:`jointbench.core.scores.vaf` with ``bias_counts=True``. Unlike the
+    VAF, an offset counts as an error (a bias lowers it). A constant ``k`` raises ``InputError`` (its VAF
+    is undefined).
 
     References
     ----------
@@ -114,10 +107,7 @@ def stiffness_vaf(k: np.ndarray, khat: np.ndarray) -> float:
     system identification methods to describe human joint impedance" (metric 1); ../shared/specs/studies.md D.
     """
     k, khat = _pair("stiffness_vaf", k, khat)
-    ss = float(np.sum((k - np.mean(k)) ** 2))
-    if ss == 0:
-        raise ValueError("stiffness_vaf: the simulated stiffness is constant (its VAF is undefined)")
-    return float(100.0 * (1.0 - np.sum((khat - k) ** 2) / ss))
+    return vaf(k, khat, bias_counts=True)
 
 
 def bias(k: np.ndarray, khats: np.ndarray) -> tuple[float, float]:

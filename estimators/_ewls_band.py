@@ -19,6 +19,8 @@ import numpy as np
 from scipy import signal as sps
 
 from jointbench.estimators._fsewls_kernels import UPPER3, unpack
+from jointbench.core.intervals import z_quantile
+from jointbench.core.scores import vaf
 
 
 def _decay(x: np.ndarray, c: float) -> np.ndarray:
@@ -82,7 +84,7 @@ def delayed_prediction_vaf(Phi: np.ndarray, y: np.ndarray, Theta: np.ndarray, de
     yhat = np.einsum("rni,ni->rn", Phi[:, delay:], Theta[:len(Theta) - delay])
     k = keep[delay:]
     yy = y[:, delay:][:, k]
-    return float(100.0 * (1.0 - np.var(yy - yhat[:, k]) / np.var(yy)))
+    return vaf(yy, yhat[:, k], undefined="nan")
 
 
 def pointwise_bands(Phi: np.ndarray, y: np.ndarray, Theta: np.ndarray, dt: float, lam: float, delay: int,
@@ -90,12 +92,11 @@ def pointwise_bands(Phi: np.ndarray, y: np.ndarray, Theta: np.ndarray, dt: float
     """Pointwise ``level`` bands of I(t), B(t), K(t) (and the stiffness, K) from :func:`ewls_covariance`,
     normal quantiles. They describe the noise in the estimate, not its tracking lag (about ``1/lam``
     behind a changing parameter) or the bias of the filters."""
-    from scipy import stats
 
     from jointbench.core.estimate import Intervals
 
     cov = ewls_covariance(Phi, y, Theta, dt, lam, delay, steady)
-    z = float(stats.norm.ppf(0.5 + level / 2))
+    z = z_quantile(level)
     se = np.sqrt(np.maximum(np.einsum("nii->ni", cov), 0.0))
     bounds = {k: (Theta[:, i] - z * se[:, i], Theta[:, i] + z * se[:, i]) for i, k in enumerate("IBK")}
     bounds["stiffness"] = bounds["K"]

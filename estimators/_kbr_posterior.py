@@ -16,6 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from jointbench.estimators._kbr_solve import System, r_factor
+from jointbench.core.intervals import PINV_RCOND, psd_pinv
 
 
 def _stack(x: np.ndarray) -> np.ndarray:
@@ -64,7 +65,7 @@ def posterior(system: System, weights: np.ndarray) -> tuple[float, np.ndarray]:
     A = np.column_stack([Ac, Az])
     M = A.T @ A
     M[P:, P:] += np.eye(q)
-    return float(neg2), 0.5 * np.linalg.pinv(M)
+    return float(neg2), 0.5 * psd_pinv(M, PINV_RCOND)
 
 
 def stiffness_sd(system: System, cov: np.ndarray, coef: np.ndarray, na: int, f1: float,

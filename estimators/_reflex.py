@@ -38,6 +38,7 @@ import numpy as np
 from numpy.polynomial import chebyshev
 
 from jointbench.core.errors import InputError
+from jointbench.core.intervals import psd_solve
 from jointbench.core.schema import param
 
 Nonlinearity = Literal["rectifier", "polynomial", "linear"]
@@ -45,7 +46,8 @@ Nonlinearity = Literal["rectifier", "polynomial", "linear"]
 #: a delay bound within this many samples of a whole sample counts as that sample (:func:`delays`): the
 #: rounding of ``seconds x fs`` (``0.07 s x 100 Hz = 7.000000000000001``), far below any delay a setting means
 SAMPLE_ROUNDING = 1e-9
-#: :func:`solve_normal` leaves out the directions whose eigenvalue (of the unit-diagonal scaled matrix) is below
+#: the normal equations are solved by :func:`jointbench.core.intervals.psd_solve`, which leaves out the directions
+#: whose eigenvalue (of the unit-diagonal scaled matrix) is below
 #: this fraction of the largest: eigenvalues are computed to about ``eps`` (2.2e-16) times the largest, so below
 #: about 5000 ``eps`` a direction is rounding, not data (singular values of the scaled regressors below 1e-6 of
 #: the largest)
@@ -155,15 +157,6 @@ def lag_matrix(x: np.ndarray, d: int, L: int) -> np.ndarray:
     return win[..., ::-1]
 
 
-def solve_normal(G: np.ndarray, b: np.ndarray, rcond: float = RCOND) -> np.ndarray:
-    """``G c = b`` for a symmetric positive semidefinite ``G``: eigen-decomposition of the unit-diagonal
-    scaled matrix, directions below ``rcond`` times the largest left out (minimum-norm solution)."""
-    scale = np.sqrt(np.maximum(np.diag(G), 1e-300))
-    w, V = np.linalg.eigh(G / scale[:, None] / scale[None, :])
-    keep = w > rcond * w[-1]
-    return (V[:, keep] @ ((V[:, keep].T @ (b / scale)) / w[keep])) / scale
-
-
 def hammerstein(G: np.ndarray, b: np.ndarray, p: int, L: int) -> tuple[np.ndarray, np.ndarray]:
     """The Hammerstein cascade ``(a, h_R)`` from the normal equations of its products: ``G`` (pL x pL) and
     ``b`` (pL) of the regressors ``phi_j(v(t - d - k))`` (column ``j L + k``) and the torque.
@@ -172,7 +165,7 @@ def hammerstein(G: np.ndarray, b: np.ndarray, p: int, L: int) -> tuple[np.ndarra
     alternating least squares on ``h_R`` given ``a`` and ``a`` given ``h_R`` (each a small system formed
     from ``G``: no pass over the data) until the residual stops falling (:data:`ALS_RTOL`, at most
     :data:`ALS_ITERATIONS` alternations). ``p = 1``: ``a = 1``."""
-    c = solve_normal(G, b)
+    c = psd_solve(G, b, RCOND)[0]
     if p == 1:
         return np.ones(1), c
     U, S, Vt = np.linalg.svd(c.reshape(p, L))
@@ -181,8 +174,8 @@ def hammerstein(G: np.ndarray, b: np.ndarray, p: int, L: int) -> tuple[np.ndarra
     B = b.reshape(p, L)
     prev = np.inf
     for _ in range(ALS_ITERATIONS):
-        h = solve_normal(np.einsum("j,jkil,i->kl", a, G4, a), a @ B)
-        a = solve_normal(np.einsum("k,jkil,l->ji", h, G4, h), B @ h)
+        h = psd_solve(np.einsum("j,jkil,i->kl", a, G4, a), a @ B, RCOND)[0]
+        a = psd_solve(np.einsum("k,jkil,l->ji", h, G4, h), B @ h, RCOND)[0]
         c = np.outer(a, h).ravel()
         rss_part = float(c @ G @ c - 2 * c @ b)          # the residual up to the constant y'y
         if prev - rss_part <= ALS_RTOL * abs(rss_part):
@@ -284,7 +277,7 @@ class NormalEquations:
         for d in cands:
             cols = np.r_[self.intrinsic_cols, self.reflex_cols(int(d))]
             G, b = self.G[np.ix_(cols, cols)], self.b[cols]
-            c = solve_normal(G, b)
+            c = psd_solve(G, b, RCOND)[0]
             score = mdl(max(self.yy - 2 * c @ b + c @ G @ c, 0.0), len(cols), self.N)
             if score < best:
                 best, best_d = score, int(d)
@@ -296,12 +289,6 @@ def scan_settings(s: ReflexSettings) -> ReflexSettings:
     half-wave rectifier of ``stretch`` (one regressor per lag: the polynomial's products would make the
     scan's model large and its residuals noisy; the delay needs the onset, not the shape)."""
     return dataclasses.replace(s, nonlinearity="rectifier") if s.nonlinearity == "polynomial" else s
-
-
-def vaf(y: np.ndarray, yhat: np.ndarray) -> float:
-    """Percent VAF, ``100 (1 - var(y - yhat) / var(y))``."""
-    vy = float(np.var(y))
-    return float(100.0 * (1.0 - np.var(y - yhat) / vy)) if vy > 0 else float("nan")
 
 
 def mdl(rss: float, n_params: int, n_rows: int) -> float:

@@ -33,10 +33,9 @@ import numpy as np
 from jointbench.core.ensemble import Ensemble
 from jointbench.core.errors import InputError
 from jointbench.core.estimate import Intervals
+from jointbench.core.intervals import LEVEL, t_quantile
 from jointbench.core.schema import param
 
-#: confidence level of the bands
-LEVEL = 0.95
 #: fewest realizations for a jackknife band
 MIN_REALIZATIONS = 8
 
@@ -56,7 +55,6 @@ def realization_jackknife(name: str, ens: Ensemble, refit: Callable[[Ensemble], 
     A replicate the estimator refuses (e.g. fewer realizations than lags) gives no band (None), as do
     fewer than :data:`MIN_REALIZATIONS` realizations and ``groups = 0``.
     """
-    from scipy import stats
 
     R = ens.size
     G = min(settings.groups, R)
@@ -72,7 +70,7 @@ def realization_jackknife(name: str, ens: Ensemble, refit: Callable[[Ensemble], 
             return None
     ks = np.array(ks)
     se = np.sqrt((G - 1) / G * np.sum((ks - ks.mean(axis=0)) ** 2, axis=0))
-    q = float(stats.t.ppf(0.5 + LEVEL / 2, G - 1))
+    q = t_quantile(G - 1)
     k = np.asarray(estimate.stiffness(t), float)
     return Intervals(level=LEVEL, method=f"delete-a-group jackknife over the {R} realizations ({G} groups; t "
                                          f"quantile, {G - 1} dof)",

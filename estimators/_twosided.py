@@ -31,6 +31,7 @@ from numpy.lib.stride_tricks import sliding_window_view
 
 from jointbench.core.errors import InputError
 from jointbench.core.estimate import IRFEstimate, Intervals
+from jointbench.core.intervals import LEVEL, eigen_pinv, segment_covariance, t_quantile, z_quantile
 from jointbench.core.schema import param
 from jointbench.core.types import Trial
 
@@ -40,15 +41,6 @@ Edges = Literal["zero", "valid"]
 Rows = Literal["zero", "valid", "full"]
 PseudoInverse = Literal["mdl", "off"]
 
-#: confidence level of the intervals
-LEVEL = 0.95
-#: at most this many segments (clusters) for the segment-robust covariance ...
-MAX_SEGMENTS = 40
-#: ... each at least this many times the lag range long; fewer than MIN_SEGMENTS: no intervals
-SEGMENT_LAGS = 4
-MIN_SEGMENTS = 8
-#: weight of the neighbouring segments' products in the segment-robust covariance (Bartlett: 1/2)
-WEIGHT = 0.5
 
 #: directions whose singular value is below this fraction of the largest are never kept by the MDL
 #: pseudo-inverse: sqrt(eps), half the digits. The MDL ranks directions by their share of the torque only,
@@ -232,8 +224,8 @@ class IRFFit:
     h : ndarray
         The IRF on lags ``-M1 ... M2``.
     cov : ndarray or None
-        Its segment-robust covariance (:func:`segment_covariance`), None when the records are too short
-        for :data:`MIN_SEGMENTS` segments.
+        Its segment-robust covariance (:func:`irf_covariance`), None when the records are too short
+        for :data:`jointbench.core.intervals.MIN_SEGMENTS` segments.
     dof : int
         Degrees of freedom of the covariance (segments - 1), for t quantiles.
     kept, n_lags : int
@@ -295,48 +287,21 @@ def mdl_pseudo_inverse(s: np.ndarray, V: np.ndarray, c: np.ndarray, rss0: float,
     return V[:, kept] @ (c[kept] / s[kept]), kept
 
 
-def segment_covariance(pairs: list[tuple[np.ndarray, np.ndarray]], m1: int, m2: int, rows: Rows,
+def irf_covariance(pairs: list[tuple[np.ndarray, np.ndarray]], m1: int, m2: int, rows: Rows,
                        h: np.ndarray, gram_pinv: np.ndarray) -> tuple[np.ndarray | None, int]:
-    """Segment-robust covariance of a least-squares IRF: ``P Omega P G / (G - 1)``.
+    """Segment-robust covariance of a least-squares IRF (:func:`jointbench.core.intervals.segment_covariance`)
+    on each record's regression rows (:func:`regression_rows`: those of the fit, ``rows``) and residuals
+    ``e = y - U h``; ``gram_pinv`` is the (pseudo-)inverse of ``U^T U`` used for ``h``.
 
-    Each record's regression rows (:func:`regression_rows`: those of the fit, ``rows``) are cut into
-    contiguous segments (at most :data:`MAX_SEGMENTS` in all, each at least :data:`SEGMENT_LAGS` times the
-    lag range); ``s_g = U_g^T e_g`` is segment ``g``'s score with the residuals ``e = y - U h`` and ``P`` the
-    (pseudo-)inverse of ``U^T U`` used for ``h``;
-    ``Omega = sum_g s_g s_g^T`` plus half the products of neighbouring segments of a record
-    (``s_g s_{g+1}^T`` and its transpose: Newey & West's Bartlett window over segments, positive
-    semidefinite).
-    Unlike ``sigma^2 (U^T U)^-1`` it does not assume white residuals (the torque noise, voluntary
-    torque and the lags the IRF leaves out are coloured): it is the large-sample form of a (moving)
-    block bootstrap over the segments. The neighbours' products matter: a slow residual (voluntary
-    torque) times the angle's derivative sums to border terms of opposite sign in adjacent segments,
-    which the segments alone count twice (B's intervals were 1.8 times the spread of the estimates on
-    simulated ankles, 1.35 with the neighbours).
-    ``(None, 0)`` when fewer than :data:`MIN_SEGMENTS` segments fit.
+    Unlike ``sigma^2 (U^T U)^-1`` it does not assume white residuals (the torque noise, voluntary torque and
+    the lags the IRF leaves out are coloured). The neighbours' products matter: a slow residual (voluntary
+    torque) times the angle's derivative sums to border terms of opposite sign in adjacent segments, which
+    the segments alone count twice (B's intervals were 1.8 times the spread of the estimates on simulated
+    ankles, 1.35 with the neighbours). ``(None, 0)`` when fewer than
+    :data:`jointbench.core.intervals.MIN_SEGMENTS` segments fit.
     """
-    n_lags = m1 + m2 + 1
     fitted = [regression_rows(u, y, m1, m2, rows) for u, y in pairs]
-    counts = [len(yy) for _, yy in fitted]
-    seg = max(SEGMENT_LAGS * n_lags, int(np.ceil(sum(counts) / MAX_SEGMENTS)))
-    if sum(r // seg for r in counts) < MIN_SEGMENTS:
-        return None, 0
-    scores, neighbours = [], []
-    for (U, yy), nr in zip(fitted, counts):
-        k = nr // seg
-        edges_at = np.linspace(0, nr, k + 1).astype(int)   # k segments covering every row
-        for i, (a, b) in enumerate(zip(edges_at[:-1], edges_at[1:])):
-            Ug = U[a:b]
-            e = yy[a:b] - Ug @ h
-            if i:
-                neighbours.append(len(scores))
-            scores.append(Ug.T @ e)
-    S = np.array(scores)
-    G = len(S)
-    meat = S.T @ S
-    for j in neighbours:          # neighbouring segments of a record: slow residuals (voluntary torque)
-        cross = np.outer(S[j - 1], S[j])   # times the angle's derivative leave opposite terms at their border
-        meat += WEIGHT * (cross + cross.T)
-    return gram_pinv @ meat @ gram_pinv * (G / (G - 1.0)), G - 1
+    return segment_covariance([(U, yy - U @ h) for U, yy in fitted], gram_pinv)
 
 
 def fit_irf(name: str, trials: list[Trial], settings: LagSettings, method: Literal["ls", "corr"],
@@ -378,8 +343,8 @@ def fit_irf(name: str, trials: list[Trial], settings: LagSettings, method: Liter
     if not np.all(np.isfinite(h)):
         raise InputError(f"{name}: the IRF is not finite: the angle does not excite all {n_lags} lags; use "
                          f"pseudo_inverse = mdl, fewer lags or a broader-band perturbation")
-    gram_pinv = (V[:, kept] / s[kept] ** 2) @ V[:, kept].T
-    cov, dof = segment_covariance(pairs, m1, m2, rows, h, gram_pinv) if covariance else (None, 0)
+    gram_pinv = eigen_pinv(s ** 2, V, kept)
+    cov, dof = irf_covariance(pairs, m1, m2, rows, h, gram_pinv) if covariance else (None, 0)
     end_effect = correlation_end_effect(name, trials, settings, h) if method == "corr" and cov is not None else None
     info = {}
     if mode == "mdl":
@@ -426,13 +391,6 @@ def unexcited_lags(name: str, trials: list[Trial], settings: LagSettings, m1: in
             f"decimate or broaden the perturbation")
 
 
-def t_quantile(dof: int, level: float = LEVEL) -> float:
-    """Two-sided ``level`` quantile of Student's t with ``dof`` degrees of freedom."""
-    from scipy import stats
-
-    return float(stats.t.ppf(0.5 + level / 2, dof))
-
-
 def bias_aware_quantile(bias: np.ndarray, se: np.ndarray, dof: int, level: float = LEVEL) -> np.ndarray:
     """Half widths over ``se`` of ``level`` intervals that hold the truth under a bias up to ``|bias|``.
 
@@ -448,7 +406,7 @@ def bias_aware_quantile(bias: np.ndarray, se: np.ndarray, dof: int, level: float
     """
     from scipy import optimize, stats
 
-    z = float(stats.norm.ppf(0.5 + level / 2))
+    z = z_quantile(level)
     b = np.abs(np.asarray(bias, float)) / np.where(np.asarray(se, float) > 0, se, np.inf)
     out = np.full(b.shape, z)
     for i in np.flatnonzero(b > 0):

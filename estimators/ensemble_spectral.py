@@ -9,8 +9,9 @@ from numpy.lib.stride_tricks import sliding_window_view
 from scipy import signal as sps
 
 from jointbench.estimators import register
-from jointbench.estimators.spectral import significance, taper_spread
+from jointbench.estimators.spectral import taper_spread
 from jointbench.estimators._tvirf import EnsembleEstimator, centred, fill_invalid
+from jointbench.core.band import coherence_threshold, frf_and_coherence, has_power
 from jointbench.core.ensemble import Ensemble
 from jointbench.core.errors import InputError
 from jointbench.core.estimate_tv import TVIRFEstimate
@@ -197,10 +198,11 @@ class EnsembleSpectral(EnsembleEstimator):
     eq. 2) of angle to torque. Averaging over realizations rather than over time keeps the time
     resolution of one window (about ``window / 2`` for a Hann taper) whatever the averaging.
 
-    Frequencies: the bins (0 Hz and the Nyquist bin excluded) where the input has power (time-mean
-    ``S_uu`` above ``1e-6`` of its strongest bin's) and the median squared coherence over the windows is
-    significant (95 %). The stiffness is read from those in ``[fmin, fmax]`` where the input is strong
-    (at least :data:`INPUT_FLOOR` of the strongest bin), over the taper's main lobe around the bin
+    Frequencies: the excited bins (0 Hz and the Nyquist bin excluded; :mod:`jointbench.core.band`): the
+    input has power there (time-mean ``S_uu`` above :data:`jointbench.core.band.POWER_FLOOR` of its
+    strongest bin's) and the median squared coherence over the windows is significant (95 %). The
+    stiffness is read from those in ``[fmin, fmax]`` where the input is strong (at least :data:`INPUT_FLOOR`
+    of the strongest bin), over the taper's main lobe around the bin
     (:data:`MAIN_LOBE` bins each side): at the edge of the input's band the spectra average ``H`` over
     one side of the bin only. Stiffness (``stiffness``):
     ``'ibk'`` (default) fits ``K + j w B - I w^2`` at every window by least squares weighted by
@@ -359,7 +361,7 @@ class EnsembleSpectral(EnsembleEstimator):
         s, fs = self.settings, ens.fs
         # the band of the input: bins with power (mean over half-overlapping windows), relative to the largest
         p = self._input_power(U, W, s)
-        excited = (f_all > 0) & (f_all < fs / 2) & (p > 1e-6 * p[1:].max())
+        excited = (f_all > 0) & (f_all < fs / 2) & has_power(np.where(f_all > 0, p, 0.0))
         strong = p >= INPUT_FLOOR * p[1:].max()
         strong[0] = True            # 0 Hz is removed by the detrending, not missing; beyond 0 Hz: the mirror image
         lobe = sliding_window_view(np.pad(strong, MAIN_LOBE, mode="reflect"), 2 * MAIN_LOBE + 1).all(axis=1)
@@ -377,7 +379,7 @@ class EnsembleSpectral(EnsembleEstimator):
         """The excited bins whose median squared coherence over the windows is significant (95 % for ``n_avg``
         averages); :class:`InputError` when fewer than ``need`` of them are fitted (``in_band``)."""
         s = self.settings
-        crit = significance(n_avg)
+        crit = coherence_threshold(n_avg)
         sig = np.median(coh, axis=0) > crit
         if (sig & in_band).sum() < need:
             raise InputError(f"{self.name}: the angle and torque of '{ens.name}' are coherent at "
@@ -436,17 +438,6 @@ class EnsembleSpectral(EnsembleEstimator):
         grid[:, 0] = k0
         grid[:, powered] = H
         return np.fft.fftshift(np.fft.irfft(grid, W, axis=1), axes=1)
-
-
-def frf_and_coherence(suu: np.ndarray, syy: np.ndarray, suy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The H1 estimate ``S_uy / S_uu`` and the squared coherence ``|S_uy|^2 / (S_uu S_yy)`` (clipped to 0 ... 1)
-    from the windows' spectra; 0 at the bins whose input power is below ``1e-12`` of the largest."""
-    tiny = np.finfo(float).tiny
-    live = suu > 1e-12 * suu.max()
-    H = np.where(live, suy / np.where(live, suu, 1.0), 0.0)
-    den = suu * syy
-    coh = np.clip(np.where(live & (den > tiny), np.abs(suy) ** 2 / np.where(den > tiny, den, 1.0), 0.0), 0.0, 1.0)
-    return H, coh
 
 
 def _from_good_windows(x: np.ndarray, good: np.ndarray) -> np.ndarray:

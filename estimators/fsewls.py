@@ -12,13 +12,16 @@ import numpy as np
 import pandas as pd
 
 from jointbench.estimators import Estimator, register
-from jointbench.estimators._band import MIN_RUN, band_of_trials, chance, excited_share, input_band, welch_of_trials
+from jointbench.estimators._band import band_of_trials, welch_of_trials
 from jointbench.estimators._ewls_band import forgetting_table, pointwise_bands
 from jointbench.estimators._fsewls_kernels import (  # noqa: F401 - ewls_regression: public here, for controls
     ewls, ewls_regression, ewls_start, highpass, highpass_time_constant, svf, svf_pole)
+from jointbench.core.band import MIN_RUN, chance, excited_share, input_band
 from jointbench.core.errors import InputError
 from jointbench.core.estimate import Intervals, ParametricEstimate, Prediction
+from jointbench.core.intervals import LEVEL
 from jointbench.core.schema import param
+from jointbench.core.scores import vaf
 from jointbench.core.types import Trial
 
 
@@ -71,18 +74,15 @@ class FSEWLSEstimate(ParametricEstimate):
             return np.where(ki > 0, self.B / (2.0 * np.sqrt(np.abs(ki))), np.nan)
 
     def output_vaf(self, steady_only: bool = True) -> float:
-        """VAF (%) of the predicted filtered torque, ``100 (1 - var(y - yhat) / var(y))``, pooled over the
-        records, on the :meth:`steady` samples unless ``steady_only=False``.
+        """VAF (%) of the predicted filtered torque (:func:`jointbench.core.scores.vaf`), pooled over
+        the records, on the :meth:`steady` samples unless ``steady_only=False``.
 
         References
         ----------
         Xu & Hollerbach (1998), Sec. III-B and Fig. 2 ("VAF of the output prediction").
         """
         keep = self.steady() if steady_only else np.ones(len(self.time), bool)
-        y = self.filtered_torque[:, keep]
-        if y.size < 2 or np.var(y) == 0:
-            raise ValueError("output_vaf: no samples with a varying filtered torque")
-        return float(100.0 * (1.0 - np.var(y - self.predicted_filtered_torque[:, keep]) / np.var(y)))
+        return vaf(self.filtered_torque[:, keep], self.predicted_filtered_torque[:, keep])
 
     def prediction(self, trial, index: int = 0) -> Prediction:
         """What FSEWLS predicts: the filtered torque ``y = L H tau`` of record ``index`` and
@@ -181,7 +181,6 @@ class FSEWLS(Estimator):
     #: forgetting rates (1/s) tried by :meth:`choose_forgetting`
     FORGETTING_GRID: ClassVar[tuple[float, ...]] = (5.0, 7.0, 10.0, 14.0, 20.0, 30.0, 45.0, 70.0, 100.0, 150.0)
     #: confidence level of the pointwise bands
-    LEVEL: ClassVar[float] = 0.95
 
     def pole(self) -> float:
         """Pole ``a`` (rad/s) of the state-variable filter."""
@@ -310,7 +309,7 @@ class FSEWLS(Estimator):
     def bands(self, Phi: np.ndarray, y: np.ndarray, Theta: np.ndarray, steady: np.ndarray, fs: float) -> Intervals:
         """Pointwise 95 % bands of I(t), B(t), K(t) (:func:`estimators._ewls_band.pointwise_bands`)."""
         return pointwise_bands(Phi, y, Theta, 1.0 / fs, float(self.settings.forgetting), self.holdout_delay(fs),
-                               steady, self.LEVEL)
+                               steady, LEVEL)
 
     def choose_forgetting(self, trials: list[Trial]) -> tuple[float, dict[float, float]]:
         """The forgetting rate of :data:`FORGETTING_GRID` whose estimate best predicts held-out samples

@@ -13,6 +13,7 @@ from jointbench.estimators._resample import JackknifeSettings, realization_jackk
 from jointbench.estimators._tvirf import EnsembleEstimator, TVLagSettings, basis_normal, centred
 from jointbench.core.ensemble import Ensemble
 from jointbench.core.errors import InputError
+from jointbench.core.intervals import psd_solve
 from jointbench.core.estimate_tv import TVIRFEstimate
 from jointbench.core.schema import param
 
@@ -194,18 +195,14 @@ class Guarin(EnsembleEstimator):
         Yv = Y[first:last]
         Phi = time_basis(s.basis, M, n, s.width)[first:last]          # (rows, M)
         G, b = basis_normal(X, Yv, Phi)
-        scale = np.sqrt(np.maximum(np.diag(G), 1e-300))
-        Gs = G / scale[:, None] / scale[None, :]
-        w, V = np.linalg.eigh(Gs)
-        keep = w > s.rcond * w[-1]
-        c = (V[:, keep] @ ((V[:, keep].T @ (b / scale)) / w[keep])) / scale
+        c, rank = psd_solve(G, b, s.rcond)
         c = c.reshape(M, Ly)                                          # c[m, k]
         B = time_basis(s.basis, M, n, s.width)                        # (n, M)
         H = (B @ c).T                                                 # (Ly, n)
         valid = np.zeros(n, bool)
         valid[first:last] = True
         info = {"realizations": R, "basis": f"{M} {s.basis}", "unknowns": n_unknown,
-                "equations": R * n_rows, "rank": f"{int(keep.sum())} of {len(keep)}",
+                "equations": R * n_rows, "rank": f"{rank} of {G.shape[0]}",
                 "reflex": "yes" if s.reflex else "no"}
         est = GuarinEstimate(lags=np.arange(-m1, m2 + 1), h=H[:L], fs=fs, time=ens.time, valid=valid,
                               estimator=self.name, info=info, reflex_h=H[L:] if s.reflex else None,

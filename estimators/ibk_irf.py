@@ -9,11 +9,12 @@ import scipy.linalg
 
 from jointbench.estimators import Estimator, register
 from jointbench.estimators._band import band_of_trials
-from jointbench.estimators._twosided import (LEVEL, Edges, LagSettings, fit_irf, input_output, irf_intervals,
-                                             lag_samples, regressor, t_quantile)
+from jointbench.estimators._twosided import (Edges, LagSettings, fit_irf, input_output, irf_intervals, lag_samples,
+                                             regressor)
 from jointbench.core import differentiators as dd
 from jointbench.core.errors import InputError
 from jointbench.core.estimate import IRFEstimate, Intervals, ParametricEstimate
+from jointbench.core.intervals import LEVEL, t_quantile
 from jointbench.core.schema import param
 from jointbench.core.signal import bandlimit_fb
 from jointbench.core.types import Trial
@@ -124,7 +125,7 @@ class IBKIRF(Estimator):
 
     Intervals (95 %): ``I``, ``B``, ``K`` are linear in the IRF (``x = A^+ F h``, ``F`` the band-limiting
     filter), so their covariance is ``A^+ F Cov(h) F^T A^+T`` with the IRF's segment-robust covariance
-    (:func:`estimators._twosided.segment_covariance`), t quantiles. They describe the noise, not the
+    (:func:`jointbench.core.intervals.segment_covariance`), t quantiles. They describe the noise, not the
     misfit of a second-order model (reflexes) or the bias of a band-limit above the input's band.
 
     References

@@ -5,13 +5,14 @@ import dataclasses
 
 import numpy as np
 import scipy.linalg
-from scipy import stats
 
 from jointbench.estimators import Estimator, register
-from jointbench.estimators._band import EDGE, MAX_GAP, input_band
-from jointbench.estimators.spectral import LEVEL, WelchSettings, frf_estimate, segment_spectra
+from jointbench.estimators._band import EDGE
+from jointbench.estimators.spectral import WelchSettings, frf_estimate, segment_spectra
+from jointbench.core.band import MAX_GAP, input_band
 from jointbench.core.errors import InputError
 from jointbench.core.estimate import Intervals, ParametricEstimate
+from jointbench.core.intervals import LEVEL, t_quantile
 from jointbench.core.schema import param
 from jointbench.core.types import Trial
 
@@ -117,7 +118,7 @@ class IBKSpectral(Estimator):
         if jack is None:
             return est
         cov, dof = jack
-        q = float(stats.t.ppf(0.5 + LEVEL / 2, dof))
+        q = t_quantile(dof)
         se = np.sqrt(np.maximum(np.diag(cov), 0.0))
         bounds = {k: (v - q * e, v + q * e) for k, v, e in zip("IBK", (I, B, K), se)}
         bounds["stiffness"] = bounds["K"]

@@ -6,12 +6,12 @@ from typing import ClassVar, Literal
 
 import numpy as np
 import pandas as pd
-from scipy import stats
 
 from jointbench.estimators import Estimator, _kbr_posterior as kp, _kbr_predict as kpred, _kbr_solve as ks, register
 from jointbench.estimators._multisine_lines import multisine_bins
 from jointbench.core.errors import InputError
 from jointbench.core.estimate import Estimate, Intervals, Prediction
+from jointbench.core.intervals import LEVEL, z_quantile
 from jointbench.core.schema import param
 from jointbench.core.types import Trial
 
@@ -307,7 +307,6 @@ class KBR(Estimator):
     SIGMA_GRID: ClassVar[tuple[float, ...]] = (2.0, 4.0, 8.0, 16.0, 32.0)
     GAMMA_SCALE_GRID: ClassVar[tuple[float, ...]] = (0.01, 0.1, 1.0, 10.0, 100.0)
     #: confidence level of the stiffness band
-    LEVEL: ClassVar[float] = 0.95
     #: at most this many times for the band (interpolated in between; the coefficients vary on sigma)
     BAND_POINTS: ClassVar[int] = 2000
 
@@ -475,13 +474,13 @@ class KBR(Estimator):
             w2 = 1.0 / (pb.sv2 * kp.error_variance_factor(Db, coef2[:s.na], pb.mask))
             _, cov2 = kp.posterior(system, w2)
             sd2 = np.interp(np.arange(trial.n), rows, kp.stiffness_sd(system, cov2, coef2, s.na, est.f1, rows))
-            q = float(stats.norm.ppf(0.5 + self.LEVEL / 2))
+            q = z_quantile()
             return k2 - q * sd2, k2 + q * sd2
 
         def stiffness_band() -> Intervals:
             k = est.stiffness(trial.time)
             if s.refine:
-                return Intervals(level=self.LEVEL, method="posterior of the kernel regression (Gaussian prior eq. "
+                return Intervals(level=LEVEL, method="posterior of the kernel regression (Gaussian prior eq. "
                                  "15) at the minimiser of eq. B.1 and its noise weights, linearised",
                                  bounds={"stiffness": refined_band(coef, k)})
             # the relaxation's fixed point is biased by noise (class docstring, refine): its posterior spread
@@ -492,7 +491,7 @@ class KBR(Estimator):
             coef2 = system.trajectories(c2, z2)
             k2 = dataclasses.replace(est, a=coef2[:s.na], b=coef2[s.na:]).stiffness(trial.time)
             lo, hi = refined_band(coef2, k2)
-            return Intervals(level=self.LEVEL, method="posterior of the kernel regression (Gaussian prior eq. 15) "
+            return Intervals(level=LEVEL, method="posterior of the kernel regression (Gaussian prior eq. 15) "
                              "at the minimiser of eq. B.1 (the Gauss-Newton refinement of the relaxation) and its "
                              "noise weights, linearised, widened to hold the relaxation's estimate (its noise bias)",
                              bounds={"stiffness": (np.minimum(lo, k), np.maximum(hi, k))})

@@ -12,6 +12,7 @@ from jointbench.estimators._twosided import (LagSettings, check_lengths, estimat
                                              lag_samples, mdl_pseudo_inverse)
 from jointbench.core.estimate import IRFEstimate, Prediction
 from jointbench.core.errors import InputError
+from jointbench.core.scores import vaf
 from jointbench.core.schema import param
 from jointbench.core.types import Trial
 
@@ -187,8 +188,9 @@ class ParallelCascade(Estimator):
         info["reflex"] = "kept (MDL)" if s.keep_reflex == "mdl" else "kept (keep_reflex = always)"
         est = ParallelCascadeEstimate(lags=np.arange(-m1, m2 + 1), h=fit.h, fs=fs, time=tr.time, estimator=self.name,
                                       reflex_h=h, reflex_delay=d, nonlinearity=nl, rows=(first, last),
-                                      vaf_total=rx.vaf(y[rows], (tqI + tqR)[rows]),
-                                      vaf_intrinsic=rx.vaf(y[rows], tqI[rows]), vaf_reflex=rx.vaf(y[rows], tqR[rows]))
+                                      vaf_total=vaf(y[rows], (tqI + tqR)[rows], undefined="nan"),
+                                      vaf_intrinsic=vaf(y[rows], tqI[rows], undefined="nan"),
+                                      vaf_reflex=vaf(y[rows], tqR[rows], undefined="nan"))
         est.fit_info = {**fit.info, **info}
         return est.with_intervals(lambda: irf_intervals(fit))
 
@@ -234,8 +236,9 @@ class ParallelCascade(Estimator):
         tqI = irf.predict(u)
         sl = slice(m2, n - m1)
         est = ParallelCascadeEstimate(lags=irf.lags, h=irf.h, fs=tr.fs, time=tr.time, estimator=self.name,
-                                      rows=(m2, n - m1), vaf_total=rx.vaf(y[sl], tqI[sl]),
-                                      vaf_intrinsic=rx.vaf(y[sl], tqI[sl]), vaf_reflex=0.0, reflex_delay=d)
+                                      rows=(m2, n - m1), vaf_total=vaf(y[sl], tqI[sl], undefined="nan"),
+                                      vaf_intrinsic=vaf(y[sl], tqI[sl], undefined="nan"), vaf_reflex=0.0,
+                                      reflex_delay=d)
         est.fit_info = {**irf.fit_info, **info}
         return est.with_intervals(lambda: irf.intervals)
 

@@ -15,6 +15,8 @@ from jointbench.estimators._tvirf import (EnsembleEstimator, TVLagSettings, basi
 from jointbench.estimators.guarin import BasisKind, time_basis
 from jointbench.core.ensemble import Ensemble
 from jointbench.core.errors import InputError
+from jointbench.core.intervals import psd_solve
+from jointbench.core.scores import vaf
 from jointbench.core.estimate_tv import TVIRFEstimate
 from jointbench.core.schema import param
 
@@ -85,8 +87,6 @@ class Rows:
         The fitted rows and the last lag of the reflex window.
     scale : float
         The largest speed ``v_max`` (the polynomial nonlinearity's range).
-    ss : float
-        The torque's sum of squares about each realization's mean (the VAFs' denominator).
     """
 
     XI: np.ndarray
@@ -99,7 +99,6 @@ class Rows:
     last: int
     W: int
     scale: float
-    ss: float
 
     @classmethod
     def of(cls, U: np.ndarray, Y: np.ndarray, V: np.ndarray, Phi: np.ndarray, m1: int, m2: int, W: int) -> "Rows":
@@ -112,7 +111,7 @@ class Rows:
         Ph, Yv = Phi[first:last], Y[first:last]
         GI, bI = basis_normal(XI, Yv, Ph)
         return cls(XI=XI, Ph=Ph, GI=GI, bI=bI, V=V, Yv=Yv, first=first, last=last, W=W,
-                   scale=float(np.max(np.abs(V))), ss=float(np.sum((Yv - Yv.mean(axis=0)) ** 2)))
+                   scale=float(np.max(np.abs(V))))
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -219,7 +218,7 @@ class TVParallelCascade(EnsembleEstimator):
             tqI, tqR, cI = fit.intrinsic, fit.reflex, fit.coef
             nl, h = rx.finish(fit.a, fit.h, s, data.scale)
         else:                                                       # the intrinsic pathway alone, refitted
-            cI = rx.solve_normal(data.GI, data.bI, s.rcond).reshape(M, LI)
+            cI = psd_solve(data.GI, data.bI, s.rcond)[0].reshape(M, LI)
             tqI, tqR = np.einsum("trl,tm,ml->tr", data.XI, data.Ph, cI), np.zeros_like(data.Yv)
             nl, h = None, None
         info = {"realizations": R, "basis": f"{M} {s.basis}", "reflex_delay": f"{d / fs * 1e3:g} ms",
@@ -228,7 +227,9 @@ class TVParallelCascade(EnsembleEstimator):
                 else "not kept: it does not lower the MDL against the intrinsic pathway alone"}
         if keep:
             info["nonlinearity"] = nl.describe()
-        vt = lambda yhat: 100.0 * (1.0 - float(np.sum((data.Yv - yhat) ** 2)) / data.ss)  # noqa: E731
+        def vt(yhat):                                               # about each realization's mean
+            return vaf(data.Yv, yhat, bias_counts=True, axis=0, undefined="nan")
+
         valid = np.zeros(n, bool)
         valid[first:last] = True
         H = np.ascontiguousarray(_on_record(data.Ph @ cI, first, last, n).T)     # (LI, n)
@@ -268,12 +269,12 @@ class TVParallelCascade(EnsembleEstimator):
         best, it, rss_I = -np.inf, 0, None
         for it in range(1, s.max_iter + 1):
             bI = basis_rhs(XI, Yv - tqR, Ph)
-            cI = rx.solve_normal(data.GI, bI, s.rcond).reshape(M, LI)
+            cI = psd_solve(data.GI, bI, s.rcond)[0].reshape(M, LI)
             tqI = np.einsum("trl,tm,ml->tr", XI, Ph, cI)
             if rss_I is None:
                 rss_I = float(np.sum((Yv - tqI) ** 2))
             a, h, g, tqR = self._reflex(XR, Yv - tqI, Ph, g, it == 1)
-            total = 100.0 * (1.0 - float(np.sum((Yv - tqI - tqR) ** 2)) / data.ss)
+            total = vaf(Yv, tqI + tqR, bias_counts=True, axis=0)
             if total - best < s.tolerance:
                 break
             best = total
@@ -302,7 +303,7 @@ class TVParallelCascade(EnsembleEstimator):
             a, h = rx.hammerstein(G, b, p, L)
             z = np.einsum("trpl,p,l->tr", XR, a, h)                  # the cascade's output, gain 1
             Zf = centred(z[:, :, None] * Ph[:, None, :]).reshape(N * R, -1)
-            e = rx.solve_normal(Zf.T @ Zf, Zf.T @ Y.reshape(N * R), s.rcond)
+            e = psd_solve(Zf.T @ Zf, Zf.T @ Y.reshape(N * R), s.rcond)[0]
             g = Ph @ e
             mean_g = float(np.mean(g))
             if mean_g != 0:                                          # the cascade carries the mean gain

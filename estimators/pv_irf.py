@@ -10,10 +10,11 @@ from numpy.polynomial import chebyshev
 from scipy import signal as sps
 
 from jointbench.estimators import Estimator, register
-from jointbench.estimators._reflex import solve_normal
-from jointbench.estimators._twosided import LagSettings, check_lengths, lag_samples, regressor, t_quantile
+from jointbench.estimators._reflex import RCOND
+from jointbench.estimators._twosided import LagSettings, check_lengths, lag_samples, regressor
 from jointbench.core.estimate import Estimate, Intervals, Prediction
 from jointbench.core.errors import ConfigError, InputError
+from jointbench.core.intervals import LEVEL, psd_pinv, psd_solve, segment_covariance, t_quantile
 from jointbench.core.schema import param
 from jointbench.core.types import Trial
 
@@ -24,8 +25,8 @@ if TYPE_CHECKING:  # pragma: no cover
 DERIVED = ("angle_slow", "angle")
 #: the data must hold at least this many samples per unknown
 SAMPLES_PER_UNKNOWN = 10
-#: contiguous segments of the segment-robust covariance (at most)
-SEGMENTS = 40
+#: eigenvalues of the Gram matrix below this fraction of the largest are left out of its pseudo-inverse
+GRAM_RCOND = 1e-12
 
 
 def slow_part(angle: np.ndarray, fs: float, cutoff: float) -> np.ndarray:
@@ -80,7 +81,7 @@ class PVIRFEstimate(Estimate):
     slow_cutoff: float = 1.0
     valid: np.ndarray | None = None
     estimator: str = "pv_irf"
-    level: float = 0.95
+    level: float = LEVEL
 
     def _x(self, sigma) -> np.ndarray:
         return 2.0 * (np.asarray(sigma, float) - self.lo) / (self.hi - self.lo) - 1.0
@@ -189,7 +190,7 @@ class PVIRF(Estimator):
 
     The band of K(sigma) is pointwise (``level``), from a segment-robust covariance of the coefficients
     (contiguous segments of the record as clusters, neighbours' products half weighted, as the two-sided
-    IRF's intervals, :func:`estimators._twosided.segment_covariance`), with a t quantile.
+    IRF's intervals, :func:`jointbench.core.intervals.segment_covariance`), with a t quantile.
 
     Parameters
     ----------
@@ -225,7 +226,7 @@ class PVIRF(Estimator):
                                                               "movement, below the perturbation")
         n_basis: int = param(4, ge=1, le=20, doc="Chebyshev polynomials of the schedule (degree 0 ... n_basis - 1)")
         offset: bool = param(True, doc="also expand an offset f(sigma) (the elastic torque of the slow movement)")
-        level: float = param(0.95, gt=0, lt=1, doc="level of the pointwise band of K(sigma)")
+        level: float = param(LEVEL, gt=0, lt=1, doc="level of the pointwise band of K(sigma)")
         min_span: float = param(0.01, gt=0, lt=1, doc="the schedule must span at least this fraction of its range")
 
         def __post_init__(self):
@@ -276,9 +277,9 @@ class PVIRF(Estimator):
             X = np.hstack([X, T1])
         y = (tr.torque - tr.torque.mean())[rows]
         G = X.T @ X
-        c = solve_normal(G, X.T @ y)
+        c = psd_solve(G, X.T @ y, RCOND)[0]
         e = y - X @ c
-        cov, dof = _segment_covariance(X, e, G)
+        cov, dof = segment_covariance([(X, e)], psd_pinv(G, GRAM_RCOND))
         coef = c[:M * L].reshape(M, L)
         valid = np.zeros(n, bool)
         valid[rows] = True
@@ -289,25 +290,6 @@ class PVIRF(Estimator):
         est.fit_info = {"schedule": f"{what}, {lo:.4g} ... {hi:.4g}", "unknowns": unknowns,
                         "condition": f"{cond:.3g}"}
         return est.with_intervals(lambda: _intervals(est))
-
-
-def _segment_covariance(X: np.ndarray, e: np.ndarray, G: np.ndarray) -> tuple[np.ndarray | None, int]:
-    """Segment-robust covariance ``P Omega P G/(G-1)`` of least-squares coefficients: the rows cut into at
-    most :data:`SEGMENTS` contiguous segments, ``Omega`` the sum of the segments' score products plus half
-    the neighbours' (the estimator of :func:`estimators._twosided.segment_covariance`, for any regressors)."""
-    N = len(e)
-    k = min(SEGMENTS, N // max(4 * X.shape[1], 1))
-    if k < 8:
-        return None, 0
-    edges = np.linspace(0, N, k + 1).astype(int)
-    S = np.array([X[a:b].T @ e[a:b] for a, b in zip(edges[:-1], edges[1:])])
-    meat = S.T @ S
-    cross = S[:-1].T @ S[1:]
-    meat += 0.5 * (cross + cross.T)
-    w, V = np.linalg.eigh(G)
-    keep = w > 1e-12 * w[-1]
-    P = (V[:, keep] / w[keep]) @ V[:, keep].T
-    return P @ meat @ P * (k / (k - 1.0)), k - 1
 
 
 def _intervals(est: PVIRFEstimate) -> Intervals | None:

@@ -30,6 +30,7 @@ from jointbench.estimators import Estimator, register
 from jointbench.estimators._multisine_lines import multisine_bins
 from jointbench.core.errors import InputError
 from jointbench.core.estimate import Estimate, Intervals, Prediction
+from jointbench.core.intervals import LEVEL, PINV_RCOND, psd_pinv, z_quantile
 from jointbench.core.schema import param
 from jointbench.core.types import Trial
 
@@ -287,7 +288,6 @@ class Skirt(Estimator):
     #: highest order tried by ``n_p = auto``
     MAX_AUTO_ORDER: ClassVar[int] = 15
     #: confidence level of the stiffness band
-    LEVEL: ClassVar[float] = 0.95
 
     def choose_order(self, trials: list[Trial]) -> tuple[SkirtEstimate, dict[int, float]]:
         """The estimate of the order ``N_p`` with the least generalised cross-validation score.
@@ -359,7 +359,7 @@ class Skirt(Estimator):
                                s.transient_order, fs, self.name, return_cov=True)
         est = SkirtEstimate(lines_hz=bins / T, Gp=Gp, fs=fs, time=trials[0].time, duration=T,
                             estimator=self.name)
-        return est.with_intervals(lambda: stiffness_band(est, cov0, self.LEVEL))   # on first use
+        return est.with_intervals(lambda: stiffness_band(est, cov0, LEVEL))   # on first use
 
     def _lines(self, trials: list[Trial]) -> np.ndarray:
         """Excited bins, detected or given, the same in every record."""
@@ -379,14 +379,13 @@ def stiffness_band(est: SkirtEstimate, cov0: np.ndarray, level: float) -> Interv
     ``cov0`` is that of ``[Re G_p, Im G_p]`` (:func:`solve_bands`); ``|g(t)|``, ``g = sum_p G_p b_p(t)``,
     is linearised: ``d|g| = (Re g d(Re g) + Im g d(Im g)) / |g|``. Normal quantiles.
     """
-    from scipy import stats
 
     b = est.basis_at(est.time).T                                    # (n, P)
     g = b @ est.Gp[:, 0]
     mag = np.maximum(np.abs(g), 1e-300)
     J = np.hstack([b * (g.real / mag)[:, None], b * (g.imag / mag)[:, None]])
     se = np.sqrt(np.maximum(np.sum((J @ cov0) * J, axis=1), 0.0))
-    z = float(stats.norm.ppf(0.5 + level / 2))
+    z = z_quantile(level)
     return Intervals(level=level, method="least-squares covariance of the lowest band (residual variance of its "
                                          "bins), linearised",
                      bounds={"stiffness": (np.abs(g) - z * se, np.abs(g) + z * se)})
@@ -469,7 +468,7 @@ def solve_bands(inputs: list[np.ndarray], outputs: list[np.ndarray], bins: np.nd
     m = 2 * n_t * len(bands[0])                        # real equations of the first band
     res = A[0] @ sol[0] - b[0]
     s2 = float(res @ res) / max(m - 2 * n_unknown, 1)
-    cov = s2 * np.linalg.pinv(A[0].T @ A[0])
+    cov = s2 * psd_pinv(A[0].T @ A[0], PINV_RCOND)
     idx = np.concatenate([np.arange(P), n_unknown + np.arange(P)])     # Re, Im of G_p at the lowest line
     return Gp, cov[np.ix_(idx, idx)]
 

@@ -9,13 +9,13 @@ import scipy.fft
 from scipy import signal as sps
 
 from jointbench.estimators import Estimator, register
+from jointbench.core.band import frf_and_coherence
 from jointbench.core.errors import InputError
 from jointbench.core.estimate import FRFEstimate, Intervals
+from jointbench.core.intervals import LEVEL
 from jointbench.core.schema import param
 from jointbench.core.types import Trial
 
-#: confidence level of the frequency response's band
-LEVEL = 0.95
 
 
 @dataclasses.dataclass(frozen=True)
@@ -34,8 +34,10 @@ class WelchSettings:
             raise ValueError(f"window: {self.window!r} is not a scipy.signal.get_window name ({exc})") from None
 
 
-def welch_frf(name: str, trials: list[Trial], s: WelchSettings) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Frequencies (Hz), ``H = S_uy / S_uu`` and squared coherence, spectra averaged over all records.
+def welch_frf(name: str, trials: list[Trial],
+              s: WelchSettings) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Frequencies (Hz), ``H = S_uy / S_uu``, squared coherence (:func:`jointbench.core.band.frf_and_coherence`)
+    and the input's power ``S_uu``, spectra averaged over all records.
 
     ``u`` is the angle and ``y`` the torque. :func:`scipy.signal.csd` ``(u, y)`` averages
     ``conj(U) Y``, so for ``y = h * u`` the ratio is ``H`` itself (not its conjugate). Each record's
@@ -73,12 +75,8 @@ def welch_frf(name: str, trials: list[Trial], s: WelchSettings) -> tuple[np.ndar
     scale = max(float(np.mean(t.angle ** 2)) for t in trials)
     if not suu.max() > 1e-20 * scale:
         raise InputError(f"{name}: the angle (input) has no power after detrending; nothing to identify")
-    tiny = np.finfo(float).tiny
-    ok = suu > 1e-14 * suu.max()
-    H = np.where(ok, suy / np.where(ok, suu, 1.0), 0.0)
-    den = suu * syy
-    coh = np.where(ok & (den > tiny), np.abs(suy) ** 2 / np.where(den > tiny, den, 1.0), 0.0)
-    return f, H, np.clip(coh, 0.0, 1.0)
+    H, coh = frf_and_coherence(suu, syy, suy)
+    return f, H, coh, suu
 
 
 def _segment_ffts(x: np.ndarray, nseg: int, step: int, count: int, win: np.ndarray, detrend: str) -> np.ndarray:
@@ -155,12 +153,6 @@ def effective_averages(trials: list[Trial], s: WelchSettings) -> float:
     return K / factor
 
 
-def significance(n_avg: float) -> float:
-    """Squared coherence exceeded with probability 0.05 under zero coherence for ``n_avg`` averages,
-    ``1 - 0.05^(1/(n_avg - 1))`` (Carter, Knapp & Nuttall 1973); 1 for a single average."""
-    return 1.0 if n_avg <= 1 else 1.0 - 0.05 ** (1.0 / (n_avg - 1.0))
-
-
 def taper_spread(taper: np.ndarray, fs: float) -> float:
     """Second moment ``sigma_w^2`` (rad^2/s^2) of the taper's spectral window ``|W(w)|^2``:
     ``int |w'(t)|^2 dt / int w(t)^2 dt``, by differences (``4 pi^2 / (3 T^2)`` for a Hann window of ``T`` s).
@@ -204,10 +196,10 @@ def frf_band(H: np.ndarray, coh: np.ndarray, n_avg: float, level: float = LEVEL)
 
 def frf_estimate(name: str, trials: list[Trial], s: WelchSettings, estimator: str) -> FRFEstimate:
     """:func:`welch_frf` as an :class:`FRFEstimate` with its effective averages and coherence band."""
-    f, H, coh = welch_frf(name, trials, s)
+    f, H, coh, suu = welch_frf(name, trials, s)
     n_avg = effective_averages(trials, s)
     est = FRFEstimate(freq=f, H=H, coherence=coh, fs=trials[0].fs, time=trials[0].time, estimator=estimator,
-                      n_averages=n_avg)
+                      n_averages=n_avg, input_power=suu)
     band = frf_band(H, coh, n_avg)
     i = int(np.argmax(f > 0))
     k = {"stiffness": (band["mag"][0][i], band["mag"][1][i])}

@@ -12,7 +12,7 @@ import pytest
 
 from jointbench import estimators
 from jointbench.core.errors import InputError
-from jointbench.estimators._band import input_band
+from jointbench.core.band import input_band
 from jointbench.core.types import Trial
 from tests.estimate_data import one_blas_thread_per_test, run, save  # noqa: F401 (autouse fixture)
 
@@ -276,7 +276,7 @@ def test_csv_states_the_band_of_irf2_and_fsewls(tmp_path, name):
 def test_chance_is_the_binomial_tail_of_the_coherence_test():
     """Hand-checkable: with 5 frequencies each passing by chance at 5 %, 3 or more pass with probability
     C(5,3) .05^3 .95^2 + C(5,4) .05^4 .95 + .05^5 = 0.00115813 (the refusal's 3-of-5 figure)."""
-    from jointbench.estimators._band import chance
+    from jointbench.core.band import chance
 
     assert chance(3, 5) == pytest.approx(0.00115813, rel=1e-5)
     assert chance(0, 7) == 1.0 and chance(8, 7) == 0.0

@@ -93,11 +93,11 @@ def test_percentile_interval_contains_the_median_and_is_seeded():
     rng = np.random.default_rng(0)
     for k in range(200):
         x = rng.standard_t(2, size=int(rng.integers(2, 30))) * 10 ** rng.uniform(-3, 3)
-        lo, hi = cs.percentile_interval(x)
+        lo, hi = cs.bootstrap_interval(x)
         assert cs.contains(lo, float(np.median(x)), hi), (k, x)
-    assert cs.percentile_interval([4.0, 4.0, 4.0]) == (4.0, 4.0)
-    assert cs.percentile_interval([1.0, 2.0, 9.0]) == cs.percentile_interval([1.0, 2.0, 9.0])
-    assert all(math.isnan(v) for v in cs.percentile_interval([math.nan]))
+    assert cs.bootstrap_interval([4.0, 4.0, 4.0]) == (4.0, 4.0)
+    assert cs.bootstrap_interval([1.0, 2.0, 9.0]) == cs.bootstrap_interval([1.0, 2.0, 9.0])
+    assert all(math.isnan(v) for v in cs.bootstrap_interval([math.nan]))
     assert cs.contains(math.inf, math.inf, math.inf) and not cs.contains(1.0, math.inf, 2.0)
 
 

@@ -208,7 +208,7 @@ def test_welch_frf_is_scipy_csd_bit_for_bit(window, overlap, detrend, segment):
         suy = suy + w * puy
     count = sum(1 + (t.n - nseg) // (nseg - nover) for t in trials)
     suu, syy, suy = suu / count, syy / count, suy / count
-    f2, H, coh = welch_frf("spectral", trials, s)
+    f2, H, coh, _ = welch_frf("spectral", trials, s)
     assert np.array_equal(f2, f)
     assert np.array_equal(H, suy / suu)   # the angle has power at every frequency here
     assert np.array_equal(coh, np.clip(np.abs(suy) ** 2 / (suu * syy), 0.0, 1.0))

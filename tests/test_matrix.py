@@ -15,7 +15,7 @@ from jointbench.benchmarks.config import load_study
 from jointbench.benchmarks.harness.case import run_case
 from jointbench.benchmarks.compare.identifiability import identifiability
 from jointbench.benchmarks.compare import protocol as compare_mod
-from jointbench.benchmarks.compare.protocol import TUNE_OFFSET, percentile_interval
+from jointbench.benchmarks.compare.protocol import TUNE_OFFSET, recentred_percentile_interval
 from jointbench.benchmarks.runner import expand_study
 from jointbench.benchmarks.study import run_study
 from tests.harness_studies import tiny_grid_part, tiny_study
@@ -54,12 +54,12 @@ def test_percentile_interval_contains_its_value_even_when_the_bootstrap_is_biase
     rng = np.random.default_rng(1)
     for shift in (-3.0, 0.0, 2.5, 10.0):          # draws all above (or below) the value: the raw percentiles exclude it
         draws = 5 + shift + rng.standard_normal(200)
-        lo, hi = percentile_interval(5.0, draws, floor=None)
+        lo, hi = recentred_percentile_interval(5.0, draws, floor=None)
         assert lo <= 5.0 <= hi
         assert hi - lo == pytest.approx(np.percentile(draws, 95, method="higher")
                                         - np.percentile(draws, 5, method="lower"))    # the spread is kept
-    assert percentile_interval(math.inf, [1.0, 2.0]) == (math.inf, math.inf)
-    lo, hi = percentile_interval(1.0, [1.0] * 10 + [math.inf] * 190)
+    assert recentred_percentile_interval(math.inf, [1.0, 2.0]) == (math.inf, math.inf)
+    lo, hi = recentred_percentile_interval(1.0, [1.0] * 10 + [math.inf] * 190)
     assert lo <= 1.0 <= hi and hi == math.inf
 
 

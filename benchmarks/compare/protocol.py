@@ -14,7 +14,7 @@ stiffness with the metrics of the comparison framework (:mod:`benchmarks.metrics
 * over the R realizations: ``bias_rms``, ``bias_mean``, ``random_error``, ``total_error`` and, for a
   square-wave stiffness, ``rise_time_s`` (mean over the steps) with ``n_steps``; each with its spread
   ``p05``/``p95``, a 90 % percentile bootstrap interval over ``spread_draws`` resamplings of the R
-  realizations re-centred on the estimate (:func:`percentile_interval`; drawn from the case's seeded
+  realizations re-centred on the estimate (:func:`recentred_percentile_interval`; drawn from the case's seeded
   generator), which contains the value;
 * ``not_fitted`` (value NaN, label ``reason``) when the estimator refuses the data (an InputError).
 
@@ -54,6 +54,7 @@ import numpy as np
 
 from jointbench import estimators, sims
 from jointbench.benchmarks import metrics
+from jointbench.core.scores import vaf
 from jointbench.benchmarks.compare.identifiability import FIGURES, trial_identifiability, without_torque_noise
 from jointbench.benchmarks.protocols import Context, register
 from jointbench.benchmarks.scoring import fit_timed, frozen_stiffness, scored_samples
@@ -96,7 +97,7 @@ class CompareParams:
     backend: str = param("", doc="label: the simulation backend")
 
 
-def percentile_interval(value: float, draws, floor: float | None = 0.0) -> tuple[float, float]:
+def recentred_percentile_interval(value: float, draws, floor: float | None = 0.0) -> tuple[float, float]:
     """The 90 % percentile bootstrap interval of ``value`` re-centred on it: the 5th and 95th percentiles
     (nearest ranks outward) of ``draws - (median(draws) - value)``, not below ``floor`` (the metrics are
     >= 0; ``None`` for the signed mean bias).
@@ -152,7 +153,7 @@ def select_setting(make, candidates, fit_data, held_out, keep) -> tuple[int, lis
             m = keep & valid_mask(est, trial.time)
             yhat = np.asarray(est.predict(trial.input), float)
             ok = m.sum() >= 2 and bool(np.all(np.isfinite(yhat[m])))
-            vafs.append(metrics.vaf(trial.output[m], yhat[m]) if ok else math.nan)
+            vafs.append(vaf(trial.output[m], yhat[m]) if ok else math.nan)
         scores.append(float(np.mean(vafs)))
     if not np.any(np.isfinite(scores)):
         raise InputError("no candidate setting could be fitted to the tuning realizations")
@@ -230,7 +231,7 @@ def _fit_realizations(ctx, p: CompareParams, name: str, estimator, first, k: np.
             ctx.metric("vaf_stiffness", metrics.stiffness_vaf(k[m], khat[m]), name, realization=r, **label)
         yhat = np.asarray(est.predict(trial.input), float)
         if m.sum() >= 2 and np.all(np.isfinite(yhat[m])):
-            ctx.metric("vaf_output", metrics.vaf(trial.output[m], yhat[m]), name, realization=r, **label)
+            ctx.metric("vaf_output", vaf(trial.output[m], yhat[m]), name, realization=r, **label)
     return khats, masks
 
 
@@ -248,7 +249,8 @@ def _framework(tc: np.ndarray, kc: np.ndarray, K: np.ndarray, square: bool) -> d
 def _score_realizations(ctx, p: CompareParams, name: str, tc: np.ndarray, kc: np.ndarray, K: np.ndarray,
                         label: dict) -> None:
     """Record ``error_rms`` of each realization, then the metrics over realizations (:func:`_framework`) with
-    their spread over ``spread_draws`` bootstrap resamplings of the realizations (:func:`percentile_interval`)."""
+    their spread over ``spread_draws`` bootstrap resamplings of the realizations
+    (:func:`recentred_percentile_interval`)."""
     R = p.realizations
     for r in range(R):
         ctx.metric("error_rms", float(np.sqrt(np.mean((K[r] - kc) ** 2))), name, realization=r, **label)
@@ -258,8 +260,8 @@ def _score_realizations(ctx, p: CompareParams, name: str, tc: np.ndarray, kc: np
     for metric, v in values.items():
         spread = {}
         if draws:
-            spread = dict(zip(("p05", "p95"), percentile_interval(v, [d[metric] for d in draws],
-                                                                   None if metric == "bias_mean" else 0.0)))
+            spread = dict(zip(("p05", "p95"), recentred_percentile_interval(
+                v, [d[metric] for d in draws], None if metric == "bias_mean" else 0.0)))
         extra = {"n_steps": int(len(metrics.steps(kc)))} if metric == "rise_time_s" else {}
         ctx.metric(metric, v, name, n=R, **spread, **extra, **label)
 

@@ -27,7 +27,7 @@ DRAWS = 2000
 Better = Literal["max", "min"]
 
 
-def percentile_interval(values, level: float = 0.90, draws: int = DRAWS, seed: int = SEED,
+def bootstrap_interval(values, level: float = 0.90, draws: int = DRAWS, seed: int = SEED,
                         stat=np.median) -> tuple[float, float]:
     """Percentile bootstrap interval of ``stat`` (default the median) over the realizations ``values``:
     the ``(1 - level)/2`` and ``(1 + level)/2`` quantiles (nearest ranks outward) of ``stat`` over ``draws``
@@ -160,7 +160,7 @@ def paired_comparisons(values: dict[str, dict], better: Better, alpha: float = 0
             if not shared:
                 continue
             d = np.array([values[a][r] - values[b][r] for r in shared], float)
-            lo, hi = percentile_interval(d)
+            lo, hi = bootstrap_interval(d)
             recs.append({"a": a, "b": b, "n": len(shared), "median_diff": float(np.median(d)), "diff_lo": lo,
                          "diff_hi": hi, "p": signed_rank_p(d)})
     for rec, ph in zip(recs, holm([r["p"] for r in recs])):

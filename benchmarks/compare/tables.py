@@ -155,7 +155,7 @@ def full_table(rows: pd.DataFrame, curves: pd.DataFrame | None = None) -> pd.Dat
         per = METRICS[metric][2] and "realization" in g and g["realization"].notna().all()
         if per:
             value = float(np.median(v))
-            lo, hi = cs.percentile_interval(v)
+            lo, hi = cs.bootstrap_interval(v)
             kind = "percentile bootstrap of the median over realizations (90 %)"
         else:
             value = float(np.median(v))

@@ -6,7 +6,8 @@ import dataclasses
 import numpy as np
 
 from jointbench import sims
-from jointbench.benchmarks.metrics import relative_error, vaf
+from jointbench.benchmarks.metrics import relative_error
+from jointbench.core.scores import vaf
 from jointbench.benchmarks.protocols import Context, register
 from jointbench.core.estimate import FRFEstimate, IRFEstimate, ParametricEstimate
 from jointbench.core.schema import param

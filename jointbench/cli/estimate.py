@@ -163,12 +163,14 @@ def stiffness_text(est, at: "np.ndarray | None" = None) -> str:
     """K at the scheduling values ``at`` (default: 5 over the visited range) with the estimate's band."""
     import numpy as np
 
+    from jointbench.core.intervals import LEVEL
+
     if not hasattr(est, "stiffness_at"):
         return ""
     values = np.linspace(est.lo, est.hi, 5) if at is None else np.asarray(at, float)
     k = est.stiffness_at(values)
     lo, hi = est.stiffness_band(values)
-    level = getattr(est, "level", 0.95)
+    level = getattr(est, "level", LEVEL)
     lines = [f"K at chosen values of the scheduling variable '{est.schedule_name}' (visited {est.lo:.4g} ... "
              f"{est.hi:.4g}; {100 * level:g} % pointwise intervals in [ ]):"]
     for v, kk, a, b in zip(values, k, lo, hi):

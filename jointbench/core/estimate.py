@@ -27,7 +27,9 @@ import numpy as np
 if TYPE_CHECKING:  # pragma: no cover
     import pandas as pd
 
+from jointbench.core import band
 from jointbench.core.errors import InputError
+from jointbench.core.scores import vaf
 
 _EMPTY: Mapping = types.MappingProxyType({})
 
@@ -78,18 +80,16 @@ class Prediction:
     definition: str
 
     def vaf(self) -> float:
-        """``100 (1 - var(y - yhat) / var(y))`` over the :attr:`used` samples, in percent.
+        """The VAF (:func:`jointbench.core.scores.vaf`) of :attr:`yhat` against :attr:`y` over the
+        :attr:`used` samples, in percent.
 
         Raises
         ------
         InputError
-            Fewer than 2 samples used, or no variance in ``y`` there (nothing to explain).
+            The VAF is undefined there: fewer than 2 samples used, a non-finite value, or no variance in
+            ``y`` (a constant or zero torque: nothing to explain).
         """
-        y, yhat = self.y[self.used], self.yhat[self.used]
-        if y.size < 2 or not np.var(y) > 0:
-            raise InputError("the measured torque has no variance on the samples the VAF is computed on "
-                             "(constant or zero torque?); nothing to explain")
-        return float(100.0 * (1.0 - np.var(y - yhat) / np.var(y)))
+        return vaf(self.y[self.used], self.yhat[self.used])
 
 
 class Estimate(ABC):
@@ -273,18 +273,17 @@ class FRFEstimate(Estimate):
     estimator: str = "frf"
     #: effective number of independent spectral averages (None: unknown; every frequency is then used)
     n_averages: float | None = None
+    #: the input's (angle's) power spectral density at ``freq`` (None: unknown), for the input's band
+    #: (:func:`jointbench.core.band.input_band`)
+    input_power: np.ndarray | None = None
 
     def significant(self) -> np.ndarray:
-        """Frequencies whose squared coherence is significantly above zero (95 % level).
-
-        Under zero coherence the squared coherence of ``n`` independent averages exceeds
-        ``1 - 0.05^(1/(n - 1))`` with probability 0.05 (Carter, Knapp & Nuttall 1973); ``n`` is
-        :attr:`n_averages`. With ``n_averages`` unknown, every frequency with nonzero coherence.
-        """
-        coh = np.asarray(self.coherence, float)
-        if self.n_averages is None or self.n_averages <= 1:
-            return coh > 0
-        return coh > 1.0 - 0.05 ** (1.0 / (self.n_averages - 1.0))
+        """Frequencies whose squared coherence is significantly above zero
+        (:func:`jointbench.core.band.significant` for :attr:`n_averages`: under zero coherence the squared
+        coherence of ``n`` independent averages exceeds ``1 - 0.05^(1/(n - 1))`` with probability 0.05,
+        Carter, Knapp & Nuttall 1973; with ``n_averages`` unknown or below 2, every frequency with nonzero
+        coherence)."""
+        return band.significant(self.coherence, self.n_averages)
 
     def segment_samples(self) -> int:
         """Length (samples) of the segments ``H`` was estimated on: ``fs / freq[1]``."""

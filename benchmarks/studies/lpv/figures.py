@@ -5,6 +5,7 @@ import pandas as pd
 
 from jointbench.benchmarks.figures import PartReport, new_figure, register, save
 from jointbench.benchmarks.tables import median_range, over_seeds
+from jointbench.core.intervals import LEVEL
 
 
 def _ok(rows: pd.DataFrame) -> pd.DataFrame:
@@ -88,7 +89,7 @@ def lpv_kmap(part, rows, curves, folder, checks) -> PartReport:
     for rs, col in zip(sorted(cov["range_scale"].dropna().unique()), ("tab:green", "tab:purple", "k", "tab:red")):
         g = cov[cov["range_scale"] == rs].sort_values("movement_frequency")
         d.plot(g["movement_frequency"], g["median"], "-o", color=col, ms=4, label=f"range x {rs:g}")
-    d.axhline(0.95, color="0.6", ls=":", lw=1, label="nominal 95 %")
+    d.axhline(LEVEL, color="0.6", ls=":", lw=1, label=f"nominal {100 * LEVEL:g} %")
     d.set_xscale("log")
     d.set_ylim(0, 1.05)
     d.set_xlabel("movement frequency (Hz)")

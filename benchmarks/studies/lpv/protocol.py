@@ -34,7 +34,7 @@ import math
 import numpy as np
 
 from jointbench import sims
-from jointbench.benchmarks import metrics
+from jointbench.core.scores import vaf
 from jointbench.benchmarks.protocols import Context, register
 from jointbench.benchmarks.compare.protocol import impedance
 from jointbench.benchmarks.scoring import fit_timed, scored_samples
@@ -137,6 +137,6 @@ def kmap(ctx: Context) -> None:
         ctx.metric("kmap_max_error", float(np.max(np.abs(err))), name)
         yhat = np.asarray(est.predict(trial.input), float)
         if np.all(np.isfinite(yhat[m])):
-            ctx.metric("vaf_output", metrics.vaf(trial.output[m], yhat[m]), name)
+            ctx.metric("vaf_output", vaf(trial.output[m], yhat[m]), name)
         if ctx.seed == 0:
             ctx.curve("k_theta", grid, k_hat, series="estimate", estimator=name)

@@ -38,6 +38,7 @@ import numpy as np
 
 from jointbench import sims
 from jointbench.benchmarks import metrics
+from jointbench.core.scores import vaf
 from jointbench.benchmarks.protocols import Context, register
 from jointbench.benchmarks.compare.protocol import impedance
 from jointbench.benchmarks.scoring import fit_timed, frozen_stiffness, scored_samples
@@ -60,10 +61,6 @@ class ReflexParams:
                                               doc="the estimators fitted to ensembles")
     discard: float = param(5.0, unit="s", ge=0, doc="seconds not scored at each end")
     curve_rate: float = param(5.0, unit="Hz", gt=0, doc="rate of the stored mean-stiffness curves")
-
-
-def _vaf(y: np.ndarray, yhat: np.ndarray) -> float:
-    return float(100.0 * (1.0 - np.var(y - yhat) / np.var(y))) if np.var(y) > 0 else math.nan
 
 
 def with_gain(exp, p: ReflexParams):
@@ -97,8 +94,8 @@ def bias(ctx: Context) -> None:
     k = frozen_stiffness(first)
     keep = scored_samples(t, p.discard)
     s = first.truth.signals
-    ctx.metric("reflex_share", _vaf(s["torque"][keep] - s["torque"][keep].mean(),
-                                    s["reflex_torque"][keep] - s["reflex_torque"][keep].mean()))
+    ctx.metric("reflex_share", vaf(s["torque"][keep] - s["torque"][keep].mean(),
+                                   s["reflex_torque"][keep] - s["reflex_torque"][keep].mean(), undefined="nan"))
     ctx.metric("reflex_gain_mean", float(np.mean(s["reflex_gain"][keep])))
     for name, estimator in ctx.estimators.items():
         khats, masks = [], []
@@ -122,7 +119,7 @@ def bias(ctx: Context) -> None:
                 ctx.metric("vaf_stiffness", metrics.stiffness_vaf(k[m], khat[m]), name, realization=r)
             yhat = np.asarray(est.predict(tr.input), float)
             if np.all(np.isfinite(yhat[m])):
-                ctx.metric("vaf_output", metrics.vaf(tr.output[m], yhat[m]), name, realization=r)
+                ctx.metric("vaf_output", vaf(tr.output[m], yhat[m]), name, realization=r)
             if hasattr(est, "vaf_reflex"):
                 _separation(ctx, name, est, tr, exp, r)
         if len(khats) < R:
@@ -157,13 +154,15 @@ def _separation(ctx: Context, name: str, est, tr, exp, r: int) -> None:
     for metric, value in (("vaf_total", est.vaf_total), ("vaf_intrinsic", est.vaf_intrinsic),
                           ("vaf_reflex", est.vaf_reflex)):
         ctx.metric(metric, value, name, realization=r)
-    ctx.metric("vaf_reflex_true", _vaf(y[used], Tr[used]), name, realization=r)
+    ctx.metric("vaf_reflex_true", vaf(y[used], Tr[used], undefined="nan"), name, realization=r)
     ti = est.intrinsic_torque(u) if hasattr(est, "intrinsic_torque") else est.predict(u)
-    ctx.metric("separation_intrinsic", _vaf(Ti[used], ti[used] - ti[used].mean()), name, realization=r)
+    ctx.metric("separation_intrinsic", vaf(Ti[used], ti[used] - ti[used].mean(), undefined="nan"), name,
+               realization=r)
     kept = est.reflex_h is not None
     ctx.metric("reflex_kept", float(kept), name, realization=r)
     if kept:
         tr_hat = est.reflex_torque(u)
         if np.var(Tr[used]) > 0:
-            ctx.metric("separation_reflex", _vaf(Tr[used], tr_hat[used] - tr_hat[used].mean()), name, realization=r)
+            ctx.metric("separation_reflex", vaf(Tr[used], tr_hat[used] - tr_hat[used].mean(), undefined="nan"), name,
+                       realization=r)
         ctx.metric("delay_error_samples", float(est.reflex_delay) - exp.reflex.delay * tr.fs, name, realization=r)

@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from jointbench.benchmarks.checks import verdict
 from jointbench.benchmarks.figures import PartReport, new_figure, register, save
 from jointbench.benchmarks.studies.vanderuit2018_table1.protocol import (TABLE1_METRICS, inferred_noise_ratio,
                                                            prefilter_noise_ratio)
@@ -49,8 +50,10 @@ def published_cells(checks) -> dict[tuple, object]:
 
 
 def within_tolerance(rows: pd.DataFrame, published: dict) -> pd.DataFrame:
-    """Per Table I column: how many published cells this part's medians meet (the checks' bounds)."""
+    """Per Table I column: how many published cells this part meets, each judged by its check
+    (:func:`benchmarks.checks.verdict`: the check's own aggregate over this part's rows)."""
     st = _stats(rows)
+    part = _part_of(rows)
     recs = []
     for m in TABLE1_METRICS:
         for ev in ("reproduction", "conditional", "calibrated"):
@@ -60,7 +63,7 @@ def within_tolerance(rows: pd.DataFrame, published: dict) -> pd.DataFrame:
                 if metric != m or key not in st.index or getattr(c, "evidence", "reproduction") != ev:
                     continue
                 n += 1
-                hit += int(c.low <= float(st.loc[key, "median"]) <= c.high)
+                hit += int(verdict(c, rows, part)[5] == "pass")
             if n:
                 recs.append({"column": LABELS[m], "evidence": ev, "cells within tolerance": f"{hit} of {n}"})
     return pd.DataFrame(recs)
@@ -79,6 +82,11 @@ def outliers(rows: pd.DataFrame, floor: float = 50.0) -> str:
 
 def _fmt(med: float, lo: float, hi: float, n: int, digits: int) -> str:
     return median_range(med, lo, hi, n, digits)
+
+
+def _part_of(rows: pd.DataFrame) -> str | None:
+    """The part whose rows these are (a figure maker gets one part's rows)."""
+    return str(rows["part"].iloc[0]) if len(rows) and "part" in rows.columns else None
 
 
 def _stats(rows: pd.DataFrame) -> pd.DataFrame:
@@ -367,8 +375,10 @@ def noise_derivation_frame(published: dict, ratios: dict, cutoff_hz: float = 15.
 
 def gaps_frame(rows: pd.DataFrame, checks) -> pd.DataFrame:
     """KBR - skirt of this part's medians for every method-difference check of Table I (published gap, its
-    size band when there is one), whatever part the check belongs to: the gaps under this part's variant."""
+    size band when there is one), whatever part the check belongs to: the gaps under this part's variant, each
+    judged by its check (:func:`benchmarks.checks.verdict` on this part's rows)."""
     st = _stats(rows)
+    part = _part_of(rows)
     recs = {}
     for c in checks:
         if getattr(c, "count", "") != "method_difference" or not c.versus:
@@ -379,13 +389,13 @@ def gaps_frame(rows: pd.DataFrame, checks) -> pd.DataFrame:
         if ka not in st.index or kb not in st.index:
             continue
         key = (var, snr, m)
-        gap = float(st.loc[ka, "median"] - st.loc[kb, "median"])
+        gap, _, _, _, _, status = verdict(c, rows, part)
         rec = recs.setdefault(key, {"variation": VARIATION_NAMES.get(var, var), "SNR (dB)": _snr_text(snr),
                                     "column": LABELS[m], "published KBR - skirt": str(c.published).split(" (")[0]
                                     .replace("KBR - skirt = ", ""), "reproduced": f"{gap:+.3g}",
                                     "sign": "", "size band": "", "size": ""})
         kind = c.id.rsplit("-", 1)[-1]
-        inside = c.low <= gap <= c.high
+        inside = status == "pass"
         if kind == "sign":
             rec["sign"] = "pass" if inside else "**MISS**"
         else:

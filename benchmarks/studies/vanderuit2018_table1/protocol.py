@@ -21,7 +21,8 @@ import numpy as np
 
 from jointbench import estimators
 from jointbench import sims
-from jointbench.benchmarks.metrics import rmse, vaf
+from jointbench.benchmarks.metrics import rmse
+from jointbench.core.scores import vaf
 from jointbench.benchmarks.protocols import Context, register
 from jointbench.benchmarks.scoring import basis_bound, frozen_stiffness
 from jointbench.estimators.skirt import basis as skirt_basis

@@ -28,7 +28,7 @@ import math
 
 import numpy as np
 
-from jointbench.benchmarks.metrics import vaf
+from jointbench.core.scores import vaf
 from jointbench.benchmarks.protocols import Context, register
 from jointbench.benchmarks.scoring import frozen_stiffness
 from jointbench.core.ensemble import Ensemble, valid_mask

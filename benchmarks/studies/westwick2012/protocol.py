@@ -14,7 +14,7 @@ import numpy as np
 from scipy import signal as sps
 
 from jointbench import sims
-from jointbench.benchmarks.metrics import vaf
+from jointbench.core.scores import vaf
 from jointbench.benchmarks.protocols import Context, register
 from jointbench.core import differentiators as d
 from jointbench.core.schema import param

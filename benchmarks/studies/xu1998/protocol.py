@@ -24,7 +24,8 @@ from typing import Literal
 import numpy as np
 
 from jointbench import sims
-from jointbench.benchmarks.metrics import rmse, vaf, vafm, vafv
+from jointbench.benchmarks.metrics import rmse, vafm, vafv
+from jointbench.core.scores import vaf
 from jointbench.benchmarks.protocols import Context, register
 from jointbench.core.ensemble import valid_mask
 from jointbench.core.schema import param, parse
