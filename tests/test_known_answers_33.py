@@ -28,11 +28,7 @@ from jointbench.sims.reflex_stretch import StretchReflex
 from tests.test_ensemble_estimators import ensemble_of, true_irf
 from tests.test_reflex_estimators import GRID, ankle, lpv_experiment, trial
 
-try:                                    # the input band's home may move to jointbench.core.band (issue 33)
-    from jointbench.core import band as _band_home
-except ImportError:                     # pragma: no cover - before the move
-    from jointbench.estimators import _band as _band_home
-input_band, MAX_GAP, MIN_RUN = _band_home.input_band, _band_home.MAX_GAP, _band_home.MIN_RUN
+from jointbench.core.band import MAX_GAP, MIN_RUN, input_band
 
 
 # ---------------------------------------------------------------- 1. the polynomial reflex pathway's sign
