@@ -8,6 +8,7 @@ import numpy as np
 from jointbench import sims
 from jointbench.benchmarks.metrics import relative_error, vaf
 from jointbench.benchmarks.protocols import Context, register
+from jointbench.benchmarks.scoring import fit_gated
 from jointbench.core.estimate import FRFEstimate, IRFEstimate, ParametricEstimate
 from jointbench.core.schema import param
 
@@ -71,7 +72,7 @@ def parametric_fit(ctx: Context) -> None:
     u = trial.angle - trial.angle.mean()
     y = trial.torque - trial.torque.mean()
     for name, estimator in ctx.estimators.items():
-        est = estimator.fit(trial)
+        est = fit_gated(estimator, trial)
         params = est.parameters()
         for p, values in params.items():
             value = float(np.mean(values))
