@@ -153,15 +153,19 @@ def test_a_refusal_names_the_lags_of_a_lag_based_estimator(tmp_path):
     assert "lag_before / lag_after / bandlimit" in text and "perturbation" in text
 
 
-def test_a_refused_case_is_refused_in_the_harness_counted_apart_and_shown(probe, tmp_path):
+@pytest.mark.parametrize("mode, reason", [("flip", "negative_vaf"), ("nan", "non_finite"),
+                                          ("short", "invalid_estimate")])
+def test_a_refused_case_is_refused_in_the_harness_counted_apart_and_shown(probe, tmp_path, mode, reason):
+    """A plugin whose estimate the command refuses is refused in a study too (it was 'ok' with empty values)."""
     study = tiny_study(tmp_path / "cfg", seeds=2, duration="4 s",
                        estimators={"ibk_spectral": {"fmin": "0 Hz", "fmax": "20 Hz", "segment": "2 s"},
-                                   "gate_probe": {"mode": "flip"}})
+                                   "gate_probe": {"mode": mode}})
     run = api.run(study, out=tmp_path / "out", executor="serial", plugins=[str(probe)], use_cache=False)
     assert set(run.cases["status"]) == {"refused"} and run.failures.empty
-    assert len(run.refusals) == 2 and all(e.startswith("negative_vaf: gate_probe: ") for e in run.refusals["error"])
+    assert len(run.refusals) == 2 and all(e.startswith(f"{reason}: gate_probe: ") for e in run.refusals["error"])
     report = run.report.read_text()
-    assert "2 refused" in report and "## Refused cases" in report and "negative_vaf: gate_probe" in report
+    assert "2 refused" in report and "## Refused cases" in report and f"{reason}: gate_probe" in report
+    assert f"{reason}: gate_probe" in (run.folder / "report.html").read_text()
     assert not (run.folder / "failures.log").exists()
     history = api.History(tmp_path / "out")
     assert int(history.runs(study="tiny").iloc[0]["n_refused"]) == 2

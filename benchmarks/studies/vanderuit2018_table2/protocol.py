@@ -261,7 +261,7 @@ def table2(ctx: Context) -> None:
                 if why:
                     ctx.metric("skipped", math.nan, name, mode="single", reason=why)
                     break
-                est = estimator.fit(data)
+                est = fit_gated(estimator, data)
                 self_v = case.vafs(name, est, j)
                 for tag, v in self_v.items():
                     ctx.metric("vaf_self" + tag, v, name, mode="single", fit_trial=j + 1)
