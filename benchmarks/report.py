@@ -220,7 +220,7 @@ def page(study: Study, comparison: pd.DataFrame, part_reports: dict, failed: lis
     body: list = [Paragraph(
         f"Study `{study.id}` (paper `{study.paper}`), config `{study.path.name}`. Generated {m['generated']} at "
         f"commit `{m['commit']}` by `{meta['command']}`: {meta['n_cases']} cases ({meta['n_cached']} from cache, "
-        f"{len(failed)} failed), {meta['wall_s']:.1f} s wall time on "
+        f"{len(failed)} failed, {len(meta.get('refused') or [])} refused), {meta['wall_s']:.1f} s wall time on "
         f"{meta.get('ran_on') or str(meta['workers']) + ' worker(s)'}.")]
     if meta["parts"] != list(study.parts):
         lines = [f"This run computed the parts {', '.join(meta['parts'])}"
@@ -237,6 +237,13 @@ def page(study: Study, comparison: pd.DataFrame, part_reports: dict, failed: lis
         body.append(Section("Failed cases", anchor="failed", cls="changed", body=[
             Items([f"`{r.case.case_id}`: {r.error}" for r in failed]),
             Paragraph("Tracebacks are in `failures.log`.")]))
+    if meta.get("refused"):
+        body.append(Section("Refused cases", anchor="refused", cls="changed", body=[
+            Paragraph("Cases whose estimate the output gate refused (the gate of `jointbench estimate` and "
+                      "`api.fit`: a prediction of the fitted record worse than a constant, a non-finite value "
+                      "or bound, an interval of zero width). Counted apart from failures; no row of theirs is "
+                      "scored."),
+            Items([f"`{r.case.case_id}`: {r.error}" for r in meta["refused"]])]))
     body.append(Section("Not reproduced", anchor="not-reproduced", body=[
         Paragraph("Published tables, figures and values this study leaves out, and why (from the study config):"),
         Items([f"**{n.item}**: {n.reason}" for n in m["not_reproduced"]]) if m["not_reproduced"] else

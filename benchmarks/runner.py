@@ -262,7 +262,7 @@ class _Results:
         if self.bar is not None:
             self.bar.update(1)
             if res.status != "ok":
-                self.bar.write(f"case {res.case.case_id} failed: {res.error}")
+                self.bar.write(f"case {res.case.case_id} {res.status}: {res.error}")
 
     def keep_finished(self, inflight: dict) -> None:
         """After a stop: store every finished case not yet stored, and those whose task ended meanwhile (a

@@ -56,7 +56,12 @@ class StudyRun:
 
     @property
     def failed(self) -> list[CaseResult]:
-        return [r for r in self.results if r.status != "ok"]
+        return [r for r in self.results if r.status == "failed"]
+
+    @property
+    def refused(self) -> list[CaseResult]:
+        """Cases whose estimate the output gate refused (:func:`jointbench.fitting.pipeline.gate`)."""
+        return [r for r in self.results if r.status == "refused"]
 
 
 
@@ -100,7 +105,7 @@ def _part_reports(study, shown, results, rows, curves, folder) -> dict:
             out[name] = None
             continue
         if not any(r.status == "ok" and r.case.part == name for r in results):
-            out[name] = "no case of this part succeeded (see Failed cases)"
+            out[name] = "no case of this part succeeded (see Failed cases and Refused cases)"
             continue
         try:
             out[name] = figures.REGISTRY.get(maker)(
@@ -397,11 +402,11 @@ def _stage(run: _Run, out: _Outcome, stage: Path) -> tuple[dict, object, list[Ca
     atomic_write(stage / "cases.parquet", lambda p: outputs.write_parquet(rows, p))
     atomic_write(stage / "curves.csv.gz", lambda p: write_csv(curves, p, gzip_level=GZIP_LEVEL))
     atomic_write(stage / "checks.csv", lambda p: write_csv(comparison, p))
-    failed = [r for r in out.results if r.status != "ok"]
+    failed = [r for r in out.results if r.status == "failed"]
     if failed:
         write_text(stage / "failures.log", "\n\n".join(f"== {r.case.case_id}\n{r.detail or r.error}" for r in failed))
     part_reports = _part_reports(study, out.shown, out.results, rows, curves, stage)
-    meta = {**out.meta, "stage": stage}
+    meta = {**out.meta, "stage": stage, "refused": [r for r in out.results if r.status == "refused"]}
     swap = study.method_swap
     if swap is not None and swap.part in out.shown:
         meta["method_swap"] = {**swap_survival(study.checks, rows, swap.part, swap.estimators),

@@ -15,8 +15,8 @@ from abc import ABC, abstractmethod
 from typing import Any, ClassVar, Mapping, Sequence
 
 from jointbench.core.ensemble import DATA_KINDS, Ensemble, data_kind
-from jointbench.core.errors import InputError
-from jointbench.core.estimate import Estimate
+from jointbench.core.errors import InputError, Refused
+from jointbench.core.estimate import Estimate, estimate_problem, non_finite
 from jointbench.core.registry import Registry, import_submodules, scan_registrations
 from jointbench.core.schema import checked, parse
 from jointbench.core.types import Trial
@@ -91,7 +91,9 @@ class Estimator(ABC):
             return (f"{cls.name} needs a {' or '.join(repr(k) for k in cls.perturbations)} perturbation, "
                     f"the experiment has {kind!r}")
         return None
-    accepts: ClassVar[frozenset[str]] = frozenset({"trial", "pooled"})
+    #: the kinds of data fitted (:data:`DATA_KINDS`): one record by default; an estimator whose fit uses
+    #: every record given (pooled) says so with "pooled", one that fits ensembles with "ensemble"
+    accepts: ClassVar[frozenset[str]] = frozenset({"trial"})
 
     def __init_subclass__(cls, **kwargs):
         """Every estimator's ``Settings`` checks its values on construction, as :func:`make` does
@@ -135,7 +137,7 @@ class Estimator(ABC):
             why = self.refuses(trials)
             if why:
                 raise InputError(why)
-            return self._fit_ensemble(trials)
+            return self.checked(self._fit_ensemble(trials), [trials.n], trials.fs)
         if isinstance(trials, Trial):
             trials = [trials]
         trials = list(trials)
@@ -147,7 +149,27 @@ class Estimator(ABC):
         why = self.refuses(trials)
         if why:
             raise InputError(why)
-        return self._fit(trials)
+        return self.checked(self._fit(trials), [t.n for t in trials], trials[0].fs)
+
+    def checked(self, estimate: Estimate, lengths: Sequence[int], fs: float) -> Estimate:
+        """``estimate`` when it is a valid result of a fit of records of ``lengths`` samples at ``fs`` Hz: an
+        :class:`~jointbench.core.estimate.Estimate` on the data's time base, each parameter a scalar or one
+        value per sample, every value finite (:func:`~jointbench.core.estimate.estimate_problem`,
+        :func:`~jointbench.core.estimate.non_finite`). Every caller (the fit pipeline, the harness, a
+        notebook) gets a valid estimate or :class:`~jointbench.core.errors.Refused` naming this estimator
+        and what is wrong, never an estimate that fails later."""
+        problem = estimate_problem(estimate, lengths, fs)
+        if problem:
+            raise Refused(f"{self.name}: the estimate is not valid: {problem} (a bug of the estimator, not of "
+                          f"the data)", reason="invalid_estimate",
+                          diagnostics={"estimator": self.name, "problem": problem})
+        bad = non_finite(estimate, bounds=False)
+        if bad:
+            raise Refused(f"{self.name}: the fit gave non-finite values in {', '.join(bad)}: the data do not "
+                          f"determine them (constant or far too small/large signals, too few samples, or "
+                          f"settings the record cannot support)", reason="non_finite",
+                          diagnostics={"estimator": self.name, "columns": bad})
+        return estimate
 
     def _fit_ensemble(self, ensemble: Ensemble) -> Estimate:
         """Ensemble mode of a single-trial estimator: fit the ensemble average (van de Ruit et al.

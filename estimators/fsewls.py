@@ -161,6 +161,8 @@ class FSEWLS(Estimator):
     trial data. IEEE Trans. Biomed. Eng., eqs. 3-6 and Sec. III-B.
     """
 
+    accepts = frozenset({"trial", "pooled"})      # every record given enters the fit
+
     @dataclasses.dataclass(frozen=True)
     class Settings:
         highpass_cutoff: float | None = param(1.0, unit="Hz", gt=0, doc="edge of the high-pass H (eq. 3); none = off")

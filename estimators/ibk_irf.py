@@ -137,6 +137,8 @@ class IBKIRF(Estimator):
     Comput. 21, 203-209.
     """
 
+    accepts = frozenset({"trial", "pooled"})      # every record given enters the fit
+
     @dataclasses.dataclass(frozen=True)
     class Settings(LagSettings):
         irf_method: Literal["ls", "corr"] = param("ls", doc="nonparametric IRF: 'ls' (eq. 14) or 'corr' (eq. 15)")

@@ -86,6 +86,8 @@ class IBKSpectral(Estimator):
     Biomed. Eng. 59(10), doi:10.1109/TBME.2012.2213339, eq. 16 and Sec. V-A (Fig. 6).
     """
 
+    accepts = frozenset({"trial", "pooled"})      # every record given enters the fit
+
     @dataclasses.dataclass(frozen=True)
     class Settings(WelchSettings):
         fmin: float = param(0.0, unit="Hz", ge=0, doc="lowest frequency given weight in the fit")

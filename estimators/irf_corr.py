@@ -49,6 +49,8 @@ class IRFCorrelation(Estimator):
     Comput. 21, 203-209.
     """
 
+    accepts = frozenset({"trial", "pooled"})      # every record given enters the fit
+
     @dataclasses.dataclass(frozen=True)
     class Settings(LagSettings):
         pass

@@ -51,6 +51,8 @@ class IRFLeastSquares(Estimator):
     Biomed. Eng. 59(10), doi:10.1109/TBME.2012.2213339, Sec. III-C, eq. 14.
     """
 
+    accepts = frozenset({"trial", "pooled"})      # every record given enters the fit
+
     @dataclasses.dataclass(frozen=True)
     class Settings(LagSettings):
         edges: Edges = param("valid", doc="'valid': only rows whose lags all lie inside the record; "

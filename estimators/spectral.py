@@ -242,6 +242,8 @@ class Spectral(Estimator):
     Biomed. Eng. 59(10), doi:10.1109/TBME.2012.2213339, Sec. III-C, eq. 16 (and eq. 17 for the coherence).
     """
 
+    accepts = frozenset({"trial", "pooled"})      # every record given enters the fit
+
     @dataclasses.dataclass(frozen=True)
     class Settings(WelchSettings):
         pass

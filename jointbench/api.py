@@ -147,6 +147,14 @@ def fit(estimator, data=None, *, angle=None, torque=None, fs: float | None = Non
     ------
     ConfigError, InputError
         Bad settings or arguments, unusable data: one line naming the argument or the record.
+    Refused
+        (an InputError) The output gate (:func:`jointbench.fitting.pipeline.gate`) did not return the estimate:
+        its prediction of a record it was fitted on is worse than a constant (``reason="negative_vaf"``), a
+        parameter or bound is not finite (``"non_finite"``), an interval has zero width
+        (``"degenerate_interval"``), or the estimator returned an invalid estimate (``"invalid_estimate"``).
+        One line naming the cause and the settings to change; ``exc.diagnostics`` holds the numbers (the
+        VAF of each record, the widths, ...). The VAF is always the torque's, predicted from the angle, also
+        for a trial whose torque was imposed (a torque drive): the numbers its CSV gives.
     """
     from jointbench.fitting import pipeline
 
@@ -287,7 +295,8 @@ def simulate(config: Mapping[str, Any] | str | Any = None, seed: int = 0, *, bac
 @dataclasses.dataclass
 class StudyResult:
     """A finished run: ``rows`` (tidy: one per metric of every case), ``checks`` (one per published check),
-    ``cases`` (case id, status, from the cache or computed, error), ``failures`` (the failed cases), and where
+    ``cases`` (case id, status, from the cache or computed, error), ``failures`` (the failed cases),
+    ``refusals`` (the cases whose estimate the output gate refused, status ``refused``, with the reason), and where
     it was written (``folder``, ``report``, history ``run_id``). ``expected_failures``: the study says failed
     cases are part of it."""
 
@@ -302,7 +311,12 @@ class StudyResult:
 
     @property
     def failures(self) -> "pd.DataFrame":
-        return self.cases.loc[self.cases["status"] != "ok", ["case_id", "error"]].reset_index(drop=True)
+        return self.cases.loc[self.cases["status"] == "failed", ["case_id", "error"]].reset_index(drop=True)
+
+    @property
+    def refusals(self) -> "pd.DataFrame":
+        """The refused cases (the output gate, :func:`jointbench.fitting.pipeline.gate`), with the reason."""
+        return self.cases.loc[self.cases["status"] == "refused", ["case_id", "error"]].reset_index(drop=True)
 
     @property
     def report(self) -> Path:

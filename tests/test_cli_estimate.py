@@ -68,16 +68,19 @@ class StubSettings:
 
 
 class StubIRF(Estimator):
-    """Stub: least-squares two-sided IRF."""
+    """Stub: least-squares two-sided IRF.
+
+    Every record given enters one regression (it says so: ``accepts`` pooled)."""
 
     Settings = StubSettings
+    accepts = frozenset({"trial", "pooled"})
 
     def _fit(self, trials):
         t = trials[0]
-        u, y = t.angle - t.angle.mean(), t.torque - t.torque.mean()
         m = int(round(self.settings.lag * t.fs))
         lags = np.arange(-m, m + 1)
-        X = np.column_stack([np.roll(u, k) for k in lags])
+        X = np.vstack([np.column_stack([np.roll(r.angle - r.angle.mean(), k) for k in lags]) for r in trials])
+        y = np.concatenate([r.torque - r.torque.mean() for r in trials])
         h = np.linalg.lstsq(X, y, rcond=None)[0]
         return IRFEstimate(lags=lags, h=h, fs=t.fs, time=t.time, estimator=self.name)
 
@@ -247,7 +250,18 @@ SYNTHETIC_SETTINGS = {"ibk_irf": ["--set", "bandlimit=20Hz"],
                       "ensemble_irf": ["--set", "pool=50ms", "--set", "remove_mean=record"]}
 
 
-@pytest.mark.parametrize("name", estimators.REGISTRY.names())
+#: estimators the output gate refuses on this record, each for a defect of its own (issue 33): the gate
+#: is right to refuse them; a fix of the estimator makes its case pass (strict: then remove it from here)
+REFUSED_ON_SYNTHETIC = {
+    "fsewls": "intervals of zero width at the recursion's first 2 samples (issue 33: the fsewls intervals)",
+    "spectral": "FRF prediction uses an isolated falsely 'significant' bin at 87.5 Hz, where the angle has no "
+                "power and H is noise: VAF -3.7e4 % (issue 33: one definition of an excited frequency)",
+}
+
+
+@pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.xfail(reason=REFUSED_ON_SYNTHETIC[n],
+                                                                            strict=True))
+                                  if n in REFUSED_ON_SYNTHETIC else n for n in estimators.REGISTRY.names()])
 def test_each_registered_estimator(tmp_path, rec, capsys, name):
     out = tmp_path / "o.csv"
     if "multisine" in estimators.REGISTRY.tags(name):

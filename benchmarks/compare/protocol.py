@@ -59,8 +59,9 @@ from jointbench.benchmarks.compare.identifiability import FIGURES, trial_identif
 from jointbench.benchmarks.protocols import Context, register
 from jointbench.benchmarks.scoring import fit_timed, frozen_stiffness, scored_samples
 from jointbench.core.ensemble import Ensemble, valid_mask
-from jointbench.core.errors import InputError
+from jointbench.core.errors import InputError, Refused
 from jointbench.core.schema import param
+from jointbench.fitting.pipeline import impedance  # the one definition (lpv and reflex import it from here)
 
 
 TUNE_OFFSET = 100_000
@@ -121,14 +122,6 @@ def recentred_percentile_interval(value: float, draws, floor: float | None = 0.0
     if floor is not None:
         lo, hi = max(lo, floor), max(hi, floor)
     return lo, hi
-
-
-def impedance(trial):
-    """The trial as every method is given it: the impedance, angle to torque (``imposed='angle'``), also
-    when the apparatus imposed the torque (Xu's torque drive): the direction every method's stiffness and
-    prediction refer to (FSEWLS fits torque from angle whatever was imposed; Westwick & Perreault's
-    two-sided IRFs exist to identify the impedance of torque-driven joints)."""
-    return trial if trial.imposed == "angle" else trial.replace(imposed="angle")
 
 
 def settings_json(estimator) -> str:
@@ -219,6 +212,8 @@ def _fit_realizations(ctx, p: CompareParams, name: str, estimator, first, k: np.
         trial, data = _realization(ctx, p, r, first)
         try:
             est, seconds = fit_timed(estimator, data)
+        except Refused:                      # the output gate: the case is refused, not a method skipped
+            raise
         except InputError as exc:            # the data cannot support this estimator: a reason, not a crash
             ctx.metric("not_fitted", math.nan, name, realization=r, reason=str(exc), **label)
             return None

@@ -46,7 +46,7 @@ IDENTIFIABILITY = {
     "noise_share": "noise, %",
     "tv_snr_db": "SNR of the time-varying stiffness torque (dB)",
 }
-FAILURES = ("skipped", "not_fitted", "not_scored")
+FAILURES = ("skipped", "not_fitted", "not_scored", "refused")
 ALPHA = 0.05
 
 
@@ -368,7 +368,8 @@ def reasons(rows: pd.DataFrame) -> pd.DataFrame:
     for (metric, method, reason), g in sel.groupby(["metric", "method", sel["reason"].fillna("")], sort=False):
         cells = list(dict.fromkeys(g["cell"]))
         out.append({"what": {"skipped": "skipped (not run)", "not_fitted": "run, refused the data",
-                             "not_scored": "fitted, nothing to score"}[metric],
+                             "not_scored": "fitted, nothing to score",
+                             "refused": "fitted, refused by the output gate (case status refused)"}[metric],
                     "method": method, "reason": reason, "scenarios": len(cells),
                     "which": "; ".join(cells[:4]) + (f"; ... ({len(cells) - 4} more)" if len(cells) > 4 else "")})
     return pd.DataFrame(out)

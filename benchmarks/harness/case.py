@@ -19,6 +19,7 @@ from typing import Any, Mapping
 from jointbench import estimators
 from jointbench import sims
 from jointbench.benchmarks import protocols
+from jointbench.core.errors import Refused
 from jointbench.core.schema import parse
 from jointbench.sims import reuse
 from jointbench.sims.backend import record_simulations
@@ -87,7 +88,7 @@ def _strings(obj):
 @dataclasses.dataclass
 class CaseResult:
     case: Case
-    status: str                    # "ok" or "failed"
+    status: str                    # "ok", "failed", or "refused" (the output gate refused an estimate: error says why)
     rows: list[dict]
     curves: list[dict]
     wall_time_s: float
@@ -172,7 +173,8 @@ def parse_inputs(case: Case):
 
 def run_case(case: Case) -> CaseResult:
     """Run one case; never raises but KeyboardInterrupt: a failure (any exception, ``SystemExit`` of a
-    plugin's ``sys.exit`` included) is returned as ``status='failed'`` with its error.
+    plugin's ``sys.exit`` included) is returned as ``status='failed'`` with its error, an estimate the output
+    gate refused (:class:`~jointbench.core.errors.Refused`) as ``status='refused'`` with its reason.
 
     Trials of the case that share a response (an estimation and a validation trial, a record with and
     without noise) simulate it once (:mod:`sims.reuse`), inside the group's block when one is open."""
@@ -185,6 +187,11 @@ def run_case(case: Case) -> CaseResult:
             proto.fn(ctx)
         return CaseResult(case, "ok", ctx.rows, ctx.curves, time.perf_counter() - t0,
                           sim_times=[[b, round(t, 6), int(r)] for b, t, r in log])
+    except Refused as exc:    # the output gate (jointbench.fitting.pipeline.gate): not a failure, a refusal
+        why = f"{exc.reason}: {exc}"
+        row = {"estimator": str(exc.diagnostics.get("estimator", "")), "metric": "refused", "value": float("nan"),
+               "reason": why}
+        return CaseResult(case, "refused", [row], [], time.perf_counter() - t0, error=why)
     except BaseException as exc:  # noqa: BLE001 - a failing case (sys.exit in a plugin too) must not stop the others
         if isinstance(exc, KeyboardInterrupt):
             raise                                  # Ctrl-C is the run's to handle, not a failed case

@@ -366,7 +366,7 @@ class History:
                                _num(r.get("reproduced")), _num(r.get("low")), _num(r.get("high")),
                                r.get("status"), r.get("aggregate"), int(r.get("n") or 0), r.get("spread"),
                                r.get("note"), r.get("evidence")))
-        n_failed = sum(r.status != "ok" for r in results)
+        n_failed = sum(r.status == "failed" for r in results)        # refused cases are counted apart
         n_cached = sum(bool(r.cached) for r in results)
         with self._tx():
             st = self.db.execute("SELECT status FROM runs WHERE id = ?", (run_id,)).fetchone()
@@ -408,7 +408,9 @@ class History:
         q = ("SELECT r.id, r.kind, r.nightly_id, r.study, r.parts, r.started, r.ended, r.status, r.commit_id, "
              "r.dirty, r.n_cases, r.n_done, r.n_failed, r.n_cached, r.wall_s, "
              "(SELECT COUNT(*) FROM checks c WHERE c.run_id = r.id AND c.status = 'pass') AS n_pass, "
-             "(SELECT COUNT(*) FROM checks c WHERE c.run_id = r.id) AS n_checks FROM runs r WHERE 1 = 1")
+             "(SELECT COUNT(*) FROM checks c WHERE c.run_id = r.id) AS n_checks, "
+             "(SELECT COUNT(*) FROM cases k WHERE k.run_id = r.id AND k.status = 'refused') AS n_refused "
+             "FROM runs r WHERE 1 = 1")
         args: list = []
         if study:
             q += " AND r.study = ?"

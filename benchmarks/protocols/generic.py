@@ -9,6 +9,7 @@ from jointbench import sims
 from jointbench.benchmarks.metrics import relative_error
 from jointbench.core.scores import vaf
 from jointbench.benchmarks.protocols import Context, register
+from jointbench.benchmarks.scoring import fit_gated
 from jointbench.core.estimate import FRFEstimate, IRFEstimate, ParametricEstimate
 from jointbench.core.schema import param
 
@@ -72,7 +73,7 @@ def parametric_fit(ctx: Context) -> None:
     u = trial.angle - trial.angle.mean()
     y = trial.torque - trial.torque.mean()
     for name, estimator in ctx.estimators.items():
-        est = estimator.fit(trial)
+        est = fit_gated(estimator, trial)
         params = est.parameters()
         for p, values in params.items():
             value = float(np.mean(values))

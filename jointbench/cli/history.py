@@ -37,7 +37,8 @@ def _list_runs(args) -> int:
         "status": runs["status"], "commit": runs["commit_id"] + runs["dirty"].map({1: "-dirty", 0: ""}),
         "cases": [f"{d}/{n}" if s != "ok" else str(n)
                   for d, n, s in zip(runs["n_done"], runs["n_cases"], runs["status"])],
-        "failed": runs["n_failed"].fillna(0).astype(int), "cached": runs["n_cached"].fillna(0).astype(int),
+        "failed": runs["n_failed"].fillna(0).astype(int), "refused": runs["n_refused"].fillna(0).astype(int),
+        "cached": runs["n_cached"].fillna(0).astype(int),
         "checks": [f"{p}/{c}" if c else "" for p, c in zip(runs["n_pass"], runs["n_checks"])],
         "wall s": runs["wall_s"].round(1)})
     print(_text(t))
@@ -47,6 +48,8 @@ def _list_runs(args) -> int:
 def _show_run(h, run_id: int) -> int:
     r = h.run(run_id)
     env = r["environment"]
+    cases = h.cases(run_id)
+    n_refused = int((cases["status"] == "refused").sum()) if len(cases) else 0
     print(f"run {r['id']} ({r['kind']}{', nightly ' + str(r['nightly_id']) if r['nightly_id'] else ''}): "
           f"study {r['study']}, status {r['status']}")
     for k, v in [("parts", ", ".join(r["parts"])), ("started", r["started"]), ("ended", r["ended"] or ""),
@@ -54,7 +57,7 @@ def _show_run(h, run_id: int) -> int:
                  ("config hash", r["config_hash"]), ("python", r["python"]),
                  ("packages", ", ".join(f"{k} {v}" for k, v in sorted(env.get("packages", {}).items()))),
                  ("machine", r["machine"]), ("command", r["command"] or ""), ("workers", r["workers"]),
-                 ("cases", f"{r['n_done']} of {r['n_cases']} done, {r['n_failed'] or 0} failed, "
+                 ("cases", f"{r['n_done']} of {r['n_cases']} done, {r['n_failed'] or 0} failed, {n_refused} refused, "
                            f"{r['n_cached'] or 0} from the cache"),
                  ("wall time", f"{r['wall_s']:.1f} s" if r["wall_s"] is not None else ""), ("error", r["error"] or "")]:
         if v not in ("", None):
@@ -64,14 +67,15 @@ def _show_run(h, run_id: int) -> int:
         print(f"\nchecks ({int((checks['status'] == 'pass').sum())} of {len(checks)} pass):")
         print(_text(checks.assign(evidence=checks["evidence"].fillna("unrecorded"))[
             ["check_id", "evidence", "part", "status", "reproduced", "low", "high", "description"]]))
-    cases = h.cases(run_id)
-    failed = cases[cases["status"] != "ok"]
-    if len(failed):
-        print("\nfailed cases:")
-        print(_text(failed[["case_id", "error"]]))
+    for status in ("failed", "refused"):
+        sel = cases[cases["status"] == status]
+        if len(sel):
+            print(f"\n{status} cases:")
+            print(_text(sel[["case_id", "error"]]))
     if len(cases):
         per = cases.groupby("part", sort=False).agg(cases=("case_id", "size"),
-                                                    failed=("status", lambda s: int((s != "ok").sum())),
+                                                    failed=("status", lambda s: int((s == "failed").sum())),
+                                                    refused=("status", lambda s: int((s == "refused").sum())),
                                                     cached=("cached", "sum"), compute_s=("wall_time_s", "sum"))
         print("\nparts:")
         print(_text(per.reset_index().round(2)))

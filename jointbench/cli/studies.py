@@ -85,9 +85,12 @@ def _run_one(args, study: str) -> int:
     comp = run.checks
     n_pass = int((comp["status"] == "pass").sum()) if len(comp) else 0
     n_cached = int(run.cases["cached"].sum())
-    failed = len(run.failures)
+    failed, refusals = len(run.failures), run.refusals
     lines = [f"{run.study}: {len(run.cases)} cases ({n_cached} from cache, {len(run.cases) - n_cached} "
-             f"computed), {failed} failed; {headline(comp)}"]
+             f"computed), {failed} failed, {len(refusals)} refused; {headline(comp)}"]
+    lines += [f"  refused  {r.case_id}: {r.error}" for r in refusals.head(10).itertuples()]
+    if len(refusals) > 10:
+        lines.append(f"  ... {len(refusals) - 10} more refused cases (report.md, 'Refused cases')")
     lines += [f"  {r.status:4s}  {r.evidence:12s}  {r.check:18s} reproduced {r.reproduced:.5g}  "
               f"[{r.low:.5g}, {r.high:.5g}]" for r in comp.itertuples()]
     lines.append(f"wrote {run.folder}/report.md, checks.csv, cases.csv, cases.parquet; history run {run.run_id}")

@@ -426,3 +426,68 @@ class ParametricEstimate(Estimate):
 
     def response_frame(self) -> pd.DataFrame | None:
         return None if self.basis is None else self.basis.response_frame()
+
+
+# ------------------------------------------------------------------------------------------------ validation
+def estimate_problem(estimate, lengths, fs: float) -> str | None:
+    """What is wrong with ``estimate`` as the result of a fit of records of ``lengths`` samples at ``fs`` Hz
+    (a few words), or None: not an :class:`Estimate`; a time base that is not one sample per sample of a
+    fitted record, or at another rate; a parameter that is neither a scalar nor one value per sample of the
+    time base; a stiffness of another shape. Checked by :meth:`jointbench.estimators.Estimator.fit` for every
+    estimator, built-in or plugin, before any caller sees the estimate (values: :func:`non_finite`)."""
+    if not isinstance(estimate, Estimate):
+        return f"returned {type(estimate).__name__}, not an Estimate (jointbench.core.estimate)"
+    time = np.asarray(getattr(estimate, "time", None))
+    if time.ndim != 1 or time.dtype.kind not in "iuf":
+        return f"its time base is not a 1-D array of seconds (shape {time.shape}, dtype {time.dtype})"
+    if len(time) not in set(lengths):
+        return (f"its time base has {len(time)} samples, the data {' or '.join(str(n) for n in sorted(set(lengths)))}"
+                f" (one value per sample of the fitted record)")
+    if not np.isclose(float(getattr(estimate, "fs", np.nan)), fs, rtol=1e-9):
+        return f"its sampling rate is {getattr(estimate, 'fs', None)!r} Hz, the data's {fs:g} Hz"
+    for key in ("I", "B", "K"):                 # a parametric estimate's own arrays, before they are evaluated
+        shape = np.shape(getattr(estimate, key, 0.0))
+        if shape not in ((), (len(time),)):
+            return f"its {key} has shape {shape}, not a scalar or one value per sample of the time base ({len(time)},)"
+    try:
+        params = estimate.parameters()
+        stiffness = np.asarray(estimate.stiffness(time))
+    except Exception as exc:  # noqa: BLE001 - a plugin's estimate may fail in any way: one line, not a traceback
+        return f"its parameters cannot be evaluated on its time base ({type(exc).__name__}: {exc})"
+    for key, value in {**params, "stiffness": stiffness}.items():
+        shape = np.shape(value)
+        if shape not in ((), (len(time),)):
+            return (f"its {key} has shape {shape}, not a scalar or one value per sample of the time base "
+                    f"({len(time)},)")
+    return None
+
+
+def non_finite(estimate: Estimate, bounds: bool = True) -> list[str]:
+    """The quantities of ``estimate`` holding a value that is not finite (NaN or infinite: what the data do
+    not determine): the columns of ``estimate.to_frame()`` (parameters, stiffness and, with ``bounds``, their
+    interval limits, computed then if the estimator computes them on first use)."""
+    if bounds:
+        frame = estimate.to_frame()
+        values = {c: frame[c].to_numpy() for c in frame.columns if frame[c].dtype.kind in "fc"}
+    else:
+        values = {**estimate.parameters(), "stiffness": estimate.stiffness(estimate.time)}
+    return [k for k, v in values.items() if not np.all(np.isfinite(np.asarray(v, float)))]
+
+
+def degenerate_intervals(estimate: Estimate) -> dict[str, float]:
+    """The quantities whose confidence interval (:attr:`Intervals.bounds`) has, somewhere on the time base,
+    a width that is zero (to rounding: 1e-9 of the bound), negative or not finite: quantity -> its smallest
+    width (NaN when not finite). An interval of zero width claims an exact value; no estimate from noisy
+    data has one. Empty when the estimate has no intervals."""
+    iv = estimate.intervals
+    if iv is None:
+        return {}
+    out: dict[str, float] = {}
+    for key, (lo, hi) in iv.bounds.items():
+        lo, hi = np.asarray(lo, float), np.asarray(hi, float)
+        width = hi - lo
+        if not np.all(np.isfinite(width)):
+            out[key] = float("nan")
+        elif np.any(width <= 1e-9 * np.maximum(np.abs(lo), np.abs(hi))):     # zero to rounding
+            out[key] = float(np.min(width))
+    return out

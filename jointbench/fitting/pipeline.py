@@ -7,8 +7,11 @@ record, because there is one path.
 several records are one ensemble (:func:`ensemble_name`: the one place this is decided), then the steps of
 :func:`prepare` (the data's magnitudes, the torque's sign, decimation, the crop: ``window``, or the perturbed
 part of a gated multisine for the multisine methods; information; memory), the fit (numerical failures
-turned into one-line errors), the estimate checked finite, and each record's prediction and VAF
-(:func:`score`). Errors name the arguments as the caller knows them (:func:`jointbench.core.errors.argument`).
+turned into one-line errors), then the output gate (:func:`gate`: the estimate is refused when its own
+prediction of a record it was fitted on is worse than a constant, a value or a bound is not finite, or an
+interval has zero width), which gives each record's prediction and VAF (:func:`score`). Every record is
+fitted and scored as an impedance, torque from angle (:func:`impedance`), also when the torque was imposed.
+Errors name the arguments as the caller knows them (:func:`jointbench.core.errors.argument`).
 """
 from __future__ import annotations
 
@@ -18,8 +21,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Mapping
 
 from jointbench.core.ensemble import Ensemble
-from jointbench.core.errors import ConfigError, InputError, argument
 from jointbench.core.arguments import whole
+from jointbench.core.errors import ConfigError, InputError, Refused, argument
 from jointbench.core.schema import boolean
 from jointbench.fitting import checks, inputs
 
@@ -147,13 +150,13 @@ def signed(records: list, torque_sign: int) -> list:
 def prepare(estimator, raw: list, *, torque_sign: int = 1, decimate: int = 1,
             window: tuple[float | None, float | None] | None = None) -> tuple[list, list[str]]:
     """The records as they are fitted, and notes on what was done unasked: magnitudes checked, the torque's
-    sign, decimation, the crop (``window``, or a gated multisine's whole periods), then information and
-    memory checked."""
+    sign, the records as impedances (:func:`impedance`), decimation, the crop (``window``, or a gated
+    multisine's whole periods), then information and memory checked."""
     sign = checked_torque_sign(torque_sign)
     decimate = whole(decimate, "decimate", minimum=1)
     checks.check_magnitudes(raw)
     raw = signed(raw, sign)
-    trials = [checks.decimate_trial(t, decimate) for t in raw]
+    trials = [checks.decimate_trial(impedance(t), decimate) for t in raw]
     notes: list[str] = []
     if window is not None:
         trials = [checks.crop_window(t, window) for t in trials]
@@ -169,8 +172,6 @@ def fit(estimator, data=None, *, angle=None, torque=None, fs: float | None = Non
         ensemble: bool | None = None, schedule: str | None = None) -> Fit:
     """Every decision and every step that can fail, in order, without writing anything (the module
     docstring); the arguments are :func:`jointbench.api.fit`'s."""
-    import numpy as np
-
     est = make_estimator(estimator, settings, schedule)
     given = inputs.records(data, angle=angle, torque=torque, fs=fs, array=array, schedule=schedule)
     name = ensemble_name(est, given, ensemble)
@@ -178,12 +179,83 @@ def fit(estimator, data=None, *, angle=None, torque=None, fs: float | None = Non
     trials, notes = prepare(est, raw, torque_sign=torque_sign, decimate=decimate,
                             window=None if window is None else checks.as_window(window))
     estimate = fit_checked(est, Ensemble(tuple(trials), name=name) if name is not None else trials)
-    frame = estimate.to_frame()
-    bad = [c for c in frame.columns if frame[c].dtype.kind == "f" and not np.all(np.isfinite(frame[c]))]
+    predictions = gate(est, estimate, trials)
+    return Fit(est, estimate, raw, trials, notes, predictions, estimate.to_frame(), estimate.response_frame())
+
+
+def impedance(trial):
+    """``trial`` as every estimator is given it and every estimate is scored on: the impedance, torque from
+    angle (``imposed='angle'``), also when the apparatus imposed the torque (Xu's torque drive): the
+    direction every method's stiffness and prediction refer to (FSEWLS fits torque from angle whatever was
+    imposed; Westwick & Perreault's two-sided IRFs exist to identify the impedance of torque-driven joints;
+    the comparison grids give every method this). An estimate's prediction is the torque from the angle;
+    scored against the angle (the output of a torque-driven record) its VAF means nothing. Records read
+    from files carry no ``imposed`` and are fitted this way already: a simulated torque-driven trial gives
+    the numbers its CSV gives."""
+    return trial if trial.imposed == "angle" else trial.replace(imposed="angle")
+
+
+def gate(estimator, estimate: "Estimate", records) -> list["Prediction"]:
+    """The output gate: each record's prediction (:func:`score`) when ``estimate``, fitted to ``records`` (a
+    trial, a list of them or an Ensemble), can be returned as a result; :class:`Refused` otherwise.
+
+    Refused, in this order: a parameter, the stiffness or an interval bound that is not finite
+    (``reason="non_finite"``); a record whose own prediction is worse than a constant, VAF < 0 on the
+    samples and in the band the estimate's prediction defines (``"negative_vaf"``); an interval of zero
+    width (to rounding) or of non-finite width from an estimator that gives intervals
+    (``"degenerate_interval"``), unless the estimate explains every record exactly (VAF above
+    :data:`EXACT_VAF`: noise-free data, where a zero width is the right answer). The one gate of
+    ``jointbench estimate``, :func:`jointbench.api.fit` and the harness's study cases: a fit the command
+    refuses is ``refused`` in a study too. The message is one line naming the cause and the settings to
+    change (:func:`remedy`); ``Refused.diagnostics`` holds the numbers.
+    """
+    from jointbench.core.estimate import degenerate_intervals, non_finite
+
+    name = getattr(estimator, "name", estimate.estimator)
+    trials = list(records.realizations if isinstance(records, Ensemble) else
+                  records if isinstance(records, (list, tuple)) else [records])
+    bad = non_finite(estimate)
     if bad:
-        raise InputError(f"{est.name}: the fit gave non-finite values in {', '.join(bad)}: the data do not "
-                         f"determine them (constant or far too small/large signals, or too few samples)")
-    return Fit(est, estimate, raw, trials, notes, score(estimate, trials), frame, estimate.response_frame())
+        raise Refused(f"{name}: the fit gave non-finite values in {', '.join(bad)}: the data do not determine "
+                      f"them; {remedy(estimator)}", reason="non_finite",
+                      diagnostics={"estimator": name, "columns": bad})
+    predictions = score(estimate, trials)
+    vafs = [p.vaf() for p in predictions]
+    worse = [(t.name, v) for t, v in zip(trials, vafs) if v < 0]
+    if worse:
+        shown = ", ".join(f"'{n}' {v:.4g} %" for n, v in worse[:3]) + (" ..." if len(worse) > 3 else "")
+        raise Refused(f"{name}: the estimate predicts the torque of the record it was fitted on worse than a "
+                      f"constant (VAF {shown}); {remedy(estimator)}", reason="negative_vaf",
+                      diagnostics={"estimator": name, "vaf": vafs, "record": [t.name for t in trials],
+                                   "definition": predictions[0].definition})
+    flat = degenerate_intervals(estimate)
+    if flat and min(vafs) < EXACT_VAF:
+        what = ", ".join(f"{k} (width {w:.3g})" for k, w in flat.items())
+        raise Refused(f"{name}: its confidence intervals of {what} have zero or non-finite width, which no "
+                      f"estimate from noisy data has; {remedy(estimator)}", reason="degenerate_interval",
+                      diagnostics={"estimator": name, "width": flat, "vaf": vafs})
+    return predictions
+
+
+#: VAF (%) of a fit that explains its records exactly (noise-free simulated data): there an interval of zero width
+#: is right, and only there; a non-finite width is refused always
+EXACT_VAF = 100.0 - 1e-6
+
+#: settings that decide what a fit can resolve, as the estimators name them, in the order a remedy names them
+TUNING_SETTINGS = ("lag_before", "lag_after", "bandlimit", "input_band", "window", "segment", "forgetting",
+                   "pool", "n_basis", "sigma", "n_p", "lags")
+
+
+def remedy(estimator) -> str:
+    """What to change when an estimate is refused: the estimator's settings that decide what it resolves
+    (its lags, band, window; worded as the caller gives settings: ``settings`` or ``--set``), or the
+    perturbation (a record whose input excites the band the model needs)."""
+    fields = [f.name for f in dataclasses.fields(estimator.settings)] \
+        if dataclasses.is_dataclass(getattr(estimator, "settings", None)) else []
+    keys = [k for k in TUNING_SETTINGS if k in fields]
+    change = (f"change {' / '.join(keys)} ({argument('settings')})" if keys
+              else f"change the estimator's settings ({argument('settings')}) or the estimator")
+    return f"{change}, or record with a perturbation that excites a wider band"
 
 
 def fit_checked(estimator, trials) -> "Estimate":
@@ -194,6 +266,8 @@ def fit_checked(estimator, trials) -> "Estimate":
     try:
         with np.errstate(over="ignore", invalid="ignore", divide="ignore", under="ignore"):
             return estimator.fit(trials)
+    except Refused:
+        raise
     except InputError as exc:
         raise InputError(f"{exc}{checks.gate_hint(estimator, records)}") from None
     except np.linalg.LinAlgError as exc:
@@ -207,10 +281,11 @@ def fit_checked(estimator, trials) -> "Estimate":
 
 
 def score(estimate: "Estimate", trials: list) -> list["Prediction"]:
-    """Each record's torque prediction (:meth:`Estimate.prediction`), on which its VAF is computed; one line
-    naming the record when it cannot be predicted or its torque has nothing to explain."""
+    """Each record's torque prediction from its angle (:meth:`Estimate.prediction` of :func:`impedance`: the
+    torque is the scored output whichever signal was imposed), on which its VAF is computed; one line naming
+    the record when it cannot be predicted or its torque has nothing to explain."""
     out = []
-    for index, trial in enumerate(trials):
+    for index, trial in enumerate(impedance(t) for t in trials):
         try:
             p = estimate.prediction(trial, index)
         except InputError as exc:

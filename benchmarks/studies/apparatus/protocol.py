@@ -26,6 +26,7 @@ from scipy import signal as sps
 
 from jointbench import sims
 from jointbench.benchmarks.protocols import Context, register
+from jointbench.benchmarks.scoring import fit_gated
 from jointbench.benchmarks.studies.xu1998.protocol import scored_window
 from jointbench.estimators.ibk_spectral import weighted_ibk_fit
 from jointbench.core.ensemble import valid_mask
@@ -158,7 +159,7 @@ def servo(ctx: Context) -> None:
         tr = trial if inp == "measured" else trial.replace(angle=np.asarray(trial.truth.signals["command"]))
         for seg in p.segments:
             est = type(est0)(dataclasses.replace(est0.settings, segment=seg))
-            fit = est.fit(tr)
+            fit = fit_gated(est, tr)
             (Ip, Bp, Kp), f, Hp, _ = servo_prediction(exp, inp, seg, est.settings.window, est.settings.fmax)
             (_, _, Kn), _, _, _ = servo_prediction(exp, inp, seg, est.settings.window, est.settings.fmax,
                                                    leakage=False)
@@ -207,7 +208,7 @@ def gravity(ctx: Context) -> None:
     exp_0 = dataclasses.replace(exp, gravity=None)
     est = ctx.estimators[p.estimator]
     with_g, without = sims.simulate(exp_g, ctx.seed), sims.simulate(exp_0, ctx.seed)
-    fit_g, fit_0 = est.fit(with_g), est.fit(without)
+    fit_g, fit_0 = fit_gated(est, with_g), fit_gated(est, without)
     keep = scored_window(with_g.n, with_g.fs, p.discard, valid_mask(fit_g))
     K_true = np.broadcast_to(np.asarray(with_g.truth.K, float), keep.shape)
     K_g = np.asarray(with_g.truth.signals["gravity_stiffness"])

@@ -39,7 +39,7 @@ from jointbench.benchmarks.protocols import Context, register
 from jointbench.benchmarks.compare.protocol import impedance
 from jointbench.benchmarks.scoring import fit_timed, scored_samples
 from jointbench.core.ensemble import valid_mask
-from jointbench.core.errors import InputError
+from jointbench.core.errors import InputError, Refused
 from jointbench.estimators.pv_irf import slow_part
 from jointbench.core.schema import param
 from jointbench.sims.profile import parse_profile
@@ -108,6 +108,8 @@ def kmap(ctx: Context) -> None:
         est_obj = type(estimator)(settings)
         try:
             est, seconds = fit_timed(est_obj, trial)
+        except Refused:                      # the output gate: the case is refused, not a method skipped
+            raise
         except InputError as exc:
             ctx.metric("not_fitted", math.nan, name, reason=str(exc))
             continue

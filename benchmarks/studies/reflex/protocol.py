@@ -43,7 +43,7 @@ from jointbench.benchmarks.protocols import Context, register
 from jointbench.benchmarks.compare.protocol import impedance
 from jointbench.benchmarks.scoring import fit_timed, frozen_stiffness, scored_samples
 from jointbench.core.ensemble import Ensemble, valid_mask
-from jointbench.core.errors import InputError
+from jointbench.core.errors import InputError, Refused
 from jointbench.core.schema import param
 from jointbench.sims.profile import parse_profile
 
@@ -105,6 +105,8 @@ def bias(ctx: Context) -> None:
                 data = Ensemble(tuple(trial(r + R * m) for m in range(M)), name=f"ensemble {r}")
             try:
                 est, seconds = fit_timed(estimator, data)
+            except Refused:                  # the output gate: the case is refused, not a method skipped
+                raise
             except InputError as exc:
                 ctx.metric("not_fitted", math.nan, name, realization=r, reason=str(exc))
                 break

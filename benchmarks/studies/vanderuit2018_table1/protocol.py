@@ -24,7 +24,7 @@ from jointbench import sims
 from jointbench.benchmarks.metrics import rmse
 from jointbench.core.scores import vaf
 from jointbench.benchmarks.protocols import Context, register
-from jointbench.benchmarks.scoring import basis_bound, frozen_stiffness
+from jointbench.benchmarks.scoring import basis_bound, fit_gated, frozen_stiffness
 from jointbench.estimators.skirt import basis as skirt_basis
 from jointbench.core.errors import ConfigError
 from jointbench.core.schema import param
@@ -369,6 +369,6 @@ def table1(ctx: Context) -> None:
     if ref.record and not math.isfinite(p.snr_db) and p.bound_orders:
         _skirt_bounds(ctx, p, ref.t, {"frozen": ref.H1, "intrinsic": ref.k_true}, lab)
     for name, estimator in ests.items():
-        est = estimator.fit(est_trial)
+        est = fit_gated(estimator, est_trial)
         khat = _score_estimate(ctx, p, ref, name, est, (est_trial, val_trial), lab, first=name == next(iter(ests)))
         _record_estimate(ctx, p, ref, name, est, khat)

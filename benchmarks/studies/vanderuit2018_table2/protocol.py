@@ -30,9 +30,9 @@ import numpy as np
 
 from jointbench.core.scores import vaf
 from jointbench.benchmarks.protocols import Context, register
-from jointbench.benchmarks.scoring import frozen_stiffness
+from jointbench.benchmarks.scoring import fit_gated, frozen_stiffness
 from jointbench.core.ensemble import Ensemble, valid_mask
-from jointbench.core.errors import InputError
+from jointbench.core.errors import InputError, Refused
 from jointbench.core.estimate_tv import TVIRFEstimate
 from jointbench.core.schema import param, parse
 from jointbench.core.signal import decimate_fft
@@ -261,7 +261,7 @@ def table2(ctx: Context) -> None:
                 if why:
                     ctx.metric("skipped", math.nan, name, mode="single", reason=why)
                     break
-                est = estimator.fit(data)
+                est = fit_gated(estimator, data)
                 self_v = case.vafs(name, est, j)
                 for tag, v in self_v.items():
                     ctx.metric("vaf_self" + tag, v, name, mode="single", fit_trial=j + 1)
@@ -284,7 +284,9 @@ def table2(ctx: Context) -> None:
                 ctx.metric("skipped", math.nan, name, mode="ensemble", reason=why)
                 break
             try:
-                est = estimator.fit(data)
+                est = fit_gated(estimator, data)
+            except Refused:                  # the output gate: the case is refused, not a method skipped
+                raise
             except InputError as exc:        # the data cannot support this estimator: a reason, not a crash
                 ctx.metric("skipped", math.nan, name, mode="ensemble", reason=str(exc))
                 break

@@ -16,6 +16,7 @@ from scipy import signal as sps
 from jointbench import sims
 from jointbench.core.scores import vaf
 from jointbench.benchmarks.protocols import Context, register
+from jointbench.benchmarks.scoring import fit_gated
 from jointbench.core import differentiators as d
 from jointbench.core.schema import param
 from jointbench.core.signal import bandlimit_fb, resample_trial
@@ -216,14 +217,14 @@ def sampling_rate_experiment(ctx: Context) -> None:
     top = max(p.fs)
     if trial.fs != top:
         trial = resample_trial(trial, top)
-    fit = ctx.estimators[p.parametric].fit(trial)
+    fit = fit_gated(ctx.estimators[p.parametric], trial)
     I, B, K = (float(np.mean(v)) for v in (fit.I, fit.B, fit.K))
     for name, v in (("I", I), ("B", B), ("K", K)):
         ctx.metric(name, v, p.parametric)
     top_irf = None
     for fs in sorted(p.fs, reverse=True):
         tr = resample_trial(trial, fs)
-        irf = ctx.estimators[p.nonparametric].fit(tr)
+        irf = fit_gated(ctx.estimators[p.nonparametric], tr)
         m1, m2 = -int(irf.lags[0]), int(irf.lags[-1])
         h_np = bandlimit_fb(irf.h, fs, p.bandlimit, p.bandlimit_order)
         n = tr.n + tr.n % 2
@@ -286,7 +287,7 @@ def input_noise(ctx: Context) -> None:
     noise_sd = np.std(trial.angle) / 10 ** (p.snr_db / 20)
     noisy = trial.replace(angle=trial.angle + ctx.rng.normal(0.0, noise_sd, trial.n), name="noisy")
     est = ctx.estimators[p.estimator]
-    h0, h1 = est.fit(trial), est.fit(noisy)
+    h0, h1 = fit_gated(est, trial), fit_gated(est, noisy)
     nper = int(round(p.segment * trial.fs))
     f, c0 = sps.coherence(trial.angle, trial.torque, trial.fs, nperseg=nper)
     _, c1 = sps.coherence(noisy.angle, trial.torque, trial.fs, nperseg=nper)

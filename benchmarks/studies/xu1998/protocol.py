@@ -27,6 +27,7 @@ from jointbench import sims
 from jointbench.benchmarks.metrics import rmse, vafm, vafv
 from jointbench.core.scores import vaf
 from jointbench.benchmarks.protocols import Context, register
+from jointbench.benchmarks.scoring import fit_gated
 from jointbench.core.ensemble import valid_mask
 from jointbench.core.schema import param, parse
 from jointbench.sims.apparatus import TorqueDrive
@@ -314,7 +315,7 @@ def track(ctx: Context) -> None:
     if p.measured_voluntary and exp.voluntary.active:
         trial = trial.replace(torque=trial.torque + np.asarray(trial.truth.signals["voluntary"]))
     if p.regressors == "filtered":
-        fit = est.fit(trial)
+        fit = fit_gated(est, trial)
     else:
         fit = exact_fit(est, trial)
     keep = scored_window(trial.n, trial.fs, p.discard, valid_mask(fit) if p.regressors == "filtered" else None)
@@ -335,7 +336,7 @@ def track(ctx: Context) -> None:
         clean = sims.simulate(exp0, ctx.seed)
         if p.measured_voluntary and exp.voluntary.active:
             clean = clean.replace(torque=clean.torque + np.asarray(clean.truth.signals["voluntary"]))
-        fit0 = est.fit(clean)
+        fit0 = fit_gated(est, clean)
         s0 = _scores(fit0, trial.truth, keep, dt)
         o0 = output_vafs(fit0, clean, keep, signals=(p.output,))   # only this drop is recorded
         s0["vaf_output"] = o0[p.output]
