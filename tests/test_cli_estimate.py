@@ -254,8 +254,6 @@ SYNTHETIC_SETTINGS = {"ibk_irf": ["--set", "bandlimit=20Hz"],
 #: is right to refuse them; a fix of the estimator makes its case pass (strict: then remove it from here)
 REFUSED_ON_SYNTHETIC = {
     "fsewls": "intervals of zero width at the recursion's first 2 samples (issue 33: the fsewls intervals)",
-    "spectral": "FRF prediction uses an isolated falsely 'significant' bin at 87.5 Hz, where the angle has no "
-                "power and H is noise: VAF -3.7e4 % (issue 33: one definition of an excited frequency)",
 }
 
 

@@ -290,19 +290,24 @@ class FRFEstimate(Estimate):
         f = np.asarray(self.freq, float)
         return int(round(self.fs / f[1])) if len(f) > 1 and f[1] > 0 else 2 * (len(f) - 1)
 
+    def excited(self) -> np.ndarray:
+        """The excited frequencies (:func:`jointbench.core.band.excited`: input power and significant
+        coherence), the one definition every band check uses."""
+        return band.excited(self.input_power, self.coherence, self.n_averages)
+
     def prediction(self, trial, index: int = 0) -> Prediction:
-        """Prediction with ``H`` only where the coherence is significant (:meth:`significant`).
+        """Prediction with ``H`` only at the excited frequencies (:meth:`excited`).
 
         The angle's DFT over the record is multiplied by ``H`` interpolated linearly between its
-        frequencies, with ``H = 0`` at the frequencies without significant coherence (the input did not
-        excite them measurably: ``H`` there is noise, however large) and at DC the real part at the
+        frequencies, with ``H = 0`` at the frequencies not excited (the input has no power there, or the
+        coherence is not significant: ``H`` there is noise, however large) and at DC the real part at the
         lowest frequency. The product is circular, so half a segment
         (:meth:`segment_samples`) is left out at each end of the record.
         """
         y = trial.output - np.mean(trial.output)
         u = trial.input - np.mean(trial.input)
         n = len(u)
-        Hs = np.where(self.significant(), self.H, 0.0)
+        Hs = np.where(self.excited(), self.H, 0.0)
         fr = np.fft.rfftfreq(n, 1.0 / self.fs)
         Hr = np.interp(fr, self.freq, Hs.real) + 1j * np.interp(fr, self.freq, Hs.imag)
         lowest = Hs[1] if len(Hs) > 1 else Hs[0]
@@ -317,7 +322,7 @@ class FRFEstimate(Estimate):
             raise InputError(f"record '{trial.name}' ({n} samples) is not longer than one segment "
                              f"({2 * edge} samples) of the frequency response")
         return Prediction(y, yhat, used, "torque (mean removed) against the prediction from the angle (mean "
-                          "removed) with H only at the frequencies of significant coherence (95 %), "
+                          "removed) with H only at the excited frequencies (input power, coherence significant at 95 %), "
                           f"without the first and last {edge} samples (half a segment)")
 
     def frequency_response(self, f: np.ndarray, t=None) -> np.ndarray:
