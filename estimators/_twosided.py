@@ -246,6 +246,14 @@ class IRFFit:
     end_effect : ndarray or None
         The correlation method's (eq. 15) IRF minus the least-squares IRF of the valid rows of the same
         records with the same pseudo-inverse (:func:`correlation_end_effect`); None for least squares.
+    singular : ndarray or None
+        The kept directions' singular values ``s_k`` (the regressors' scale in each).
+    coord_cov : ndarray or None
+        The segment-robust covariance of the kept directions' torque coordinates ``diag(s_k) V_k^T h``
+        (``kept x kept``, :func:`coordinate_covariance`); ``cov`` is ``V_k diag(1/s_k)`` it ``diag(1/s_k) V_k^T``.
+        A linear function of ``h`` is worked out from it (:func:`linear_covariance`), never from ``cov``: a kept
+        direction barely excited has a variance ``1/s^2`` times the others', which swamps the others' digits in
+        ``cov`` (issue 33: zero-width intervals of I, B, K on a 12 Hz input).
     """
 
     h: np.ndarray
@@ -256,6 +264,31 @@ class IRFFit:
     info: dict
     directions: np.ndarray | None = None
     end_effect: np.ndarray | None = None
+    singular: np.ndarray | None = None
+    coord_cov: np.ndarray | None = None
+
+
+def coordinate_covariance(pairs: list[tuple[np.ndarray, np.ndarray]], m1: int, m2: int, rows: Rows,
+                          h: np.ndarray, V_k: np.ndarray, s_k: np.ndarray) -> tuple[np.ndarray | None, int]:
+    """Segment-robust covariance of the torque coordinates ``diag(s_k) V_k^T h`` of a (pseudo-inverse) IRF
+    ``h = V_k diag(1/s_k^2) V_k^T U^T y``: ``diag(1/s_k) V_k^T Omega V_k diag(1/s_k) G / (G - 1)``, with
+    ``Omega`` the meat of :func:`segment_covariance`, and its degrees of freedom; ``(None, 0)`` when fewer than
+    :data:`MIN_SEGMENTS` segments fit.
+
+    In these coordinates every kept direction has the torque's scale, whatever its singular value, so the
+    covariance of any linear function of ``h`` is a well-scaled quadratic form (:func:`linear_covariance`).
+    """
+    meat, dof = segment_covariance(pairs, m1, m2, rows, h, np.eye(len(h)))
+    if meat is None:
+        return None, 0
+    return (V_k.T @ meat @ V_k) / np.outer(s_k, s_k), dof
+
+
+def linear_covariance(fit: IRFFit, G: np.ndarray) -> np.ndarray:
+    """Covariance of ``G h`` (``G``: rows of linear functions of the IRF, or one row) from the kept directions'
+    coordinate covariance (:attr:`IRFFit.coord_cov`): ``M C M^T`` with ``M = G V_k diag(1/s_k)``."""
+    M = np.atleast_2d(G) @ (fit.directions / fit.singular)
+    return M @ fit.coord_cov @ M.T
 
 
 def mdl_pseudo_inverse(s: np.ndarray, V: np.ndarray, c: np.ndarray, rss0: float,
@@ -378,8 +411,9 @@ def fit_irf(name: str, trials: list[Trial], settings: LagSettings, method: Liter
     if not np.all(np.isfinite(h)):
         raise InputError(f"{name}: the IRF is not finite: the angle does not excite all {n_lags} lags; use "
                          f"pseudo_inverse = mdl, fewer lags or a broader-band perturbation")
-    gram_pinv = (V[:, kept] / s[kept] ** 2) @ V[:, kept].T
-    cov, dof = segment_covariance(pairs, m1, m2, rows, h, gram_pinv) if covariance else (None, 0)
+    V_k, s_k = V[:, kept], s[kept]
+    coord_cov, dof = coordinate_covariance(pairs, m1, m2, rows, h, V_k, s_k) if covariance else (None, 0)
+    cov = None if coord_cov is None else (V_k / s_k) @ coord_cov @ (V_k / s_k).T
     end_effect = correlation_end_effect(name, trials, settings, h) if method == "corr" and cov is not None else None
     info = {}
     if mode == "mdl":
@@ -387,8 +421,8 @@ def fit_irf(name: str, trials: list[Trial], settings: LagSettings, method: Liter
         if len(kept) < n_lags / 2:
             info["advice"] = (f"the angle excites only {len(kept)} of the {n_lags} lag directions: fewer lags or "
                               f"decimation (--decimate) give the same information in a better-conditioned fit")
-    return IRFFit(h=h, cov=cov, dof=dof, kept=len(kept), n_lags=n_lags, info=info, directions=V[:, kept],
-                  end_effect=end_effect)
+    return IRFFit(h=h, cov=cov, dof=dof, kept=len(kept), n_lags=n_lags, info=info, directions=V_k,
+                  end_effect=end_effect, singular=s_k, coord_cov=coord_cov)
 
 
 def correlation_end_effect(name: str, trials: list[Trial], settings: LagSettings, h: np.ndarray) -> np.ndarray | None:
@@ -466,7 +500,7 @@ def irf_intervals(fit: IRFFit, level: float = LEVEL) -> Intervals | None:
     if fit.cov is None:
         return None
     se_h = np.sqrt(np.maximum(np.diag(fit.cov), 0.0))
-    se_k = float(np.sqrt(max(float(np.sum(fit.cov)), 0.0)))
+    se_k = float(np.sqrt(max(float(linear_covariance(fit, np.ones(fit.n_lags))[0, 0]), 0.0)))
     k = float(np.sum(fit.h))
     method = f"segment-robust covariance ({fit.dof + 1} segments; t quantile)"
     if fit.end_effect is None:
