@@ -1,7 +1,6 @@
 """Shared pieces of the two-sided (acausal) IRF estimators: lag settings, checks, LS and Toeplitz solvers.
 
-Private module (the leading underscore keeps it out of the estimator registry). Used by
-:mod:`estimators.irf_ls`, :mod:`estimators.irf_corr` and :mod:`estimators.ibk_irf`.
+Private module (out of the estimator registry), used by the IRF estimators and :mod:`estimators.ibk_irf`.
 
 References
 ----------
@@ -151,7 +150,8 @@ def regression_rows(u: np.ndarray, y: np.ndarray, m1: int, m2: int, rows: Rows) 
 
 def ls_triangle(name: str, pairs: list[tuple[np.ndarray, np.ndarray]], m1: int, m2: int,
                 edges: Edges) -> tuple[np.ndarray, int]:
-    """The ``(L+1) x (L+1)`` triangle ``[[R, z], [0, rho]]`` of ``[U | y]`` (see :func:`ls_irf`) and the row count."""
+    """The ``(L+1) x (L+1)`` triangle ``[[R, z], [0, rho]]`` of ``[U | y]`` (records' rows stacked) by blockwise
+    Householder QR, and the row count: ``cond(U)`` enters once, not squared as in the normal equations."""
     n_lags = m1 + m2 + 1
     block = max(n_lags + 1, _BLOCK_VALUES // (n_lags + 1))
     tri = np.zeros((0, n_lags + 1))
@@ -174,21 +174,6 @@ def ls_triangle(name: str, pairs: list[tuple[np.ndarray, np.ndarray]], m1: int, 
     if len(tri) < n_lags + 1:
         tri = np.vstack([tri, np.zeros((n_lags + 1 - len(tri), n_lags + 1))])
     return tri, n_rows
-
-
-def ls_irf(name: str, pairs: list[tuple[np.ndarray, np.ndarray]], m1: int, m2: int, edges: Edges) -> np.ndarray:
-    """Least-squares two-sided IRF (eq. 14) pooled over records by stacking their regression rows.
-
-    The rows ``[U | y]`` are reduced block by block with Householder QR to an (L+1)x(L+1) triangle
-    ``[[R, z], [0, rho]]``, so ``R h = z`` solves ``min ||U h - y||`` with the accuracy of a QR least-squares
-    solver (the condition number of ``U`` enters once, not squared as in the normal equations) while
-    memory stays bounded for long or many records. ``R h = z`` is then solved by
-    :func:`scipy.linalg.lstsq` (SVD): directions that the input does not excite to machine precision
-    (very narrow-band perturbations) get the minimum-norm solution instead of overflowing.
-    """
-    n_lags = m1 + m2 + 1
-    tri, _ = ls_triangle(name, pairs, m1, m2, edges)
-    return scipy.linalg.lstsq(tri[:n_lags, :n_lags], tri[:n_lags, n_lags], check_finite=False)[0]
 
 
 def corr_irf(name: str, pairs: list[tuple[np.ndarray, np.ndarray]], m1: int, m2: int) -> np.ndarray:
@@ -246,14 +231,10 @@ class IRFFit:
     end_effect : ndarray or None
         The correlation method's (eq. 15) IRF minus the least-squares IRF of the valid rows of the same
         records with the same pseudo-inverse (:func:`correlation_end_effect`); None for least squares.
-    singular : ndarray or None
-        The kept directions' singular values ``s_k`` (the regressors' scale in each).
-    coord_cov : ndarray or None
-        The segment-robust covariance of the kept directions' torque coordinates ``diag(s_k) V_k^T h``
-        (``kept x kept``, :func:`coordinate_covariance`); ``cov`` is ``V_k diag(1/s_k)`` it ``diag(1/s_k) V_k^T``.
-        A linear function of ``h`` is worked out from it (:func:`linear_covariance`), never from ``cov``: a kept
-        direction barely excited has a variance ``1/s^2`` times the others', which swamps the others' digits in
-        ``cov`` (issue 33: zero-width intervals of I, B, K on a 12 Hz input).
+    singular, coord_cov : ndarray or None
+        The kept singular values ``s_k``; the covariance of the torque coordinates ``diag(s_k) V_k^T h``, from
+        which any linear function of ``h`` is worked out (:func:`linear_covariance`), never from ``cov``: a
+        barely excited direction's variance swamps the others' digits there (issue 33: zero-width intervals).
     """
 
     h: np.ndarray
@@ -266,22 +247,6 @@ class IRFFit:
     end_effect: np.ndarray | None = None
     singular: np.ndarray | None = None
     coord_cov: np.ndarray | None = None
-
-
-def coordinate_covariance(pairs: list[tuple[np.ndarray, np.ndarray]], m1: int, m2: int, rows: Rows,
-                          h: np.ndarray, V_k: np.ndarray, s_k: np.ndarray) -> tuple[np.ndarray | None, int]:
-    """Segment-robust covariance of the torque coordinates ``diag(s_k) V_k^T h`` of a (pseudo-inverse) IRF
-    ``h = V_k diag(1/s_k^2) V_k^T U^T y``: ``diag(1/s_k) V_k^T Omega V_k diag(1/s_k) G / (G - 1)``, with
-    ``Omega`` the meat of :func:`segment_covariance`, and its degrees of freedom; ``(None, 0)`` when fewer than
-    :data:`MIN_SEGMENTS` segments fit.
-
-    In these coordinates every kept direction has the torque's scale, whatever its singular value, so the
-    covariance of any linear function of ``h`` is a well-scaled quadratic form (:func:`linear_covariance`).
-    """
-    meat, dof = segment_covariance(pairs, m1, m2, rows, h, np.eye(len(h)))
-    if meat is None:
-        return None, 0
-    return (V_k.T @ meat @ V_k) / np.outer(s_k, s_k), dof
 
 
 def linear_covariance(fit: IRFFit, G: np.ndarray) -> np.ndarray:
@@ -412,8 +377,9 @@ def fit_irf(name: str, trials: list[Trial], settings: LagSettings, method: Liter
         raise InputError(f"{name}: the IRF is not finite: the angle does not excite all {n_lags} lags; use "
                          f"pseudo_inverse = mdl, fewer lags or a broader-band perturbation")
     V_k, s_k = V[:, kept], s[kept]
-    coord_cov, dof = coordinate_covariance(pairs, m1, m2, rows, h, V_k, s_k) if covariance else (None, 0)
-    cov = None if coord_cov is None else (V_k / s_k) @ coord_cov @ (V_k / s_k).T
+    meat, dof = segment_covariance(pairs, m1, m2, rows, h, np.eye(n_lags)) if covariance else (None, 0)
+    coord_cov = None if meat is None else (V_k.T @ meat @ V_k) / np.outer(s_k, s_k)   # of diag(s_k) V_k^T h
+    cov = None if meat is None else (V_k / s_k) @ coord_cov @ (V_k / s_k).T
     end_effect = correlation_end_effect(name, trials, settings, h) if method == "corr" and cov is not None else None
     info = {}
     if mode == "mdl":

@@ -15,16 +15,21 @@ from jointbench.core.types import Trial
 
 TRUTH = {"I": 0.02, "B": 0.6, "K": 120.0}
 
-#: every single-trial LTI estimator that returns intervals, and its window-like settings
+#: every estimator that fits a single LTI trial and returns intervals, at its lag settings (the default, 20, 40
+#: and 100 ms) or its window-like ones (the default, half and double); the time-varying ones (fsewls, pv_irf)
+#: judged by their band's mean over the samples they call valid
 LAG_GRID = ({}, {"lag_before": "20ms", "lag_after": "20ms"}, {"lag_before": "40ms", "lag_after": "40ms"},
             {"lag_before": "100ms", "lag_after": "100ms"})
+SEGMENTS = ({}, {"segment": "1s"}, {"segment": "4s"})
 GRID = {
     "ibk_irf": LAG_GRID,
     "irf2_ls": LAG_GRID,
     "irf2_corr": LAG_GRID,
     "parallel_cascade": LAG_GRID,
-    "ibk_spectral": ({}, {"segment": "1s"}, {"segment": "4s"}),
-    "spectral": ({}, {"segment": "1s"}, {"segment": "4s"}),
+    "pv_irf": LAG_GRID,
+    "ibk_spectral": SEGMENTS,
+    "spectral": SEGMENTS,
+    "fsewls": ({}, {"forgetting": 10.0}, {"forgetting": 40.0}),
 }
 
 
@@ -61,6 +66,7 @@ def tally(name: str, settings: dict, seeds) -> Tally:
     """Fit ``name`` with ``settings`` through :func:`jointbench.api.fit` on each seed's record; a fit holds
     when every interval it gives of I, B, K (or only the stiffness) contains the truth."""
     from jointbench import api
+    from jointbench.core.ensemble import valid_mask
     from jointbench.core.errors import ConfigError, InputError, Refused
 
     out = Tally()
@@ -76,8 +82,9 @@ def tally(name: str, settings: dict, seeds) -> Tally:
         bounds = {} if iv is None else iv.bounds
         keys = [k for k in "IBK" if k in bounds] or (["stiffness"] if "stiffness" in bounds else [])
         ok = bool(keys)
+        valid = valid_mask(fit.estimate)
         for k in keys:
-            lo, hi = (float(np.mean(x)) for x in bounds[k])
+            lo, hi = (float(np.mean(np.broadcast_to(x, valid.shape)[valid])) for x in bounds[k])
             truth = TRUTH["K" if k == "stiffness" else k]
             ok &= bool(lo <= truth <= hi and hi > lo)
         out.held += ok
