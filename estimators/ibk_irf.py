@@ -191,10 +191,11 @@ class IBKIRF(Estimator):
         info = dict(fit.info)
         if band is not None and band.hi < top:
             top = band.hi
+        unused = f"bandlimit {s.bandlimit:g} Hz not applied: " if s.bandlimit is not None else ""
         info["band"] = (f"0 ... {top:g} Hz; the input's band " + (band.text() if band else "unknown")
-                        + (f"; bandlimit {s.bandlimit:g} Hz" if limited else "; no bandlimit")
-                        + ("; I, B, K fitted in the IRF's kept lag directions, weighted as the torque weighs "
-                           "them (bandlimit not applied)" if projected else ""))
+                        + (f"; {unused}I, B, K fitted in the IRF's kept lag directions, weighted as the torque "
+                           f"weighs them" if projected else
+                           f"; bandlimit {s.bandlimit:g} Hz" if limited else "; no bandlimit"))
         est = ParametricEstimate(I=I, B=B, K=K, fs=fs, time=trials[0].time, estimator=self.name, basis=basis,
                                  band_hz=(0.0, top))
         est.fit_info = info

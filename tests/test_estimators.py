@@ -244,7 +244,7 @@ def test_ibk_irf_projected_basis_is_the_fitted_irf(elbow):
     line says so."""
     est = estimators.make("ibk_irf", RECOVERY["ibk_irf"]).fit(elbow)
     raw = estimators.make("irf2_ls", {"edges": "valid"}).fit(elbow)
-    assert "bandlimit not applied" in est.fit_info["band"]
+    assert "bandlimit 20 Hz not applied" in est.fit_info["band"]
     np.testing.assert_allclose(est.basis.h, raw.h)
 
 
