@@ -29,23 +29,35 @@ def _decay(x: np.ndarray, c: float) -> np.ndarray:
 
 
 def ewls_covariance(Phi: np.ndarray, y: np.ndarray, Theta: np.ndarray, dt: float, lam: float,
-                    delay: int, keep: np.ndarray) -> np.ndarray:
+                    delay: int, keep: np.ndarray, R0: np.ndarray, m0: int) -> np.ndarray:
     """Covariance of ``Theta(t)``, ``R(t)^-1 S(t) R(t)^-1``, shape (n, 3, 3).
 
-    The EWLS estimate is ``Theta(t) = R(t)^-1 r(t)``, ``R(t) = sum_s w(t - s) Phi_s Phi_s^T dt``,
-    ``w(x) = e^{-lam x}`` (``x >= 0``), ``r`` likewise with ``Phi y``; its error is
-    ``R^-1 sum_s w(t - s) Phi_s e_s dt`` for the equation noise ``e``. That noise is coloured by the
-    state-variable filter on time scales like ``1/lam`` itself, so its variance is not that of white
-    noise. With ``e`` stationary with autocovariance ``gamma(k)`` and independent of the (given)
-    regressors, and since ``w(t - s) w(t - s - k) = w(t - s)^2 e^{-lam k dt}``,
-    ``S(t) = sum_s w(t - s)^2 sym(Phi_s Phitilde_s^T) dt^2`` with
-    ``Phitilde_s = sum_k e^{-lam |k| dt} gamma(k) Phi_{s+k}``.
+    The EWLS estimate is ``Theta(t) = R(t)^-1 r(t)``, started from the least-squares fit of the first ``m0``
+    samples (``R0``, ``r0``: :func:`estimators._fsewls_kernels.ewls_start`), so that
+    ``R(t) = c^t R0 + sum_{s <= t} c^(t-s) Phi_s Phi_s^T dt`` (``c = e^{-lam dt}``) and the error is
+    ``R(t)^-1 z(t)``, ``z(t) = c^t a + b(t)`` with ``a = sum_{s < m0} Phi_s e_s dt`` and
+    ``b(t) = sum_{s <= t} c^(t-s) Phi_s e_s dt``, ``e`` the equation noise. That noise is coloured by the
+    state-variable filter on time scales like ``1/lam`` itself. With ``e`` stationary with autocovariance
+    ``gamma(k)`` and independent of the (given) regressors, ``S(t) = Var z(t)`` exactly:
+
+    - ``Var b(t) = sum_{s <= t} c^(2(t-s)) [gamma(0) Phi_s Phi_s^T + Phi_s q_s^T + q_s Phi_s^T] dt^2`` with the
+      causal ``q_s = sum_{k >= 1} c^k gamma(k) Phi_{s-k}`` (each pair of samples counted once, from the later);
+    - ``Var a = sum_{r < m0} Phi_r g_r^T dt^2`` and ``Cov(b(t), a) = sum_{r <= t} c^(t-r) Phi_r g_r^T dt^2``,
+      with ``g_r = sum_{s < m0} gamma(|s - r|) Phi_s``.
 
     ``gamma`` is estimated from held-out residuals ``e(t) = y(t) - Phi(t)^T Theta(t - delay)``
-    (:func:`delayed_prediction_vaf`) on the ``keep`` samples: the fitted residuals ``y - Phi^T Theta``
-    would underestimate it badly, the estimate following the noise within its short memory. Records pool
-    by summing ``R`` and ``S``; lags up to ``6 / lam``. The diagonal may come out slightly negative
-    where the estimate of ``S`` is not positive definite: callers clip it at zero.
+    (:func:`delayed_prediction_vaf`) on the ``keep`` samples (the fitted residuals would underestimate it
+    badly, the estimate following the noise within its short memory), up to ``6 / lam`` lags with
+    Bartlett's taper, so that it is an autocovariance (positive semidefinite) and ``S(t)`` the variance it
+    claims to be: never negative on the diagonal. (The symmetric approximation used before, each sample's
+    weight applied to its neighbours on both sides, is not a variance near the record's start: its diagonal
+    came out negative, bands of zero width, issue 33; and ``R(t)`` without ``c^t R0`` made the band
+    +-3.5e7 at ``t = 0``.) Records pool by summing ``R`` and ``S``.
+
+    References
+    ----------
+    Newey, W. K. & West, K. D. (1987), Econometrica 55(3), 703-708 (Bartlett's taper keeps the estimated
+    autocovariance positive semidefinite).
     """
     nr, n, _ = Phi.shape
     Th = np.concatenate([np.repeat(Theta[:1], delay, axis=0), Theta[:n - delay]]) if delay else Theta
@@ -57,19 +69,24 @@ def ewls_covariance(Phi: np.ndarray, y: np.ndarray, Theta: np.ndarray, dt: float
     K = min(n - 1, int(np.ceil(6.0 / (lam * dt))))
     nfft = 1 << int(np.ceil(np.log2(2 * n)))
     E = np.fft.rfft(e, nfft, axis=-1)
-    gamma = np.fft.irfft(np.sum(np.abs(E) ** 2, axis=0), nfft)[:K + 1] / max(m, 1)
     k = np.arange(K + 1)
-    h = np.exp(-lam * k * dt) * gamma
-    kern = np.concatenate([h[:0:-1], h])                                    # lags -K ... K
-    Pt = sps.fftconvolve(Phi, kern[None, :, None], mode="same", axes=1)      # Phitilde (records, n, 3)
+    gamma = np.fft.irfft(np.sum(np.abs(E) ** 2, axis=0), nfft)[:K + 1] / max(m, 1) * (1.0 - k / (K + 1.0))
     c = np.exp(-lam * dt)
-    om = 0.5 * (np.einsum("rni,rnj->nij", Phi, Pt) + np.einsum("rni,rnj->nij", Pt, Phi))[:, UPPER3[0], UPPER3[1]]
+    q = sps.lfilter(np.concatenate([[0.0], c ** k[1:] * gamma[1:]]), [1.0], Phi, axis=1)
+    pq = np.einsum("rni,rnj->nij", Phi, q)
+    om = gamma[0] * np.einsum("rni,rnj->nij", Phi, Phi) + pq + np.transpose(pq, (0, 2, 1))
+    S = _decay(om * dt * dt, c * c)
+    first = np.zeros_like(Phi)
+    first[:, :m0] = Phi[:, :m0]
+    g = sps.fftconvolve(first, np.concatenate([gamma[:0:-1], gamma])[None, :, None], mode="same", axes=1)
+    pg = np.einsum("rni,rnj->nij", Phi, g) * dt * dt
+    cross = _decay(pg, c)
+    ck = c ** np.arange(n)[:, None, None]
+    S = S + ck ** 2 * pg[:m0].sum(axis=0) + ck * (cross + np.transpose(cross, (0, 2, 1)))
     info = np.einsum("rni,rnj->nij", Phi, Phi)[:, UPPER3[0], UPPER3[1]] * dt
-    R = unpack(_decay(info, c))[0]            # (n, 6) unique entries -> (n, 3, 3)
-    S = unpack(_decay(om * dt * dt, c * c))[0]
-    scale = 1.0 / np.sqrt(np.maximum(np.einsum("nii->ni", R), 1e-300))
-    Rs = R * scale[:, :, None] * scale[:, None, :] + 1e-12 * np.eye(3)   # the first samples hold no information
-    Ri = np.linalg.inv(Rs) * scale[:, :, None] * scale[:, None, :]
+    R = unpack(_decay(info, c))[0] + ck * R0           # (n, 6) unique entries -> (n, 3, 3), with the start
+    scale = 1.0 / np.sqrt(np.einsum("nii->ni", R))
+    Ri = np.linalg.inv(R * scale[:, :, None] * scale[:, None, :]) * scale[:, :, None] * scale[:, None, :]
     return Ri @ S @ Ri
 
 
@@ -88,20 +105,21 @@ def delayed_prediction_vaf(Phi: np.ndarray, y: np.ndarray, Theta: np.ndarray, de
 
 
 def pointwise_bands(Phi: np.ndarray, y: np.ndarray, Theta: np.ndarray, dt: float, lam: float, delay: int,
-                    steady: np.ndarray, level: float):
+                    steady: np.ndarray, level: float, R0: np.ndarray, m0: int):
     """Pointwise ``level`` bands of I(t), B(t), K(t) (and the stiffness, K) from :func:`ewls_covariance`,
     normal quantiles. They describe the noise in the estimate, not its tracking lag (about ``1/lam``
     behind a changing parameter) or the bias of the filters."""
 
     from jointbench.core.estimate import Intervals
 
-    cov = ewls_covariance(Phi, y, Theta, dt, lam, delay, steady)
+    cov = ewls_covariance(Phi, y, Theta, dt, lam, delay, steady, R0, m0)
     z = z_quantile(level)
     se = np.sqrt(np.maximum(np.einsum("nii->ni", cov), 0.0))
     bounds = {k: (Theta[:, i] - z * se[:, i], Theta[:, i] + z * se[:, i]) for i, k in enumerate("IBK")}
     bounds["stiffness"] = bounds["K"]
     return Intervals(level=level, method="EWLS sandwich covariance with the held-out residuals' autocovariance "
-                                         "(noise only, not the tracking lag)", bounds=bounds)
+                                         "(noise only, not the tracking lag, nor the filters' start-up bias on "
+                                         "the samples outside the steady span)", bounds=bounds)
 
 
 def forgetting_table(Phi: np.ndarray, y: np.ndarray, R0: np.ndarray, r0: np.ndarray, dt: float, grid, delay: int,

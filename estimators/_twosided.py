@@ -1,7 +1,6 @@
 """Shared pieces of the two-sided (acausal) IRF estimators: lag settings, checks, LS and Toeplitz solvers.
 
-Private module (the leading underscore keeps it out of the estimator registry). Used by
-:mod:`estimators.irf_ls`, :mod:`estimators.irf_corr` and :mod:`estimators.ibk_irf`.
+Private module (out of the estimator registry), used by the IRF estimators and :mod:`estimators.ibk_irf`.
 
 References
 ----------
@@ -31,7 +30,7 @@ from numpy.lib.stride_tricks import sliding_window_view
 
 from jointbench.core.errors import InputError
 from jointbench.core.estimate import IRFEstimate, Intervals
-from jointbench.core.intervals import LEVEL, eigen_pinv, segment_covariance, t_quantile, z_quantile
+from jointbench.core.intervals import LEVEL, segment_covariance, t_quantile, z_quantile
 from jointbench.core.schema import param
 from jointbench.core.types import Trial
 
@@ -143,7 +142,8 @@ def regression_rows(u: np.ndarray, y: np.ndarray, m1: int, m2: int, rows: Rows) 
 
 def ls_triangle(name: str, pairs: list[tuple[np.ndarray, np.ndarray]], m1: int, m2: int,
                 edges: Edges) -> tuple[np.ndarray, int]:
-    """The ``(L+1) x (L+1)`` triangle ``[[R, z], [0, rho]]`` of ``[U | y]`` (see :func:`ls_irf`) and the row count."""
+    """The ``(L+1) x (L+1)`` triangle ``[[R, z], [0, rho]]`` of ``[U | y]`` (records' rows stacked) by blockwise
+    Householder QR, and the row count: ``cond(U)`` enters once, not squared as in the normal equations."""
     n_lags = m1 + m2 + 1
     block = max(n_lags + 1, _BLOCK_VALUES // (n_lags + 1))
     tri = np.zeros((0, n_lags + 1))
@@ -166,21 +166,6 @@ def ls_triangle(name: str, pairs: list[tuple[np.ndarray, np.ndarray]], m1: int, 
     if len(tri) < n_lags + 1:
         tri = np.vstack([tri, np.zeros((n_lags + 1 - len(tri), n_lags + 1))])
     return tri, n_rows
-
-
-def ls_irf(name: str, pairs: list[tuple[np.ndarray, np.ndarray]], m1: int, m2: int, edges: Edges) -> np.ndarray:
-    """Least-squares two-sided IRF (eq. 14) pooled over records by stacking their regression rows.
-
-    The rows ``[U | y]`` are reduced block by block with Householder QR to an (L+1)x(L+1) triangle
-    ``[[R, z], [0, rho]]``, so ``R h = z`` solves ``min ||U h - y||`` with the accuracy of a QR least-squares
-    solver (the condition number of ``U`` enters once, not squared as in the normal equations) while
-    memory stays bounded for long or many records. ``R h = z`` is then solved by
-    :func:`scipy.linalg.lstsq` (SVD): directions that the input does not excite to machine precision
-    (very narrow-band perturbations) get the minimum-norm solution instead of overflowing.
-    """
-    n_lags = m1 + m2 + 1
-    tri, _ = ls_triangle(name, pairs, m1, m2, edges)
-    return scipy.linalg.lstsq(tri[:n_lags, :n_lags], tri[:n_lags, n_lags], check_finite=False)[0]
 
 
 def corr_irf(name: str, pairs: list[tuple[np.ndarray, np.ndarray]], m1: int, m2: int) -> np.ndarray:
@@ -238,6 +223,10 @@ class IRFFit:
     end_effect : ndarray or None
         The correlation method's (eq. 15) IRF minus the least-squares IRF of the valid rows of the same
         records with the same pseudo-inverse (:func:`correlation_end_effect`); None for least squares.
+    singular, coord_cov : ndarray or None
+        The kept singular values ``s_k``; the covariance of the torque coordinates ``diag(s_k) V_k^T h``, from
+        which any linear function of ``h`` is worked out (:func:`linear_covariance`), never from ``cov``: a
+        barely excited direction's variance swamps the others' digits there (issue 33: zero-width intervals).
     """
 
     h: np.ndarray
@@ -248,6 +237,15 @@ class IRFFit:
     info: dict
     directions: np.ndarray | None = None
     end_effect: np.ndarray | None = None
+    singular: np.ndarray | None = None
+    coord_cov: np.ndarray | None = None
+
+
+def linear_covariance(fit: IRFFit, G: np.ndarray) -> np.ndarray:
+    """Covariance of ``G h`` (``G``: rows of linear functions of the IRF, or one row) from the kept directions'
+    coordinate covariance (:attr:`IRFFit.coord_cov`): ``M C M^T`` with ``M = G V_k diag(1/s_k)``."""
+    M = np.atleast_2d(G) @ (fit.directions / fit.singular)
+    return M @ fit.coord_cov @ M.T
 
 
 def mdl_pseudo_inverse(s: np.ndarray, V: np.ndarray, c: np.ndarray, rss0: float,
@@ -343,8 +341,10 @@ def fit_irf(name: str, trials: list[Trial], settings: LagSettings, method: Liter
     if not np.all(np.isfinite(h)):
         raise InputError(f"{name}: the IRF is not finite: the angle does not excite all {n_lags} lags; use "
                          f"pseudo_inverse = mdl, fewer lags or a broader-band perturbation")
-    gram_pinv = eigen_pinv(s ** 2, V, kept)
-    cov, dof = irf_covariance(pairs, m1, m2, rows, h, gram_pinv) if covariance else (None, 0)
+    V_k, s_k = V[:, kept], s[kept]
+    meat, dof = irf_covariance(pairs, m1, m2, rows, h, np.eye(n_lags)) if covariance else (None, 0)
+    coord_cov = None if meat is None else (V_k.T @ meat @ V_k) / np.outer(s_k, s_k)   # of diag(s_k) V_k^T h
+    cov = None if meat is None else (V_k / s_k) @ coord_cov @ (V_k / s_k).T
     end_effect = correlation_end_effect(name, trials, settings, h) if method == "corr" and cov is not None else None
     info = {}
     if mode == "mdl":
@@ -352,8 +352,8 @@ def fit_irf(name: str, trials: list[Trial], settings: LagSettings, method: Liter
         if len(kept) < n_lags / 2:
             info["advice"] = (f"the angle excites only {len(kept)} of the {n_lags} lag directions: fewer lags or "
                               f"decimation (--decimate) give the same information in a better-conditioned fit")
-    return IRFFit(h=h, cov=cov, dof=dof, kept=len(kept), n_lags=n_lags, info=info, directions=V[:, kept],
-                  end_effect=end_effect)
+    return IRFFit(h=h, cov=cov, dof=dof, kept=len(kept), n_lags=n_lags, info=info, directions=V_k,
+                  end_effect=end_effect, singular=s_k, coord_cov=coord_cov)
 
 
 def correlation_end_effect(name: str, trials: list[Trial], settings: LagSettings, h: np.ndarray) -> np.ndarray | None:
@@ -424,7 +424,7 @@ def irf_intervals(fit: IRFFit, level: float = LEVEL) -> Intervals | None:
     if fit.cov is None:
         return None
     se_h = np.sqrt(np.maximum(np.diag(fit.cov), 0.0))
-    se_k = float(np.sqrt(max(float(np.sum(fit.cov)), 0.0)))
+    se_k = float(np.sqrt(max(float(linear_covariance(fit, np.ones(fit.n_lags))[0, 0]), 0.0)))
     k = float(np.sum(fit.h))
     method = f"segment-robust covariance ({fit.dof + 1} segments; t quantile)"
     if fit.end_effect is None:

@@ -301,17 +301,20 @@ class FSEWLS(Estimator):
         est.fit_info = {**est.fit_info, "band": band}
         # the fitted band as the CSV's band_lo_hz, band_hi_hz (the summary's band line)
         est.band_hz = (0.0 if s.highpass_cutoff is None else float(s.highpass_cutoff), float(s.svf_cutoff))
-        return est.with_intervals(lambda: self.bands(Phi, y, Theta, est.steady(), fs))   # on first use
+        return est.with_intervals(lambda: self.bands(Phi, y, Theta, est.steady(), fs, R0))   # on first use
 
     def holdout_delay(self, fs: float) -> int:
         """Samples between an estimate and the sample it predicts when held out: ``2/a`` (the
         state-variable filter's memory, beyond which the noise has decorrelated)."""
         return max(1, int(round(2.0 / self.pole() * fs)))
 
-    def bands(self, Phi: np.ndarray, y: np.ndarray, Theta: np.ndarray, steady: np.ndarray, fs: float) -> Intervals:
-        """Pointwise 95 % bands of I(t), B(t), K(t) (:func:`estimators._ewls_band.pointwise_bands`)."""
+    def bands(self, Phi: np.ndarray, y: np.ndarray, Theta: np.ndarray, steady: np.ndarray, fs: float,
+              R0: np.ndarray) -> Intervals:
+        """Pointwise 95 % bands of I(t), B(t), K(t) (:func:`estimators._ewls_band.pointwise_bands`), the EWLS
+        started from ``R0`` (:func:`estimators._fsewls_kernels.ewls_start`)."""
+        m0 = max(int(round(self.settings.init_window * fs)), 3)
         return pointwise_bands(Phi, y, Theta, 1.0 / fs, float(self.settings.forgetting), self.holdout_delay(fs),
-                               steady, LEVEL)
+                               steady, LEVEL, R0, m0)
 
     def choose_forgetting(self, trials: list[Trial]) -> tuple[float, dict[float, float]]:
         """The forgetting rate of :data:`FORGETTING_GRID` whose estimate best predicts held-out samples

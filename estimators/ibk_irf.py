@@ -10,7 +10,7 @@ import scipy.linalg
 from jointbench.estimators import Estimator, register
 from jointbench.estimators._band import band_of_trials
 from jointbench.estimators._twosided import (Edges, LagSettings, fit_irf, input_output, irf_intervals, lag_samples,
-                                             regressor)
+                                             linear_covariance, regressor)
 from jointbench.core import differentiators as dd
 from jointbench.core.errors import InputError
 from jointbench.core.estimate import IRFEstimate, Intervals, ParametricEstimate
@@ -102,11 +102,16 @@ class IBKIRF(Estimator):
     band-limit). The model's columns are then the pseudo-inverse IRFs, in the same directions, of the
     exact derivatives of the angle (:func:`kept_derivative_irfs`; ``differentiator_length`` does not
     apply), and the residuals are weighted as the torque weighs them; I, B, K are unbiased whatever the
-    input's band. When those columns cannot separate I, B and K (the singular values of the scaled
-    columns below :data:`CONDITION`), the fit is refused in one line naming the input's band (Welch
-    coherence, :mod:`estimators._band`) and the lag settings. The summary's ``band`` and the estimate's
-    ``band_hz`` (CSV ``band_lo_hz``, ``band_hi_hz``) say the band the estimate rests on: 0 ... the lower of
-    the band-limit and the input's band.
+    input's band. ``bandlimit`` is then not applied: the kept directions and the torque's weights already
+    confine the fit to what the input excites (the generalised least-squares fit the band-limit stands in
+    for), and a filter applied after the projection moves the IRF out of the kept directions, where the
+    weights no longer hold: a direction kept for the coloured noise's chance share (coordinate ``c / s``,
+    ``s`` 10^-8 of the largest) was smeared into the well-excited ones (issue 33: VAF down to -4e5 % and
+    zero-width intervals on a 12 Hz input with torque noise low-passed at 30 Hz). When those columns cannot
+    separate I, B and K (the singular values of the scaled columns below :data:`CONDITION`), the fit is
+    refused in one line naming the input's band (Welch coherence, :mod:`estimators._band`) and the lag
+    settings. The summary's ``band`` and the estimate's ``band_hz`` (CSV ``band_lo_hz``, ``band_hi_hz``) say
+    the band the estimate rests on: 0 ... the lower of the band-limit (when applied) and the input's band.
 
     Parameters
     ----------
@@ -149,7 +154,8 @@ class IBKIRF(Estimator):
         bandlimit: float | None = param(20.0, unit="Hz", gt=0,
                                         doc="zero-phase Butterworth low-pass of IRF and differentiators "
                                             "(the paper's 20 Hz); keep it below the perturbation's band; "
-                                            "none = off")
+                                            "not applied when the pseudo-inverse keeps fewer lag directions "
+                                            "than lags (the fit is then weighted instead); none = off")
         bandlimit_order: int = param(8, ge=1, doc="order of the band-limiting Butterworth filter")
 
         def __post_init__(self):
@@ -177,19 +183,22 @@ class IBKIRF(Estimator):
                              f"frequency {fs / 2:g} Hz")
         projected = fit.directions is not None and fit.kept < fit.n_lags
         cols, Wr = self._columns(trials, fit, n, m1, m2, projected)
-        h, F = self._filtered(irf.h, fs)
+        h, F = (irf.h, np.eye(len(irf.h))) if projected else self._filtered(irf.h, fs)
         ls = LeastSquares.of(np.column_stack(cols), h, F, Wr)
         band = band_of_trials(self.name, trials)
         I, B, K = self._solve(ls, band, fit, m1, m2)
-        label = irf.estimator if s.bandlimit is None else f"{irf.estimator}, band-limited to {s.bandlimit:g} Hz"
+        limited = s.bandlimit is not None and not projected
+        label = f"{irf.estimator}, band-limited to {s.bandlimit:g} Hz" if limited else irf.estimator
         basis = IRFEstimate(lags=irf.lags, h=h, fs=fs, time=irf.time, estimator=label)
-        top = fs / 2 if s.bandlimit is None else s.bandlimit
+        top = s.bandlimit if limited else fs / 2
         info = dict(fit.info)
         if band is not None and band.hi < top:
             top = band.hi
+        unused = f"bandlimit {s.bandlimit:g} Hz not applied: " if s.bandlimit is not None else ""
         info["band"] = (f"0 ... {top:g} Hz; the input's band " + (band.text() if band else "unknown")
-                        + (f"; bandlimit {s.bandlimit:g} Hz" if s.bandlimit is not None else "; no bandlimit")
-                        + ("; I, B, K fitted in the IRF's kept lag directions" if projected else ""))
+                        + (f"; {unused}I, B, K fitted in the IRF's kept lag directions, weighted as the torque "
+                           f"weighs them" if projected else
+                           f"; bandlimit {s.bandlimit:g} Hz" if limited else "; no bandlimit"))
         est = ParametricEstimate(I=I, B=B, K=K, fs=fs, time=trials[0].time, estimator=self.name, basis=basis,
                                  band_hz=(0.0, top))
         est.fit_info = info
@@ -210,10 +219,7 @@ class IBKIRF(Estimator):
             pairs = input_output(self.name, trials, s.remove_mean)
             edges = "zero" if s.irf_method == "corr" else (s.edges or "valid")
             c, Wr = kept_derivative_irfs(pairs, m1, m2, edges, fit.directions)
-            cols = [c[:, 0] * fs ** 2, c[:, 1] * fs, c[:, 2]]
-            if s.bandlimit is not None:
-                cols = [bandlimit_fb(c, fs, s.bandlimit, s.bandlimit_order) for c in cols]
-            return cols, Wr
+            return [c[:, 0] * fs ** 2, c[:, 1] * fs, c[:, 2]], Wr
         periodic = (dd.h2(n, fs), dd.h1(n, fs), dd.h0(n))
         if s.bandlimit is not None:
             return [_bandlimited(p, m1, m2, fs, s.bandlimit, s.bandlimit_order) for p in periodic], None
@@ -283,17 +289,17 @@ class LeastSquares(NamedTuple):
 
 
 def _with_intervals(est: ParametricEstimate, ls: LeastSquares, fit) -> ParametricEstimate:
-    """``est`` with the intervals of ``I``, ``B``, ``K`` (and its basis with the band-limited IRF's): linear in
-    the IRF, ``x = G h_raw``, so their covariance is ``G Cov(h) G^T`` (t quantiles)."""
+    """``est`` with the intervals of ``I``, ``B``, ``K`` (and its basis with the IRF's it was fitted to): linear
+    in the IRF, ``x = G h_raw``, so their covariance is ``G Cov(h) G^T`` (t quantiles), worked out in the kept
+    directions' coordinates (:func:`estimators._twosided.linear_covariance`)."""
     I, B, K = est.I, est.B, est.K
     G = (np.linalg.pinv(ls.A / ls.scale) / ls.scale[:, None]) @ ls.F       # x = G h_raw
-    cov = G @ fit.cov @ G.T
     q = t_quantile(fit.dof)
-    se = np.sqrt(np.maximum(np.diag(cov), 0.0))
+    se = np.sqrt(np.maximum(np.diag(linear_covariance(fit, G)), 0.0))
     bounds = {k: (v - q * e, v + q * e) for k, v, e in zip("IBK", (I, B, K), se)}
     bounds["stiffness"] = bounds["K"]
-    Fh = ls.F if ls.Wr is None else np.linalg.pinv(ls.Wr) @ ls.F            # the band-limited IRF's own filter
-    se_h = np.sqrt(np.maximum(np.diag(Fh @ fit.cov @ Fh.T), 0.0))
+    Fh = ls.F if ls.Wr is None else np.linalg.pinv(ls.Wr) @ ls.F            # the fitted IRF's own filter
+    se_h = np.sqrt(np.maximum(np.diag(linear_covariance(fit, Fh)), 0.0))
     h = ls.h
     est.basis.with_intervals(Intervals(level=LEVEL, method=irf_intervals(fit).method, response={
         "h": (h - q * se_h, h + q * se_h)}))

@@ -322,7 +322,8 @@ class FRFEstimate(Estimate):
             raise InputError(f"record '{trial.name}' ({n} samples) is not longer than one segment "
                              f"({2 * edge} samples) of the frequency response")
         return Prediction(y, yhat, used, "torque (mean removed) against the prediction from the angle (mean "
-                          "removed) with H only at the excited frequencies (input power, coherence significant at 95 %), "
+                          "removed) with H only at the excited frequencies (input power, coherence significant "
+                          "at 95 %), "
                           f"without the first and last {edge} samples (half a segment)")
 
     def frequency_response(self, f: np.ndarray, t=None) -> np.ndarray:
