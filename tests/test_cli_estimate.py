@@ -250,16 +250,7 @@ SYNTHETIC_SETTINGS = {"ibk_irf": ["--set", "bandlimit=20Hz"],
                       "ensemble_irf": ["--set", "pool=50ms", "--set", "remove_mean=record"]}
 
 
-#: estimators the output gate refuses on this record, each for a defect of its own (issue 33): the gate
-#: is right to refuse them; a fix of the estimator makes its case pass (strict: then remove it from here)
-REFUSED_ON_SYNTHETIC = {
-    "fsewls": "intervals of zero width at the recursion's first 2 samples (issue 33: the fsewls intervals)",
-}
-
-
-@pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.xfail(reason=REFUSED_ON_SYNTHETIC[n],
-                                                                            strict=True))
-                                  if n in REFUSED_ON_SYNTHETIC else n for n in estimators.REGISTRY.names()])
+@pytest.mark.parametrize("name", estimators.REGISTRY.names())
 def test_each_registered_estimator(tmp_path, rec, capsys, name):
     out = tmp_path / "o.csv"
     if "multisine" in estimators.REGISTRY.tags(name):
