@@ -239,11 +239,13 @@ def page(study: Study, comparison: pd.DataFrame, part_reports: dict, failed: lis
             Paragraph("Tracebacks are in `failures.log`.")]))
     if meta.get("refused"):
         body.append(Section("Refused cases", anchor="refused", cls="changed", body=[
-            Paragraph("Cases whose estimate the output gate refused (the gate of `jointbench estimate` and "
+            Paragraph("Cases with an estimate the output gate refused (the gate of `jointbench estimate` and "
                       "`api.fit`: a prediction of the fitted record worse than a constant, a non-finite value "
-                      "or bound, an interval of zero width). Counted apart from failures; no row of theirs is "
-                      "scored."),
-            Items([f"`{r.case.case_id}`: {r.error}" for r in meta["refused"]])]))
+                      "or bound, an interval of zero width). Counted apart from failures; a refused estimate "
+                      "is never scored; the case's other fits (other estimators or inputs), when it has any, "
+                      "keep their rows."),
+            Items([f"`{r.case.case_id}` ({'every fit' if r.status == 'refused' else 'some fits'}): "
+                   f"{'; '.join(r.refusals)}" for r in meta["refused"]])]))
     body.append(Section("Not reproduced", anchor="not-reproduced", body=[
         Paragraph("Published tables, figures and values this study leaves out, and why (from the study config):"),
         Items([f"**{n.item}**: {n.reason}" for n in m["not_reproduced"]]) if m["not_reproduced"] else

@@ -60,8 +60,9 @@ class StudyRun:
 
     @property
     def refused(self) -> list[CaseResult]:
-        """Cases whose estimate the output gate refused (:func:`jointbench.fitting.pipeline.gate`)."""
-        return [r for r in self.results if r.status == "refused"]
+        """Cases with an estimate the output gate refused (:func:`jointbench.fitting.pipeline.gate`): status
+        ``refused``, or ``ok`` with some fits refused and the others kept (:attr:`CaseResult.refusals`)."""
+        return [r for r in self.results if r.refusals]
 
 
 
@@ -406,7 +407,7 @@ def _stage(run: _Run, out: _Outcome, stage: Path) -> tuple[dict, object, list[Ca
     if failed:
         write_text(stage / "failures.log", "\n\n".join(f"== {r.case.case_id}\n{r.detail or r.error}" for r in failed))
     part_reports = _part_reports(study, out.shown, out.results, rows, curves, stage)
-    meta = {**out.meta, "stage": stage, "refused": [r for r in out.results if r.status == "refused"]}
+    meta = {**out.meta, "stage": stage, "refused": [r for r in out.results if r.refusals]}
     swap = study.method_swap
     if swap is not None and swap.part in out.shown:
         meta["method_swap"] = {**swap_survival(study.checks, rows, swap.part, swap.estimators),

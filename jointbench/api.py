@@ -315,8 +315,9 @@ class StudyResult:
 
     @property
     def refusals(self) -> "pd.DataFrame":
-        """The refused cases (the output gate, :func:`jointbench.fitting.pipeline.gate`), with the reason."""
-        return self.cases.loc[self.cases["status"] == "refused", ["case_id", "error"]].reset_index(drop=True)
+        """The cases with a refused estimate (the output gate, :func:`jointbench.fitting.pipeline.gate`), with the
+        reason: status ``refused`` (every fit), or ``ok`` with the case's other fits kept."""
+        return self.cases.loc[self.cases["refused"], ["case_id", "status", "error"]].reset_index(drop=True)
 
     @property
     def report(self) -> Path:
@@ -377,7 +378,8 @@ def run(study: str | Path | Mapping[str, Any], *, parts: Sequence[str] | None = 
         if own and exe is not None:
             exe.shutdown(wait=True)
     cases = pd.DataFrame([{"case_id": c.case.case_id, "status": c.status, "cached": bool(c.cached),
-                           "error": c.error} for c in r.results], columns=["case_id", "status", "cached", "error"])
+                           "error": c.error, "refused": bool(c.refusals)} for c in r.results],
+                         columns=["case_id", "status", "cached", "error", "refused"])
     return StudyResult(r.study.id, r.folder, r.rows, r.checks, cases, r.run_id, r.wall_s, r.study.expected_failures)
 
 

@@ -161,7 +161,7 @@ def test_a_refused_case_is_refused_in_the_harness_counted_apart_and_shown(probe,
                        estimators={"ibk_spectral": {"fmin": "0 Hz", "fmax": "20 Hz", "segment": "2 s"},
                                    "gate_probe": {"mode": mode}})
     run = api.run(study, out=tmp_path / "out", executor="serial", plugins=[str(probe)], use_cache=False)
-    assert set(run.cases["status"]) == {"refused"} and run.failures.empty
+    assert run.failures.empty
     assert len(run.refusals) == 2 and all(e.startswith(f"{reason}: gate_probe: ") for e in run.refusals["error"])
     report = run.report.read_text()
     assert "2 refused" in report and "## Refused cases" in report and f"{reason}: gate_probe" in report
@@ -170,7 +170,21 @@ def test_a_refused_case_is_refused_in_the_harness_counted_apart_and_shown(probe,
     history = api.History(tmp_path / "out")
     assert int(history.runs(study="tiny").iloc[0]["n_refused"]) == 2
     assert int(history.runs(study="tiny").iloc[0]["n_failed"]) == 0
-    assert set(history.cases(run.run_id)["status"]) == {"refused"}
+    assert set(history.cases(run.run_id)["status"]) == {"ok"}
+    # one refused fit never takes the case's other fits with it: ibk_spectral's rows are kept and checked
+    rows = run.rows
+    assert set(rows.loc[rows["estimator"] == "gate_probe", "metric"]) == {"refused"}
+    assert {"K", "vaf_torque"} <= set(rows.loc[rows["estimator"] == "ibk_spectral", "metric"])
+    assert run.checks["reproduced"].notna().all() and (run.checks["n"] == 2).all()   # judged on both seeds
+    assert "(some fits)" in report
+
+
+def test_a_case_whose_every_fit_is_refused_is_refused(probe, tmp_path):
+    study = tiny_study(tmp_path / "cfg", seeds=2, duration="4 s", estimators={"gate_probe": {"mode": "flip"}})
+    run = api.run(study, out=tmp_path / "out", executor="serial", plugins=[str(probe)], use_cache=False)
+    assert set(run.cases["status"]) == {"refused"} and len(run.refusals) == 2
+    assert "(every fit)" in run.report.read_text()
+    assert int(api.History(tmp_path / "out").runs(study="tiny").iloc[0]["n_refused"]) == 2
 
 
 def test_a_good_plugin_case_stays_ok_in_the_harness(probe, tmp_path):

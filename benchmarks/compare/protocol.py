@@ -212,8 +212,9 @@ def _fit_realizations(ctx, p: CompareParams, name: str, estimator, first, k: np.
         trial, data = _realization(ctx, p, r, first)
         try:
             est, seconds = fit_timed(estimator, data)
-        except Refused:                      # the output gate: the case is refused, not a method skipped
-            raise
+        except Refused as exc:               # the output gate: this method refused, the others kept
+            ctx.refused(name, exc, realization=r, **label)
+            return None
         except InputError as exc:            # the data cannot support this estimator: a reason, not a crash
             ctx.metric("not_fitted", math.nan, name, realization=r, reason=str(exc), **label)
             return None

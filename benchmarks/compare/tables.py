@@ -369,7 +369,7 @@ def reasons(rows: pd.DataFrame) -> pd.DataFrame:
         cells = list(dict.fromkeys(g["cell"]))
         out.append({"what": {"skipped": "skipped (not run)", "not_fitted": "run, refused the data",
                              "not_scored": "fitted, nothing to score",
-                             "refused": "fitted, refused by the output gate (case status refused)"}[metric],
+                             "refused": "fitted, refused by the output gate"}[metric],
                     "method": method, "reason": reason, "scenarios": len(cells),
                     "which": "; ".join(cells[:4]) + (f"; ... ({len(cells) - 4} more)" if len(cells) > 4 else "")})
     return pd.DataFrame(out)

@@ -97,6 +97,14 @@ class CaseResult:
     cached: bool = False           # served from the cache rather than computed in this run
     sim_times: list = dataclasses.field(default_factory=list)   # [backend, seconds, reused] per simulated trial
 
+    @property
+    def refusals(self) -> list[str]:
+        """Reasons of the fits the output gate refused: every fit of a ``refused`` case (its ``error``), or some
+        fits of an ``ok`` case whose other fits were kept (:meth:`benchmarks.protocols.Context.refused`)."""
+        if self.status == "refused":
+            return [self.error]
+        return protocols.refusals(self.rows) if self.status == "ok" else []
+
     def to_json(self) -> dict:
         d = dataclasses.asdict(self)
         d["case"] = self.case.spec()
@@ -185,12 +193,14 @@ def run_case(case: Case) -> CaseResult:
                                 estimators=ests)
         with record_simulations() as log, (contextlib.nullcontext() if reuse.active() else reuse.reuse_responses()):
             proto.fn(ctx)
-        return CaseResult(case, "ok", ctx.rows, ctx.curves, time.perf_counter() - t0,
-                          sim_times=[[b, round(t, 6), int(r)] for b, t, r in log])
+        refused = protocols.refusals(ctx.rows)
+        every = bool(refused) and all(r.get("metric") == protocols.REFUSED for r in ctx.rows)
+        return CaseResult(case, "refused" if every else "ok", ctx.rows, ctx.curves, time.perf_counter() - t0,
+                          error="; ".join(refused), sim_times=[[b, round(t, 6), int(r)] for b, t, r in log])
     except Refused as exc:    # the output gate (jointbench.fitting.pipeline.gate): not a failure, a refusal
         why = f"{exc.reason}: {exc}"
-        row = {"estimator": str(exc.diagnostics.get("estimator", "")), "metric": "refused", "value": float("nan"),
-               "reason": why}
+        row = {"estimator": str(exc.diagnostics.get("estimator", "")), "metric": protocols.REFUSED,
+               "value": float("nan"), "reason": why}
         return CaseResult(case, "refused", [row], [], time.perf_counter() - t0, error=why)
     except BaseException as exc:  # noqa: BLE001 - a failing case (sys.exit in a plugin too) must not stop the others
         if isinstance(exc, KeyboardInterrupt):

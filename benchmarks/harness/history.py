@@ -409,7 +409,8 @@ class History:
              "r.dirty, r.n_cases, r.n_done, r.n_failed, r.n_cached, r.wall_s, "
              "(SELECT COUNT(*) FROM checks c WHERE c.run_id = r.id AND c.status = 'pass') AS n_pass, "
              "(SELECT COUNT(*) FROM checks c WHERE c.run_id = r.id) AS n_checks, "
-             "(SELECT COUNT(*) FROM cases k WHERE k.run_id = r.id AND k.status = 'refused') AS n_refused "
+             "(SELECT COUNT(*) FROM cases k WHERE k.run_id = r.id AND (k.status = 'refused' OR "
+             "(k.status = 'ok' AND COALESCE(k.error, '') != ''))) AS n_refused "
              "FROM runs r WHERE 1 = 1")
         args: list = []
         if study:

@@ -44,6 +44,15 @@ def register(name: str, params: type, *, tags: tuple[str, ...] = (), share: Call
     return deco
 
 
+#: the metric of a row recording a fit the output gate refused (:meth:`Context.refused`)
+REFUSED = "refused"
+
+
+def refusals(rows: list[dict]) -> list[str]:
+    """The reasons of the refused fits among a case's ``rows`` (:meth:`Context.refused`)."""
+    return [str(r.get("reason", "")) for r in rows if r.get("metric") == REFUSED]
+
+
 @dataclasses.dataclass
 class Context:
     """Everything one case may use, and where it puts its results."""
@@ -68,6 +77,14 @@ class Context:
     def metric(self, metric: str, value: float, estimator: str = "", **labels: Any) -> None:
         """Record one tidy row (labels become columns, e.g. ``fs_hz=250``)."""
         self.rows.append({"metric": metric, "value": float(value), "estimator": estimator, **labels})
+
+    def refused(self, estimator: str, exc: Exception, **labels: Any) -> None:
+        """Record that the output gate (:func:`jointbench.fitting.pipeline.gate`) refused one fit of the case: a
+        row ``metric='refused'`` with the reason (:data:`REFUSED`). The case's other fits (other estimators,
+        other inputs) keep their rows; the case is counted as refused (:func:`refusals`) and stays
+        selectable for the checks that read the other fits."""
+        self.rows.append({"metric": REFUSED, "value": float("nan"), "estimator": estimator,
+                          "reason": f"{getattr(exc, 'reason', 'refused')}: {exc}", **labels})
 
     def curve(self, name: str, x, y, series: str = "", **labels: Any) -> None:
         """Record a curve for the figures (stored long: one row per point)."""

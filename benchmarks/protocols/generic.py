@@ -10,6 +10,7 @@ from jointbench.benchmarks.metrics import relative_error
 from jointbench.core.scores import vaf
 from jointbench.benchmarks.protocols import Context, register
 from jointbench.benchmarks.scoring import fit_gated
+from jointbench.core.errors import Refused
 from jointbench.core.estimate import FRFEstimate, IRFEstimate, ParametricEstimate
 from jointbench.core.schema import param
 
@@ -73,7 +74,11 @@ def parametric_fit(ctx: Context) -> None:
     u = trial.angle - trial.angle.mean()
     y = trial.torque - trial.torque.mean()
     for name, estimator in ctx.estimators.items():
-        est = fit_gated(estimator, trial)
+        try:
+            est = fit_gated(estimator, trial)
+        except Refused as exc:              # the output gate: this estimator refused, the others kept
+            ctx.refused(name, exc)
+            continue
         params = est.parameters()
         for p, values in params.items():
             value = float(np.mean(values))

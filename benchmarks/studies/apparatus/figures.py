@@ -84,9 +84,13 @@ def _servo_table(rows: pd.DataFrame, to_ratio: dict, segs: list) -> pd.DataFrame
         for seg in segs:
             for inp in ("measured", "command"):
                 m = _stat(rows, "K", ["servo_stiffness"], input=inp, segment_s=seg, voluntary="present") \
-                    .set_index("servo_stiffness").loc[k]
+                    .set_index("servo_stiffness")
                 p = _stat(rows, "K_predicted", ["servo_stiffness"], input=inp, segment_s=seg, voluntary="present") \
-                    .set_index("servo_stiffness").loc[k]
+                    .set_index("servo_stiffness")
+                if k not in m.index:          # every fit of this cell refused by the output gate (report.md)
+                    row[f"K-hat {inp}, {seg:g} s"] = row[f"predicted {inp}, {seg:g} s"] = "refused"
+                    continue
+                m, p = m.loc[k], p.loc[k]
                 row[f"K-hat {inp}, {seg:g} s"] = median_range(m["median"], m["min"], m["max"], m["n"])
                 row[f"predicted {inp}, {seg:g} s"] = round(float(p["median"]), 3)
         table.append(row)

@@ -27,6 +27,7 @@ from scipy import signal as sps
 from jointbench import sims
 from jointbench.benchmarks.protocols import Context, register
 from jointbench.benchmarks.scoring import fit_gated
+from jointbench.core.errors import Refused
 from jointbench.benchmarks.studies.xu1998.protocol import scored_window
 from jointbench.estimators.ibk_spectral import weighted_ibk_fit
 from jointbench.core.ensemble import valid_mask
@@ -159,7 +160,11 @@ def servo(ctx: Context) -> None:
         tr = trial if inp == "measured" else trial.replace(angle=np.asarray(trial.truth.signals["command"]))
         for seg in p.segments:
             est = type(est0)(dataclasses.replace(est0.settings, segment=seg))
-            fit = fit_gated(est, tr)
+            try:
+                fit = fit_gated(est, tr)
+            except Refused as exc:           # the output gate: this fit refused, the case's others kept
+                ctx.refused(est.name, exc, input=inp, segment_s=seg)
+                continue
             (Ip, Bp, Kp), f, Hp, _ = servo_prediction(exp, inp, seg, est.settings.window, est.settings.fmax)
             (_, _, Kn), _, _, _ = servo_prediction(exp, inp, seg, est.settings.window, est.settings.fmax,
                                                    leakage=False)

@@ -108,8 +108,9 @@ def kmap(ctx: Context) -> None:
         est_obj = type(estimator)(settings)
         try:
             est, seconds = fit_timed(est_obj, trial)
-        except Refused:                      # the output gate: the case is refused, not a method skipped
-            raise
+        except Refused as exc:               # the output gate: this method's fit refused, the others kept
+            ctx.refused(name, exc)
+            continue
         except InputError as exc:
             ctx.metric("not_fitted", math.nan, name, reason=str(exc))
             continue

@@ -105,8 +105,9 @@ def bias(ctx: Context) -> None:
                 data = Ensemble(tuple(trial(r + R * m) for m in range(M)), name=f"ensemble {r}")
             try:
                 est, seconds = fit_timed(estimator, data)
-            except Refused:                  # the output gate: the case is refused, not a method skipped
-                raise
+            except Refused as exc:           # the output gate: this method refused, the others kept
+                ctx.refused(name, exc, realization=r)
+                break
             except InputError as exc:
                 ctx.metric("not_fitted", math.nan, name, realization=r, reason=str(exc))
                 break

@@ -261,7 +261,11 @@ def table2(ctx: Context) -> None:
                 if why:
                     ctx.metric("skipped", math.nan, name, mode="single", reason=why)
                     break
-                est = fit_gated(estimator, data)
+                try:
+                    est = fit_gated(estimator, data)
+                except Refused as exc:       # the output gate: this fit refused, the others kept
+                    ctx.refused(name, exc, mode="single", fit_trial=j + 1)
+                    continue
                 self_v = case.vafs(name, est, j)
                 for tag, v in self_v.items():
                     ctx.metric("vaf_self" + tag, v, name, mode="single", fit_trial=j + 1)
@@ -285,8 +289,9 @@ def table2(ctx: Context) -> None:
                 break
             try:
                 est = fit_gated(estimator, data)
-            except Refused:                  # the output gate: the case is refused, not a method skipped
-                raise
+            except Refused as exc:           # the output gate: this fit refused, the others kept
+                ctx.refused(name, exc, mode="ensemble", val_trial=j + 1)
+                continue
             except InputError as exc:        # the data cannot support this estimator: a reason, not a crash
                 ctx.metric("skipped", math.nan, name, mode="ensemble", reason=str(exc))
                 break
