@@ -24,6 +24,14 @@ NAMES = estimators.REGISTRY.names()
 #: (estimator, check) -> why it fails today. The kit stays honest; the estimators (or the output gate of
 #: jointbench.fitting.pipeline, being added beside this kit) are fixed, then the line goes.
 KNOWN_FAILURES: dict[tuple[str, str], str] = {
+    ("ibk_irf", "check_narrow_band"): "issue 33: a VAF of -3722 % returned on narrow_band0 at the default lags (the "
+                                      "output gate is to refuse it)",
+    ("kbr", "check_narrow_band"): "a VAF of -77 603 % returned on narrow_band1 at the default settings (the gate "
+                                  "is to refuse it)",
+    ("fsewls", "check_output_gate"): "issue 33: the interval of I has zero width at some samples of torque_drive0 "
+                                     "(widths 0 ... 0.029)",
+    ("fsewls", "check_narrow_band"): "the interval of I has zero width at some samples of narrow_band0 "
+                                     "(widths 0 ... 5.9e3)",
 }
 
 
@@ -60,26 +68,27 @@ def test_full_conformance(name):
 
 
 # --------------------------------------------------------------------------------- the kit itself fails
+#: two broken estimators, registered in a process of their own (the registry of this one stays the built-ins')
+BROKEN = """
+import sys
+import numpy as np
+from jointbench import estimators
+from jointbench.core.estimate import IRFEstimate
+from jointbench.testing import check_estimator, run_check
+
+
+@estimators.register("never_refuses")
 class NeverRefuses(estimators.Estimator):
-    """A broken estimator (not registered): it returns the mean torque over the mean angle for anything."""
-
-    name = "never_refuses"
-
+    # returns a static gain for anything: a constant angle, a constant torque
     def _fit(self, trials):
-        import numpy as np
-
-        from jointbench.core.estimate import IRFEstimate
-
         t = trials[0]
-        gain = float(np.std(t.torque) / max(np.std(t.angle), 1e-300)) if t.n > 1 else 1.0
+        gain = float(np.std(t.torque) / max(np.std(t.angle), 1e-300))
         return IRFEstimate(lags=np.array([0]), h=np.array([gain]), fs=t.fs, time=t.time, estimator=self.name)
 
 
+@estimators.register("reads_the_truth")
 class ReadsTheTruth(NeverRefuses):
-    """A broken estimator that walks the call frames to the caller's record and reads its truth."""
-
-    name = "reads_the_truth"
-
+    # walks the call frames to the caller's records and reads their truth
     def _fit(self, trials):
         frame = sys._getframe()
         while frame is not None:
@@ -88,22 +97,38 @@ class ReadsTheTruth(NeverRefuses):
                 if truth is not None and type(truth).__name__ != "HiddenTruth":
                     getattr(truth, "K", None)
             frame = frame.f_back
-        return super()._fit(trials)
+        return NeverRefuses._fit(self, trials)
 
 
-def test_the_kit_catches_a_broken_estimator():
-    report = check_estimator(NeverRefuses, raise_on_failure=False,
-                             checks=["check_degenerate_inputs", "check_data_kinds", "check_blind"])
-    failed = {o.check: o.detail for o in report.failed}
-    assert set(failed) == {"check_degenerate_inputs"}, str(report)
-    assert "never_refuses" in failed["check_degenerate_inputs"] and "record" in failed["check_degenerate_inputs"]
-    with pytest.raises(AssertionError, match="check_degenerate_inputs: never_refuses"):
-        check_estimator(NeverRefuses, checks=["check_degenerate_inputs"])
+report = check_estimator(NeverRefuses, raise_on_failure=False,
+                         checks=["check_degenerate_inputs", "check_data_kinds", "check_blind"])
+print(report)
+try:
+    run_check(ReadsTheTruth, "check_blind")
+except AssertionError as exc:
+    print("RAISED", exc)
+"""
 
 
-def test_the_kit_catches_a_fit_reading_the_truth():
-    with pytest.raises(AssertionError, match="check_blind: reads_the_truth .*read the truth"):
-        run_check(ReadsTheTruth, "check_blind")
+def test_the_kit_catches_broken_estimators(tmp_path):
+    r = subprocess.run([sys.executable, "-c", BROKEN], cwd=tmp_path, capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stderr
+    lines = r.stdout.splitlines()
+    assert lines[0].endswith("2 passed, 0 skipped, 1 failed"), r.stdout
+    failed = [line for line in lines if line.startswith("  failed")]
+    want = ("check_degenerate_inputs: never_refuses (default settings, record 'trial0: 10 samples (shorter than the "
+            "lags)', seed 0): returned a result")
+    assert len(failed) == 1 and want in failed[0], r.stdout
+    assert lines[-1].startswith("RAISED check_blind: reads_the_truth (default settings, record 'trial0', seed 0): "
+                                "read the truth while fitting: [") and "'K'" in lines[-1], r.stdout
+
+
+def test_an_unregistered_class_is_named():
+    class Unregistered(estimators.REGISTRY.get("irf2_ls")):
+        pass
+
+    with pytest.raises(TypeError, match="is not the estimator registered as 'irf2_ls'; register it first"):
+        check_estimator(Unregistered)
 
 
 def test_the_report_says_what_was_skipped_and_why():

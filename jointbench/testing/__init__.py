@@ -76,6 +76,11 @@ def estimator_class(name_or_class):
     if isinstance(name_or_class, str):
         return estimators.REGISTRY.get(name_or_class)
     if isinstance(name_or_class, type) and issubclass(name_or_class, estimators.Estimator):
+        name = name_or_class.name
+        if name not in estimators.REGISTRY.names() or estimators.REGISTRY.get(name) is not name_or_class:
+            raise TypeError(f"check_estimator: {name_or_class.__qualname__} is not the estimator registered as "
+                            f"{name!r}; register it first (@jointbench.estimators.register): the fitting path "
+                            f"looks an estimator's kind up by its name")
         return name_or_class
     raise TypeError(f"check_estimator: expected a registered estimator name or an Estimator subclass, got "
                     f"{name_or_class!r}")
