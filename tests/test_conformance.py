@@ -21,17 +21,22 @@ REPO = Path(__file__).resolve().parents[1]
 estimators.import_all()
 NAMES = estimators.REGISTRY.names()
 
-#: (estimator, check) -> why it fails today. The kit stays honest; the estimators (or the output gate of
+#: (estimator, check) -> (where it fails: "quick" = in make test and make conformance, "full" = in make conformance
+#: only, with its more seeds and whole grid; why). The kit stays honest; the estimators (or the output gate of
 #: jointbench.fitting.pipeline, being added beside this kit) are fixed, then the line goes.
-KNOWN_FAILURES: dict[tuple[str, str], str] = {
-    ("ibk_irf", "check_narrow_band"): "issue 33: a VAF of -3722 % returned on narrow_band0 at the default lags (the "
-                                      "output gate is to refuse it)",
-    ("kbr", "check_narrow_band"): "a VAF of -77 603 % returned on narrow_band1 at the default settings (the gate "
-                                  "is to refuse it)",
-    ("fsewls", "check_output_gate"): "issue 33: the interval of I has zero width at some samples of torque_drive0 "
-                                     "(widths 0 ... 0.029)",
-    ("fsewls", "check_narrow_band"): "the interval of I has zero width at some samples of narrow_band0 "
-                                     "(widths 0 ... 5.9e3)",
+KNOWN_FAILURES: dict[tuple[str, str], tuple[str, str]] = {
+    ("ibk_irf", "check_narrow_band"): ("quick", "issue 33: a VAF of -3722 % returned on narrow_band0 at the default "
+                                                "lags (the output gate is to refuse it)"),
+    ("kbr", "check_narrow_band"): ("quick", "a VAF of -77 603 % returned on narrow_band1 at the default settings (the "
+                                            "output gate is to refuse it)"),
+    ("fsewls", "check_output_gate"): ("quick", "issue 33: the interval of I has zero width at some samples of "
+                                               "torque_drive0 (widths 0 ... 0.029)"),
+    ("fsewls", "check_narrow_band"): ("quick", "the interval of I has zero width at some samples of narrow_band0 "
+                                               "(widths 0 ... 5.9e3)"),
+    ("pv_irf", "check_narrow_band"): ("full", "its band of K(schedule) misses K = 120 in 6 of 30 seeds at the default "
+                                              "settings (coverage 80 %, issue 33 asks 85 %)"),
+    ("irf2_ls", "check_narrow_band"): ("full", "an interval of the stiffness of zero width on narrow_band4 at the "
+                                               "default lags"),
 }
 
 
@@ -39,8 +44,8 @@ def params():
     out = []
     for name in NAMES:
         for check in CHECKS:
-            why = KNOWN_FAILURES.get((name, check))
-            marks = [pytest.mark.xfail(strict=True, raises=AssertionError, reason=why)] if why else []
+            where, why = KNOWN_FAILURES.get((name, check), ("", ""))
+            marks = [pytest.mark.xfail(strict=True, raises=AssertionError, reason=why)] if where == "quick" else []
             out.append(pytest.param(name, check, marks=marks, id=f"{name}-{check}"))
     return out
 
@@ -55,16 +60,18 @@ def test_conformance(name, check):
 
 def test_known_failures_name_real_pairs():
     assert {n for n, _ in KNOWN_FAILURES} <= set(NAMES) and {c for _, c in KNOWN_FAILURES} <= set(CHECKS)
+    assert {where for where, _ in KNOWN_FAILURES.values()} <= {"quick", "full"}
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("name", NAMES)
 def test_full_conformance(name):
-    """The full version (``make conformance``): every known failure of the quick kit fails here too."""
+    """The full version (``make conformance``): the checks failing are the known failures of the estimator (quick and
+    full), and every one of them fails (a fixed one must leave the list)."""
     known = {c for (n, c) in KNOWN_FAILURES if n == name}
     report = check_estimator(name, quick=False, raise_on_failure=False)
     failed = {o.check for o in report.failed}
-    assert failed <= known, str(report)
+    assert failed == known, str(report)
 
 
 # --------------------------------------------------------------------------------- the kit itself fails

@@ -219,8 +219,8 @@ def check_output_gate(cls, *, quick: bool = True) -> str:
 
 def check_interval_coverage(cls, *, quick: bool = True) -> str:
     """The intervals hold the truth of reference records of the estimator's kind at the stated rate: over the
-    seeds (quick 4, full 20) and three times of each record, the misses stay within what a right 95 % interval
-    exceeds with probability below 0.001 (:func:`allowed_misses`)."""
+    seeds (quick 4, full 20) and three times of each record (one for a time-invariant estimate), the misses stay
+    within what a right 95 % interval exceeds with probability below 0.001 (:func:`allowed_misses`)."""
     k = kind(cls)
     seeds = range(4 if quick else 20)
     misses: dict[str, int] = {}

@@ -168,8 +168,13 @@ def bounded_keys(est) -> list[str]:
 
 
 def check_times(est, trial: Trial, count: int) -> np.ndarray:
-    """``count`` sample indices of ``trial`` inside the estimate's span, away from its ends (25 ... 75 %)."""
-    return np.linspace(0.25 * (trial.n - 1), 0.75 * (trial.n - 1), count).astype(int)
+    """``count`` sample indices of ``trial`` inside the estimate's span, away from its ends (25 ... 75 %); one when
+    every interval of ``est`` is constant in time (a time-invariant estimate: its checks at several times would be
+    one check counted several times)."""
+    iv = est.intervals
+    constant = iv is None or all(np.ptp(np.atleast_1d(np.asarray(b, float))) == 0 for lo_hi in iv.bounds.values()
+                                 for b in lo_hi)
+    return np.linspace(0.25 * (trial.n - 1), 0.75 * (trial.n - 1), 1 if constant else count).astype(int)
 
 
 def holds(est, trial: Trial, key: str, stiffness_hz: float, at: np.ndarray) -> np.ndarray:
