@@ -17,7 +17,7 @@ PAPER_STUDIES := westwick2012 xu1998 vanderuit2018_table1
         westwick2012-fig4 westwick2012-fig5 westwick2012-fig6 westwick2012-table1 westwick2012-fig7 \
         westwick2012-fig8 xu1998 xu1998-fig2 xu1998-fig3 xu1998-calibration vanderuit2018-table1 \
         vanderuit2018-table2 apparatus matrix reproduce-mujoco example-ankle clean-results nightly chromium \
-        reflex lpv example-reflex
+        reflex lpv example-reflex conformance
 
 help:
 	@echo "make reproduce   run every implemented paper study (results/<study>/report.md)"
@@ -25,6 +25,8 @@ help:
 	@echo "                 processes (pytest-xdist; TEST_WORKERS=0 for one process, TEST_WORKERS=N for N)"
 	@echo "make lint        ruff on the code (what .ci/run calls after the tests)"
 	@echo "make test-slow   exact-value tests of the full studies (slow marker)"
+	@echo "make conformance the conformance kit's full version on every estimator (jointbench.testing: more seeds,"
+	@echo "                 the whole settings grid; the quick version is part of make test)"
 	@echo "make bench       speed benchmarks against the last stored run (fails on a ratio to the same-run"
 	@echo "                 baseline grown more than 2x, again on a re-run; medians reported, not judged;"
 	@echo "                 stores a passing run) + study wall times (.benchmarks/study_times.csv)"
@@ -82,6 +84,11 @@ lint: $(STAMP)
 # at 2.5 kHz, interval coverage on 30 s records.
 test-slow: $(STAMP)
 	$(BIN)/python -m pytest -q --slow -m slow
+
+# The conformance kit's full version (jointbench.testing.check_estimator(quick=False)) on every registered estimator:
+# 20 seeds of interval coverage, 30 seeds of the narrow-band record at every lag/window setting of its grid.
+conformance: $(STAMP)
+	$(BIN)/python -m pytest -q --slow -m slow tests/test_conformance.py
 
 # Benchmarks: pytest-benchmark runs stored in .benchmarks/<machine>/ (not committed); see tests/benchmarks/bench.py.
 bench: $(STAMP)

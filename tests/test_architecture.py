@@ -8,7 +8,8 @@ are its sub-packages ``jointbench.sims``, ``jointbench.estimators`` and ``jointb
 2. ``sims`` and ``estimators``, side by side: neither imports the other (an estimator never knows how its
    data were made);
 3. ``fitting``: ``jointbench/fitting/``, the user's fitting path (it needs no simulator: :data:`ALSO_FORBIDDEN`);
-4. ``benchmarks``: the harness;
+4. ``benchmarks``: the harness; and beside it ``testing``: ``jointbench/testing/``, the conformance kit (it
+   simulates and fits, never imports the harness);
 5. ``api``: ``jointbench/api.py``;
 6. ``cli``: ``jointbench/cli/`` and ``jointbench/__main__.py``.
 
@@ -35,6 +36,7 @@ ROOMS = {
     "estimators": (2, ("jointbench.estimators",)),
     "fitting": (3, ("jointbench.fitting",)),
     "benchmarks": (4, ("jointbench.benchmarks",)),
+    "testing": (4, ("jointbench.testing",)),
     "api": (5, ("jointbench.api",)),
     "cli": (6, ("jointbench.cli", "jointbench.__main__")),
 }
@@ -147,7 +149,7 @@ def test_a_climb_is_caught(module, source):
 
 def test_the_floors_in_order():
     assert [r for r, _ in sorted(FLOORS.items(), key=lambda kv: kv[1])] == \
-        ["core", "sims", "estimators", "fitting", "benchmarks", "api", "cli"]
+        ["core", "sims", "estimators", "fitting", "benchmarks", "testing", "api", "cli"]
     assert room_of("jointbench") == "core" and room_of("jointbench.api") == "api"
     assert room_of("jointbench.apis") is None and room_of("jointbench.benchmarks.study") == "benchmarks"
     assert room_of("jointbench.cli.estimate") == "cli" and room_of("numpy") is None
