@@ -203,8 +203,8 @@ def test_cli_summary_line_is_the_headline(tmp_path, capsys, monkeypatch):
                         lambda *a, **k: orig(*a, **{**k, "out_root": tmp_path / "out", "serial": True}))
     assert cli.main(["run", "westwick2012", "--parts", "fig2", "fig4", "--quiet"]) == 0
     out = capsys.readouterr().out.splitlines()
-    assert out[0] == ("westwick2012: 2 cases (0 from cache, 2 computed), 0 failed; reproduction 3 of 3 pass; "
-                      "beside them: sanity 4 of 4")                # W1-h1-idft is sanity (issue 19)
+    assert out[0] == ("westwick2012: 2 cases (0 from cache, 2 computed), 0 failed, 0 refused; reproduction 3 of 3 "
+                      "pass; beside them: sanity 4 of 4")                # W1-h1-idft is sanity (issue 19)
     assert out[1].split()[:3] == ["pass", "sanity", "W1-h1-idft"]
 
 
@@ -429,6 +429,7 @@ def test_vaf_optim_is_against_the_noise_free_torque():
     """In the van de Ruit protocol, VAF_optim compares the prediction with the noise-free output, VAF_self
     with the noisy one: a model predicting the noise-free torque exactly has VAF_optim 100 %."""
     from jointbench.benchmarks.studies.vanderuit2018_table1.protocol import Table1Params, table1
+    from jointbench.core.estimate import Estimate
     from jointbench.core.schema import parse
     from jointbench import sims
 
@@ -436,10 +437,12 @@ def test_vaf_optim_is_against_the_noise_free_torque():
     part = s.parts["table1"]
     exp = sims.Experiment.from_mapping({**part.experiment, "duration": "22 s"}, "test")
 
-    @dataclasses.dataclass
-    class Perfect:
+    @dataclasses.dataclass(eq=False)
+    class Perfect(Estimate):         # a real Estimate: the protocol's fit passes the output gate
         truth: object
         time: np.ndarray
+        fs: float
+        estimator: str = "oracle"
 
         def predict(self, u):
             return np.asarray(self.truth.signals["torque"], float)
@@ -451,7 +454,7 @@ def test_vaf_optim_is_against_the_noise_free_torque():
         name = "oracle"
 
         def fit(self, trial):
-            return Perfect(trial.truth, trial.time)
+            return Perfect(trial.truth, trial.time, trial.fs)
 
     params = parse(Table1Params, {**part.params, "variation": "sine20", "snr_db": 5.0, "score": ["2 s", "10 s"],
                                   "curve_seeds": [], "image_variations": [], "band_step": "0 s"}, "test")
