@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 import os
 import signal
+import sys
 
 from jointbench.cli import estimate, history, studies
 from jointbench.cli.common import BLAS_THREAD_VARIABLES, OneLineParser, guarded, on_sigterm
@@ -32,6 +33,7 @@ def main(argv: list[str] | None = None) -> int:
             os.environ.setdefault(v, "1")
     parser = build_parser()
     args = parser.parse_args(argv)
+    args.command_line = [str(a) for a in (sys.argv[1:] if argv is None else argv)]   # what the history records
     previous = None
     if argv is None:                       # the real command line (not a call from a test)
         previous = signal.signal(signal.SIGTERM, on_sigterm)

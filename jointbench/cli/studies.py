@@ -9,8 +9,10 @@ from jointbench.cli.common import budget_minutes, guarded, positive_int
 from jointbench.core.errors import JointBenchError, worded_as
 
 
-def _command() -> str:
-    return "jointbench " + " ".join(shlex.quote(a) for a in sys.argv[1:]) if sys.argv[1:] else ""
+def _command(args) -> str:
+    """The command as the run history records it: ``jointbench`` and the arguments :func:`main` parsed (its
+    ``argv``, or the process's own)."""
+    return " ".join(["jointbench", *(shlex.quote(a) for a in getattr(args, "command_line", []))])
 
 
 def _root(args) -> Path:
@@ -81,7 +83,7 @@ def _run_one(args, study: str) -> int:
         run = api.run(study, parts=args.parts, out=_root(args), executor="serial" if args.serial else
                       (args.executor or "process"), workers=args.workers, scheduler=args.scheduler,
                       use_cache=not args.no_cache, overrides=args.set or (), backend=args.backend,
-                      budget=args.budget, confirm=args.yes, progress=not args.quiet, record_as=_command())
+                      budget=args.budget, confirm=args.yes, progress=not args.quiet, record_as=_command(args))
     comp = run.checks
     n_pass = int((comp["status"] == "pass").sum()) if len(comp) else 0
     n_cached = int(run.cases["cached"].sum())
@@ -150,7 +152,7 @@ def _nightly(args) -> int:
 
         config = dataclasses.replace(config, studies=tuple(args.studies))
     res = run_nightly(config, _root(args), workers=args.workers, serial=args.serial, progress=not args.quiet,
-                      command=_command() or "jointbench nightly")
+                      command=_command(args))
     print(f"nightly {res.nightly_id}: {res.verdict}")
     for line in res.regressions:
         print(f"  {line}")
