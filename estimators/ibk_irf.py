@@ -102,7 +102,9 @@ class IBKIRF(Estimator):
     band-limit). The model's columns are then the pseudo-inverse IRFs, in the same directions, of the
     exact derivatives of the angle (:func:`kept_derivative_irfs`; ``differentiator_length`` does not
     apply), and the residuals are weighted as the torque weighs them; I, B, K are unbiased whatever the
-    input's band. ``bandlimit`` is then not applied: the kept directions and the torque's weights already
+    input's band. ``bandlimit`` is then not applied when it lies above the input's band (its top by
+    :func:`jointbench.core.band.input_band`; below it, it is applied as without projection, restricting the fit
+    to the band where the second-order model is meant to hold): the kept directions and the torque's weights already
     confine the fit to what the input excites (the generalised least-squares fit the band-limit stands in
     for), and a filter applied after the projection moves the IRF out of the kept directions, where the
     weights no longer hold: a direction kept for the coloured noise's chance share (coordinate ``c / s``,
@@ -182,19 +184,22 @@ class IBKIRF(Estimator):
             raise InputError(f"{self.name}: bandlimit = {s.bandlimit:g} Hz must be below the Nyquist "
                              f"frequency {fs / 2:g} Hz")
         projected = fit.directions is not None and fit.kept < fit.n_lags
-        cols, Wr = self._columns(trials, fit, n, m1, m2, projected)
-        h, F = (irf.h, np.eye(len(irf.h))) if projected else self._filtered(irf.h, fs)
-        ls = LeastSquares.of(np.column_stack(cols), h, F, Wr)
         band = band_of_trials(self.name, trials)
+        # projected onto the kept directions, a band-limit above the input's band has nothing left to remove:
+        # it only smears directions kept for the noise's chance share into the excited ones (class docstring)
+        limited = s.bandlimit is not None and not (projected and (band is None or s.bandlimit >= band.hi))
+        cols, Wr = self._columns(trials, fit, n, m1, m2, projected, limited)
+        h, F = self._filtered(irf.h, fs) if limited else (irf.h, np.eye(len(irf.h)))
+        ls = LeastSquares.of(np.column_stack(cols), h, F, Wr)
         I, B, K = self._solve(ls, band, fit, m1, m2)
-        limited = s.bandlimit is not None and not projected
         label = f"{irf.estimator}, band-limited to {s.bandlimit:g} Hz" if limited else irf.estimator
         basis = IRFEstimate(lags=irf.lags, h=h, fs=fs, time=irf.time, estimator=label)
         top = s.bandlimit if limited else fs / 2
         info = dict(fit.info)
         if band is not None and band.hi < top:
             top = band.hi
-        unused = f"bandlimit {s.bandlimit:g} Hz not applied: " if s.bandlimit is not None else ""
+        unused = f"bandlimit {s.bandlimit:g} Hz not applied (above the input's band): " \
+            if s.bandlimit is not None and not limited else (f"bandlimit {s.bandlimit:g} Hz; " if limited else "")
         info["band"] = (f"0 ... {top:g} Hz; the input's band " + (band.text() if band else "unknown")
                         + (f"; {unused}I, B, K fitted in the IRF's kept lag directions, weighted as the torque "
                            f"weighs them" if projected else
@@ -206,8 +211,8 @@ class IBKIRF(Estimator):
             return est
         return _with_intervals(est, ls, fit)
 
-    def _columns(self, trials: list[Trial], fit, n: int, m1: int, m2: int,
-                 projected: bool) -> tuple[list[np.ndarray], np.ndarray | None]:
+    def _columns(self, trials: list[Trial], fit, n: int, m1: int, m2: int, projected: bool,
+                 limited: bool) -> tuple[list[np.ndarray], np.ndarray | None]:
         """The model's columns ``h2, h1, h0`` on the lags ``-m1 ... m2`` (band-limited as the IRF) and the
         weights of the residuals: the pseudo-inverse IRFs of the angle's exact derivatives and the torque's
         weights when the IRF holds only its kept lag directions (``projected``, :func:`kept_derivative_irfs`),
@@ -219,9 +224,12 @@ class IBKIRF(Estimator):
             pairs = input_output(self.name, trials, s.remove_mean)
             edges = "zero" if s.irf_method == "corr" else (s.edges or "valid")
             c, Wr = kept_derivative_irfs(pairs, m1, m2, edges, fit.directions)
-            return [c[:, 0] * fs ** 2, c[:, 1] * fs, c[:, 2]], Wr
+            cols = [c[:, 0] * fs ** 2, c[:, 1] * fs, c[:, 2]]
+            if limited:
+                cols = [bandlimit_fb(c, fs, s.bandlimit, s.bandlimit_order) for c in cols]
+            return cols, Wr
         periodic = (dd.h2(n, fs), dd.h1(n, fs), dd.h0(n))
-        if s.bandlimit is not None:
+        if limited:
             return [_bandlimited(p, m1, m2, fs, s.bandlimit, s.bandlimit_order) for p in periodic], None
         return [dd.two_sided(p, m1, m2)[1] for p in periodic], None
 

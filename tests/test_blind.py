@@ -19,7 +19,9 @@ def cheat():
 
     @register(name)
     class Cheat(Estimator):
-        """Returns the true stiffness (a benchmark must make this fail)."""
+        """Returns the true stiffness (a benchmark must make this fail); says it pools records."""
+
+        accepts = frozenset({"trial", "pooled"})
 
         def _fit(self, trials):
             return float(np.mean(trials[0].truth.K))

@@ -232,7 +232,8 @@ def test_malformed_scheduler_addresses_are_one_line(address, words):
 def test_an_empty_scheduler_on_the_command_line_is_refused_not_a_local_cluster(tmp_path):
     r = cli_here("run", tiny_study(tmp_path / "cfg"), "--out", tmp_path / "out", "--executor", "dask",
             "--scheduler", "", timeout=120)
-    assert r.returncode == 2 and "an empty address" in r.stderr and len(_error_lines(r.stderr)) == 1, r.stderr
+    assert r.returncode == 2 and "--scheduler: expected a non-empty text" in r.stderr \
+        and len(_error_lines(r.stderr)) == 1, r.stderr
 
 
 @pytest.mark.parametrize("reply", [b"\xff" * 64, b"HTTP/1.1 200 OK\r\n\r\n", b""], ids=["0xff", "http", "silent"])

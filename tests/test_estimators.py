@@ -238,14 +238,25 @@ def test_ibk_irf_basis_is_bandlimited_irf(elbow):
     assert np.all(hi < 0.01 * np.abs(raw.frequency_response(np.array([60.0, 100.0]))))
 
 
-def test_ibk_irf_projected_basis_is_the_fitted_irf(elbow):
-    """Fewer lag directions kept than lags (MDL): I, B, K are fitted, weighted, to the kept-direction IRF as
-    estimated, not band-limited (a filter after the projection mixes the directions, issue 33), and the band
-    line says so."""
-    est = estimators.make("ibk_irf", RECOVERY["ibk_irf"]).fit(elbow)
-    raw = estimators.make("irf2_ls", {"edges": "valid"}).fit(elbow)
-    assert "bandlimit 20 Hz not applied" in est.fit_info["band"]
+def test_ibk_irf_projected_basis_is_the_fitted_irf():
+    """Fewer lag directions kept than lags (MDL) and the band-limit above the input's band (12 Hz): I, B, K are
+    fitted, weighted, to the kept-direction IRF as estimated, not band-limited (a filter after the projection
+    mixes the directions, issue 33), and the band line says so."""
+    from tests.narrowband_data import narrowband_trial
+
+    tr = narrowband_trial(3, duration=10.0)
+    est = estimators.make("ibk_irf", {"lag_before": 0.04, "lag_after": 0.04}).fit(tr)
+    raw = estimators.make("irf2_ls", {"lag_before": 0.04, "lag_after": 0.04, "edges": "valid"}).fit(tr)
+    assert "bandlimit 20 Hz not applied (above the input's band)" in est.fit_info["band"]
     np.testing.assert_allclose(est.basis.h, raw.h)
+
+
+def test_ibk_irf_projected_below_the_input_band_is_band_limited(elbow):
+    """Projected, with the band-limit below the input's band: the band-limit restricts the fit as without
+    projection (the band where the second-order model is meant to hold)."""
+    est = estimators.make("ibk_irf", RECOVERY["ibk_irf"]).fit(elbow)
+    assert "kept lag directions" in est.fit_info["band"] and "bandlimit 20 Hz;" in est.fit_info["band"]
+    assert "band-limited to 20 Hz" in est.basis.estimator
 
 
 # ------------------------------------------------------------------------------------ exact IRF solvers

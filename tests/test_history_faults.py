@@ -128,9 +128,9 @@ def test_a_bad_schema_version_is_one_line(out, version):
 
 
 @pytest.mark.parametrize("args, words", [
-    (("history", "1" + "0" * 30), "no run 1000000000000000000000000000000 (runs 1 to 2)"),
-    (("history", "-1"), "no run -1"),
-    (("diff", "1", "1" + "0" * 30), "no run 1000000000000000000000000000000"),
+    (("history", "1" + "0" * 30), "expected a whole number from 1 to 2**63 - 1, got 1000000000000000000000000000000"),
+    (("history", "-1"), "expected a whole number >= 1, got -1"),
+    (("diff", "1", "1" + "0" * 30), "expected a whole number from 1 to 2**63 - 1, got 1000000000000000000000000000000"),
 ])
 def test_run_ids_beyond_sqlite_integers_are_one_line(out, args, words):
     assert words in _one_line(cli(*args, "--out", out))

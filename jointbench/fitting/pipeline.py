@@ -229,7 +229,7 @@ def gate(estimator, estimate: "Estimate", records) -> list["Prediction"]:
                       diagnostics={"estimator": name, "vaf": vafs, "record": [t.name for t in trials],
                                    "definition": predictions[0].definition})
     flat = degenerate_intervals(estimate)
-    if flat and min(vafs) < EXACT_VAF:
+    if flat and not (min(vafs) >= EXACT_VAF and exact_everywhere(estimate)):
         what = ", ".join(f"{k} (width {w:.3g})" for k, w in flat.items())
         raise Refused(f"{name}: its confidence intervals of {what} have zero or non-finite width, which no "
                       f"estimate from noisy data has; {remedy(estimator)}", reason="degenerate_interval",
@@ -237,9 +237,26 @@ def gate(estimator, estimate: "Estimate", records) -> list["Prediction"]:
     return predictions
 
 
-#: VAF (%) of a fit that explains its records exactly (noise-free simulated data): there an interval of zero width
-#: is right, and only there; a non-finite width is refused always
-EXACT_VAF = 100.0 - 1e-6
+#: VAF (%) above which a fit whose every interval has zero width is taken as exact (noise-free simulated data: the
+#: prediction's own ends and interpolation keep a time-varying estimate's VAF of exact data near 99.99 %): there,
+#: and only there, zero widths are right; a non-finite width is refused always
+EXACT_VAF = 99.9
+
+
+def exact_everywhere(estimate) -> bool:
+    """Every interval bound of ``estimate`` of zero width (to rounding) at every time: an estimate claiming an
+    exact fit throughout, as on noise-free data (unlike a zero width at some samples or of one parameter only,
+    beside finite others: the signature of a lost variance, issue 33)."""
+    import numpy as np
+
+    iv = estimate.intervals
+    if iv is None or not iv.bounds:
+        return False
+    for lo, hi in iv.bounds.values():
+        lo, hi = np.asarray(lo, float), np.asarray(hi, float)
+        if not np.all(np.isfinite(hi - lo)) or np.any(hi - lo > 1e-9 * np.maximum(np.abs(lo), np.abs(hi))):
+            return False
+    return True
 
 #: settings that decide what a fit can resolve, as the estimators name them, in the order a remedy names them
 TUNING_SETTINGS = ("lag_before", "lag_after", "bandlimit", "input_band", "window", "segment", "forgetting",

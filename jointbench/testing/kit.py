@@ -13,10 +13,10 @@ import numpy as np
 
 from jointbench.core.ensemble import Ensemble
 from jointbench.core.errors import InputError
+from jointbench.core.intervals import LEVEL  # the level the kit holds intervals to (every estimator states it)
 from jointbench.core.types import Trial
 from jointbench.testing import data as kit_data
-#: the confidence level the kit holds intervals to (what every estimator states: jointbench.core.estimate)
-LEVEL = 0.95
+
 #: a right interval exceeds the allowed misses over S seeds with probability below this (as
 #: tests/test_interval_coverage.py: a false alarm below 2 % over the kit's checks)
 ALARM = 0.001
