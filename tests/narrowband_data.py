@@ -9,11 +9,9 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
-from scipy import signal
 
 from jointbench.core.types import Trial
-
-TRUTH = {"I": 0.02, "B": 0.6, "K": 120.0}
+from jointbench.testing.data import NARROW_BAND_TRUTH as TRUTH, narrow_band
 
 #: every estimator that fits a single LTI trial and returns intervals, at its lag settings (the default, 20, 40
 #: and 100 ms) or its window-like ones (the default, half and double); the time-varying ones (fsewls, pv_irf)
@@ -35,20 +33,9 @@ GRID = {
 
 def narrowband_trial(seed: int, fs: float = 500.0, duration: float = 30.0, fmax: float = 12.0,
                      noise: float = 0.1) -> Trial:
-    """Issue 33's narrow-band record, drawn from ``seed``."""
-    rng = np.random.default_rng(seed)
-    t = np.arange(int(duration * fs)) / fs
-    lines = np.arange(1, int(fmax * 10) + 1) / 10.0
-    amp = np.full(len(lines), 0.02 / np.sqrt(len(lines) / 2))
-    w = 2 * np.pi * lines
-    Z = TRUTH["K"] + 1j * w * TRUTH["B"] - TRUTH["I"] * w ** 2
-    arg = np.outer(t, w) + rng.uniform(0, 2 * np.pi, len(lines))
-    angle = np.cos(arg) @ amp
-    torque = np.cos(arg + np.angle(Z)) @ (amp * np.abs(Z))
-    b, a = signal.butter(4, 30 / (fs / 2))
-    e = signal.lfilter(b, a, rng.standard_normal(len(t)))
-    e *= np.sqrt(noise * np.var(torque) / np.var(e))
-    return Trial.from_arrays(angle, torque + e, fs, name=f"nb{seed}")
+    """Issue 33's narrow-band record, drawn from ``seed``: the conformance kit's own
+    (:func:`jointbench.testing.data.narrow_band`), one home."""
+    return narrow_band(seed, fs=fs, duration=duration, fmax=fmax, noise=noise).replace(name=f"nb{seed}")
 
 
 @dataclasses.dataclass
