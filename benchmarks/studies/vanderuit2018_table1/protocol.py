@@ -26,7 +26,7 @@ from jointbench.core.scores import vaf
 from jointbench.benchmarks.protocols import Context, register
 from jointbench.benchmarks.scoring import basis_bound, fit_gated, frozen_stiffness
 from jointbench.estimators.skirt import basis as skirt_basis
-from jointbench.core.errors import ConfigError
+from jointbench.core.errors import ConfigError, Refused
 from jointbench.core.schema import param
 from jointbench.sims.profile import parse_profile
 
@@ -368,7 +368,13 @@ def table1(ctx: Context) -> None:
     ref = _reference(ctx, p, exp, est_trial)
     if ref.record and not math.isfinite(p.snr_db) and p.bound_orders:
         _skirt_bounds(ctx, p, ref.t, {"frozen": ref.H1, "intrinsic": ref.k_true}, lab)
+    first = True                             # the first estimate scored also records the truth's own ramp time
     for name, estimator in ests.items():
-        est = fit_gated(estimator, est_trial)
-        khat = _score_estimate(ctx, p, ref, name, est, (est_trial, val_trial), lab, first=name == next(iter(ests)))
+        try:
+            est = fit_gated(estimator, est_trial)
+        except Refused as exc:               # the output gate: this method refused, the other kept
+            ctx.refused(name, exc)
+            continue
+        khat = _score_estimate(ctx, p, ref, name, est, (est_trial, val_trial), lab, first=first)
+        first = False
         _record_estimate(ctx, p, ref, name, est, khat)
