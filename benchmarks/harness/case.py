@@ -198,10 +198,8 @@ def run_case(case: Case) -> CaseResult:
         return CaseResult(case, "refused" if every else "ok", ctx.rows, ctx.curves, time.perf_counter() - t0,
                           error="; ".join(refused), sim_times=[[b, round(t, 6), int(r)] for b, t, r in log])
     except Refused as exc:    # the output gate (jointbench.fitting.pipeline.gate): not a failure, a refusal
-        why = f"{exc.reason}: {exc}"
-        row = {"estimator": str(exc.diagnostics.get("estimator", "")), "metric": protocols.REFUSED,
-               "value": float("nan"), "reason": why}
-        return CaseResult(case, "refused", [row], [], time.perf_counter() - t0, error=why)
+        row = protocols.refused_row(str(exc.diagnostics.get("estimator", "")), exc)
+        return CaseResult(case, "refused", [row], [], time.perf_counter() - t0, error=row["reason"])
     except BaseException as exc:  # noqa: BLE001 - a failing case (sys.exit in a plugin too) must not stop the others
         if isinstance(exc, KeyboardInterrupt):
             raise                                  # Ctrl-C is the run's to handle, not a failed case

@@ -48,6 +48,13 @@ def register(name: str, params: type, *, tags: tuple[str, ...] = (), share: Call
 REFUSED = "refused"
 
 
+def refused_row(estimator: str, exc: Exception, **labels: Any) -> dict:
+    """The row recording a fit the output gate refused: ``metric`` :data:`REFUSED`, the reason
+    (``"<reason code>: <message>"``) and ``labels``."""
+    return {"metric": REFUSED, "value": float("nan"), "estimator": estimator,
+            "reason": f"{getattr(exc, 'reason', 'refused')}: {exc}", **labels}
+
+
 def refusals(rows: list[dict]) -> list[str]:
     """The reasons of the refused fits among a case's ``rows`` (:meth:`Context.refused`)."""
     return [str(r.get("reason", "")) for r in rows if r.get("metric") == REFUSED]
@@ -83,8 +90,7 @@ class Context:
         row ``metric='refused'`` with the reason (:data:`REFUSED`). The case's other fits (other estimators,
         other inputs) keep their rows; the case is counted as refused (:func:`refusals`) and stays
         selectable for the checks that read the other fits."""
-        self.rows.append({"metric": REFUSED, "value": float("nan"), "estimator": estimator,
-                          "reason": f"{getattr(exc, 'reason', 'refused')}: {exc}", **labels})
+        self.rows.append(refused_row(estimator, exc, **labels))
 
     def curve(self, name: str, x, y, series: str = "", **labels: Any) -> None:
         """Record a curve for the figures (stored long: one row per point)."""

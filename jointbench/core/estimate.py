@@ -470,13 +470,13 @@ def estimate_problem(estimate, lengths, fs: float) -> str | None:
 
 def non_finite(estimate: Estimate, bounds: bool = True) -> list[str]:
     """The quantities of ``estimate`` holding a value that is not finite (NaN or infinite: what the data do
-    not determine): the columns of ``estimate.to_frame()`` (parameters, stiffness and, with ``bounds``, their
-    interval limits, computed then if the estimator computes them on first use)."""
-    if bounds:
-        frame = estimate.to_frame()
-        values = {c: frame[c].to_numpy() for c in frame.columns if frame[c].dtype.kind in "fc"}
-    else:
-        values = {**estimate.parameters(), "stiffness": estimate.stiffness(estimate.time)}
+    not determine): its parameters, stiffness and, with ``bounds``, their interval limits (``K_lo``, ``K_hi``,
+    as :meth:`Estimate.to_frame` names them; computed then if the estimator computes them on first use),
+    read directly, without building the table."""
+    values = {**estimate.parameters(), "stiffness": estimate.stiffness(estimate.time)}
+    iv = estimate.intervals if bounds else None
+    for key, (lo, hi) in (iv.bounds.items() if iv is not None else ()):
+        values[f"{key}_lo"], values[f"{key}_hi"] = lo, hi
     return [k for k, v in values.items() if not np.all(np.isfinite(np.asarray(v, float)))]
 
 
