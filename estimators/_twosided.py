@@ -286,10 +286,12 @@ def mdl_pseudo_inverse(s: np.ndarray, V: np.ndarray, c: np.ndarray, rss0: float,
 
 
 def irf_covariance(pairs: list[tuple[np.ndarray, np.ndarray]], m1: int, m2: int, rows: Rows,
-                       h: np.ndarray, gram_pinv: np.ndarray) -> tuple[np.ndarray | None, int]:
-    """Segment-robust covariance of a least-squares IRF (:func:`jointbench.core.intervals.segment_covariance`)
-    on each record's regression rows (:func:`regression_rows`: those of the fit, ``rows``) and residuals
-    ``e = y - U h``; ``gram_pinv`` is the (pseudo-)inverse of ``U^T U`` used for ``h``.
+                   h: np.ndarray, to_coordinates: np.ndarray) -> tuple[np.ndarray | None, int]:
+    """Segment-robust covariance (:func:`jointbench.core.intervals.segment_covariance`) of the coordinates
+    ``z = diag(s_k) V_k^T h`` of a least-squares IRF ``h`` in its kept directions (``V_k``, singular values
+    ``s_k`` of the regression), from each record's regression rows (:func:`regression_rows`: those of the fit,
+    ``rows``) and residuals ``e = y - U h``. ``to_coordinates = V_k diag(1/s_k)`` maps the rows ``U`` to those of
+    ``z``, ``U V_k diag(1/s_k)``, whose Gram matrix is the identity; segments are counted in lags (the IRF's memory).
 
     Unlike ``sigma^2 (U^T U)^-1`` it does not assume white residuals (the torque noise, voluntary torque and
     the lags the IRF leaves out are coloured). The neighbours' products matter: a slow residual (voluntary
@@ -299,7 +301,8 @@ def irf_covariance(pairs: list[tuple[np.ndarray, np.ndarray]], m1: int, m2: int,
     :data:`jointbench.core.intervals.MIN_SEGMENTS` segments fit.
     """
     fitted = [regression_rows(u, y, m1, m2, rows) for u, y in pairs]
-    return segment_covariance([(U, yy - U @ h) for U, yy in fitted], gram_pinv)
+    return segment_covariance([(U @ to_coordinates, yy - U @ h) for U, yy in fitted],
+                              np.eye(to_coordinates.shape[1]), columns=len(h))
 
 
 def fit_irf(name: str, trials: list[Trial], settings: LagSettings, method: Literal["ls", "corr"],
@@ -342,9 +345,11 @@ def fit_irf(name: str, trials: list[Trial], settings: LagSettings, method: Liter
         raise InputError(f"{name}: the IRF is not finite: the angle does not excite all {n_lags} lags; use "
                          f"pseudo_inverse = mdl, fewer lags or a broader-band perturbation")
     V_k, s_k = V[:, kept], s[kept]
-    meat, dof = irf_covariance(pairs, m1, m2, rows, h, np.eye(n_lags)) if covariance else (None, 0)
-    coord_cov = None if meat is None else (V_k.T @ meat @ V_k) / np.outer(s_k, s_k)   # of diag(s_k) V_k^T h
-    cov = None if meat is None else (V_k / s_k) @ coord_cov @ (V_k / s_k).T
+    # in the kept directions' coordinates diag(s_k) V_k^T h, whose Gram matrix is the identity (U^T U =
+    # V diag(s^2) V^T for both methods): in h itself a direction excited 1e-8 of the strongest swamps the others'
+    # variances in rounding
+    coord_cov, dof = irf_covariance(pairs, m1, m2, rows, h, V_k / s_k) if covariance else (None, 0)
+    cov = None if coord_cov is None else (V_k / s_k) @ coord_cov @ (V_k / s_k).T
     end_effect = correlation_end_effect(name, trials, settings, h) if method == "corr" and cov is not None else None
     info = {}
     if mode == "mdl":

@@ -25,11 +25,6 @@ NAMES = estimators.REGISTRY.names()
 #: only, with its more seeds and whole grid; why). The kit stays honest; the estimators (or the output gate of
 #: jointbench.fitting.pipeline, being added beside this kit) are fixed, then the line goes.
 KNOWN_FAILURES: dict[tuple[str, str], tuple[str, str]] = {
-    ("pv_irf", "check_narrow_band"): (
-        "full", "its pointwise band of K(schedule) misses K = 120 in 6 of 30 seeds at the default, 20 ms and 40 ms "
-                "lags (coverage 80 %, issue 33 asks 85 %): the estimates' spread is 1.4 times the band's standard "
-                "error, with 22 or 11 segments alike (the segment-robust covariance's downward bias when the "
-                "schedule's extremes rest on few segments?): open"),
 }
 
 
