@@ -87,7 +87,8 @@ def ewls_variances(Phi: np.ndarray, y: np.ndarray, Theta: np.ndarray, dt: float,
     g = sps.fftconvolve(first, np.concatenate([gamma[:0:-1], gamma])[None, :, None], mode="same", axes=1)
     # Phi_r g_r^T + g_r Phi_r^T (unique entries): Var a is half its sum over r < m0, Cov(b, a) plus its
     # transpose is its decay (the filter is linear)
-    pg = (np.einsum("rnk,rnk->nk", Phi[:, :, i], g[:, :, j]) + np.einsum("rnk,rnk->nk", g[:, :, i], Phi[:, :, j])) * dt * dt
+    pg = (np.einsum("rnk,rnk->nk", Phi[:, :, i], g[:, :, j])
+          + np.einsum("rnk,rnk->nk", g[:, :, i], Phi[:, :, j])) * dt * dt
     ck = c ** np.arange(n)[:, None]
     S += ck ** 2 * (0.5 * pg[:m0].sum(axis=0)) + ck * _decay(pg, c)
     R = _decay(pp * dt, c) + ck * R0[i, j]                                    # R(t) with the start
@@ -103,7 +104,8 @@ def _spd3_inverse(R: np.ndarray) -> np.ndarray:
     d = 1.0 / np.sqrt(R[:, [0, 3, 5]])
     i, j = UPPER3
     a, b, c, dd, e, f = (R * d[:, i] * d[:, j]).T
-    adj = np.stack([dd * f - e * e, c * e - b * f, b * e - c * dd, a * f - c * c, b * c - a * e, a * dd - b * b], axis=1)
+    adj = np.stack([dd * f - e * e, c * e - b * f, b * e - c * dd,
+                    a * f - c * c, b * c - a * e, a * dd - b * b], axis=1)
     det = a * adj[:, 0] + b * adj[:, 1] + c * adj[:, 2]
     return adj / det[:, None] * d[:, i] * d[:, j]
 
