@@ -143,7 +143,8 @@ def judge(checks: tuple[Check, ...], rows: pd.DataFrame, parts_run: set[str], co
         if not np.isfinite(rep):
             note = "no result: the case failed or produced no such metric (see the failed cases)"
         else:
-            note = "" if status == "pass" else c.if_missed
+            side = c.if_missed_below if rep < low else c.if_missed_above if rep > high else ""
+            note = "" if status == "pass" else side or c.if_missed
         out.append({"check": c.id, "description": c.description, "published": c.published,
                     "reproduced": rep, "low": low, "high": high, "status": status,
                     "evidence": c.evidence, "reading": c.reading, "free_parameter": c.free_parameter,

@@ -21,7 +21,7 @@ from jointbench.core.schema import Problems, error, param, parse
 COUNTS = ("headline", "method_difference")
 AGGREGATES = ("median", "mean", "min", "max", "std")
 #: kinds of evidence, in the order the report shows them; the headline counts ``reproduction`` only
-EVIDENCE = ("reproduction", "conditional", "calibrated", "sanity")
+EVIDENCE = ("reproduction", "recording", "conditional", "calibrated", "sanity")
 #: range conditions allowed in ``select``, ``versus`` and ``domain`` (``{f_v: {lt: 1.0}}``)
 RANGE_OPS = ("lt", "le", "gt", "ge")
 #: check kind -> fields it needs (besides the common ones) and fields it allows
@@ -56,6 +56,8 @@ class Check:
     select: Mapping[str, Any]
     aggregate: str = "median"
     if_missed: str = ""
+    if_missed_below: str = ""      # the note of a miss below ``low`` (in place of ``if_missed``)
+    if_missed_above: str = ""      # the note of a miss above ``high``
     kind: str = "value"
     over: str = ""
     direction: str = "decreasing"

@@ -26,6 +26,8 @@ from jointbench.core.files import write_text
 #: what each kind of evidence means, as the report says it
 EVIDENCE_TEXT = {
     "reproduction": "an independent published value or claim, judged by the harness: the headline count",
+    "recording": "a value measured on real subjects, which a simulation reaches only by inventing dynamics the "
+                 "paper does not give: shown with the reproduced value, never counted in the headline",
     "conditional": "passes only under a reading of an ambiguous passage that was chosen by its outcome "
                    "(the reading is named): shown beside the headline, not in it",
     "calibrated": "a free parameter was chosen to match the published value (the parameter is named): "
@@ -151,7 +153,8 @@ def _headline_sentence(counts: dict, differences: tuple[int, int] | None = None)
         out += (f" **Method differences: {differences[0]} of {differences[1]}** (gaps between two methods' "
                 "published cells, whose cells are counted above already: their own line, not in the headline).")
     beside = []
-    for kind, what in (("conditional", "each under a reading chosen by its outcome"),
+    for kind, what in (("recording", "values measured on real subjects: shown, not counted"),
+                       ("conditional", "each under a reading chosen by its outcome"),
                        ("calibrated", "a free parameter was chosen to match them: not evidence, not counted"),
                        ("sanity", "arithmetic or self-consistency"),
                        ("unrecorded", "kind of evidence not recorded")):
