@@ -52,7 +52,7 @@ def _check(**over) -> dict:
 @pytest.mark.parametrize("over, message", [
     ({"evidence": None}, "missing required key 'evidence'"),
     ({"evidence": "anecdote"},
-     "'evidence': 'anecdote' not allowed; allowed: reproduction, conditional, calibrated, sanity"),
+     "'evidence': 'anecdote' not allowed; allowed: reproduction, recording, conditional, calibrated, sanity"),
     ({"evidence": "conditional"}, "evidence 'conditional' needs key 'reading'"),
     ({"evidence": "conditional", "reading": "the first one"}, "needs key 'reading'"),
     ({"reading": "R1"}, "'reading' applies to evidence 'conditional' only"),

@@ -358,3 +358,51 @@ def track(ctx: Context) -> None:
             ctx.curve(name, t[sel], np.broadcast_to(np.asarray(getattr(trial.truth, name), float),
                                                     keep.shape)[sel], series="truth", **labels)
 
+
+
+# ------------------------------------------------------------------------ the paper's arithmetic (X9)
+@dataclasses.dataclass(frozen=True)
+class RatioParams:
+    """The stated tracking limit whose ratio to the state-variable filter's cutoff Sec. III-B gives."""
+
+    variation_limit: float = param(0.5, unit="Hz", gt=0, doc="the maximum parameter variation Sec. III-B states "
+                                   "('should not be more than 0.5 Hz as indicated in Fig. 2(b)')")
+    estimator: str = param("fsewls", doc="the estimator whose svf_cutoff (L's cutoff, eq. 4) is used")
+
+
+def filter_ratios(svf_cutoff: float, variation_limit: float) -> dict[str, float]:
+    """The ratio Sec. III-B states between the parameter variation and the cutoff of L, both ways round.
+
+    Parameters
+    ----------
+    svf_cutoff : float
+        Cutoff of the state-variable filter L (Hz; 3.2 in the paper).
+    variation_limit : float
+        The maximum frequency of the parameter variation (Hz; 0.5 in the paper).
+
+    Returns
+    -------
+    dict
+        ``cutoff_over_variation`` (the order under which the printed 'about 6.4' is possible, reading R22)
+        and ``variation_over_cutoff`` (the order as printed: 'the ratio of the parameter variation frequency
+        to the filter cutoff frequency').
+
+    References
+    ----------
+    Xu & Hollerbach (1998), Sec. III-B ('The ratio of the parameter variation frequency to the filter cutoff
+    frequency in (4) is about 6.4'); Appendix A ('the ratio of the frequencies of the parameter variation
+    and the low-pass filter must be smaller than one').
+    """
+    return {"cutoff_over_variation": svf_cutoff / variation_limit,
+            "variation_over_cutoff": variation_limit / svf_cutoff}
+
+
+@register("xu1998.filter_ratio", RatioParams)
+def filter_ratio(ctx: Context) -> None:
+    """X9: the paper's ratio of L's cutoff (the configured estimator's ``svf_cutoff``) to the stated limit of
+    the parameter variation (Sec. III-B), arithmetic on its own numbers: no simulation."""
+    p = ctx.params
+    if p.estimator not in ctx.estimators:
+        raise KeyError(f"estimator {p.estimator!r} must be listed in the part's estimators")
+    for name, v in filter_ratios(ctx.estimators[p.estimator].settings.svf_cutoff, p.variation_limit).items():
+        ctx.metric(name, v, p.estimator)
