@@ -141,6 +141,9 @@ class CheckEntry(Check):
     domain: Mapping[str, Any] | None = param(None, parser=_conditions(False), doc="the rows scored")
     domain_reason: str = param("", doc="why the domain")
     count: Literal[COUNTS] = param("headline", doc="headline or method_difference")
+    # issue 35 (branch i35-ruit, minimal until main's change lands): parsed, not yet carried to the Check
+    if_missed_below: str = param("", doc="the note of a miss below low")
+    if_missed_above: str = param("", doc="the note of a miss above high")
 
     def __post_init__(self):
         self._check_kind()
