@@ -445,8 +445,8 @@ def _d_notes(var: str, snr: str, column: str, gap: float) -> dict[str, dict[str,
     cells = f"KBR {_ref(k, '.3g')}, skirt {_ref(s, '.3g')}."
     sign = (f"The reproduction orders the two methods the other way: {cells} "
             + D_WHY_SIGN[("vaf", True) if noisy and column != "rmse_k" else (column, noisy)])
-    smaller = f"The reproduced gap, {{value:+.3g}}, is less than half the printed one (after its rounding): {cells} " \
-              + D_WHY_SMALLER[(column, noisy)]
+    smaller = (f"The reproduced gap, {{value:+.3g}}, falls short of half the printed one (after its rounding; "
+               f"the other sign included): {cells} " + D_WHY_SMALLER[(column, noisy)])
     larger = f"The reproduced gap, {{value:+.3g}}, is more than twice the printed one (after its rounding): {cells} " \
              + D_WHY_LARGER[(column, noisy)]
     below, above = (smaller, larger) if gap > 0 else (larger, smaller)
