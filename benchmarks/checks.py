@@ -50,15 +50,23 @@ def _grouped(sel: pd.DataFrame, column: str, how: str) -> pd.Series:
 
 
 def _trend(c: Check, rows: pd.DataFrame) -> tuple[float, str, int]:
-    """Largest move against ``c.direction`` between consecutive aggregates over ``c.over``."""
+    """Largest move against ``c.direction`` between consecutive aggregates over ``c.over``; with ``c.by``, the
+    trend of each value of ``by`` (e.g. each parameter of one claim), the largest move of any of them."""
     sel = select(rows, c.part, {**c.select, **(c.domain or {})})
-    m = _grouped(sel, c.over, c.aggregate)
-    if len(m) < 2:
+    if c.by and c.by not in sel.columns:
         return np.nan, "", len(sel)
-    d = np.diff(m.to_numpy(float))
-    against = d if c.direction == "decreasing" else -d
-    spread = ", ".join(f"{k}: {v:.4g}" for k, v in m.items())
-    return float(np.max(against)), f"{c.over} -> {spread}", len(sel)
+    groups = [("", sel)] if not c.by else list(sel.groupby(sel[c.by].astype(str), sort=True))
+    worst, spreads = np.nan, []
+    for key, g in groups:
+        m = _grouped(g, c.over, c.aggregate)
+        if len(m) < 2:
+            return np.nan, "", len(sel)
+        d = np.diff(m.to_numpy(float))
+        against = float(np.max(d if c.direction == "decreasing" else -d))
+        worst = against if not np.isfinite(worst) else max(worst, against)
+        body = ", ".join(f"{k}: {v:.4g}" for k, v in m.items())
+        spreads.append((f"{key}: " if c.by else "") + f"{c.over} -> {body}")
+    return worst, "; ".join(spreads), len(sel)
 
 
 def _differences(c: Check, a: pd.DataFrame, b: pd.DataFrame) -> pd.Series:

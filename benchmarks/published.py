@@ -29,7 +29,7 @@ RANGE_OPS = ("lt", "le", "gt", "ge")
 #: check kind -> fields it needs (besides the common ones) and fields it allows
 CHECK_KINDS = {
     "value": ({"low", "high"}, {"low", "high", "aggregate"}),
-    "trend": ({"over"}, {"over", "direction", "slack", "aggregate"}),
+    "trend": ({"over"}, {"over", "direction", "slack", "aggregate", "by"}),
     "difference": ({"versus"}, {"versus", "by", "low", "high", "aggregate"}),
 }
 _KIND_NAMES = tuple(CHECK_KINDS)
@@ -142,7 +142,7 @@ class CheckEntry(Check):
     direction: Literal["decreasing", "increasing"] | None = param(None, doc="trend: its direction")
     slack: float | None = param(None, ge=0, doc="trend: how much it may go the other way")
     versus: Mapping[str, Any] | None = param(None, parser=_conditions(True), doc="difference: the other rows")
-    by: str = param("", doc="difference: the column the difference is paired by")
+    by: str = param("", doc="difference: the column the difference is paired by; trend: one trend per value of it")
     evidence: Literal[EVIDENCE] = param(doc="what a pass means")
     reading: str = param("", doc="conditional: the reading(s) it passes under")
     free_parameter: str = param("", doc="calibrated: the parameter chosen to match it")
