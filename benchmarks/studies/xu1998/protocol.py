@@ -65,6 +65,9 @@ class TrackParams:
         "filtered_torque", doc="signal whose prediction gives 'vaf_output' (all three are recorded)")
     paired_noise_free: bool = param(False, doc="also fit the same record without the noise and record "
                                     "the drops of the VAFs")
+    paired_settings: bool = param(False, doc="also fit the same record with the part's own estimator_settings "
+                                  "(this variant's left out) and record abs_change_<metric>, the absolute change "
+                                  "of each VAF (how much a setting changes the results, check X8)")
     curve_seeds: int = param(1, ge=0, doc="the lowest seeds whose time courses are stored for the figures")
     curve_params: tuple[str, ...] = param(("K", "B", "I"), doc="parameters whose time courses are stored")
     curve_rate: float = param(50.0, unit="Hz", gt=0, doc="rate of the stored time courses")
@@ -304,7 +307,15 @@ def track(ctx: Context) -> None:
     ``abs_err_pct_X`` for X in I, B, K; ``mean_zeta`` and ``true_mean_zeta``; ``vaf_output`` (the
     signal named by ``output``) and ``vaf_output_<signal>`` for each candidate of :func:`output_vafs`;
     with ``paired_noise_free``, ``drop_<metric>`` = metric without noise - metric with noise on the
-    same record. Labels: ``condition`` and ``f_v`` (Hz, when set).
+    same record; with ``paired_settings``, ``abs_change_<metric>`` = |metric - metric with the part's own
+    estimator settings| on the same record; ``vafv_K_minus_vafv_B`` (check X7: K tracked worst). Labels:
+    ``condition`` and ``f_v`` (Hz, when set).
+
+    References
+    ----------
+    Xu, Y. & Hollerbach, J. M. (1998). Identification of human joint mechanical properties from single trial
+    data. IEEE Trans. Biomed. Eng. 45(9), 1051-1060: Sec. III-B (Figs. 2, 3; 'A 10%-15% variation of lambda
+    did not change the following simulated results much').
     """
     p = resolve_variant(ctx.params)
     if p.estimator not in ctx.estimators:
@@ -331,6 +342,7 @@ def track(ctx: Context) -> None:
     else:   # the exact regression's own output: tau against Phi^T Theta_hat
         scores["vaf_output"] = vaf(fit.y[keep], fit.yhat[keep])
     scores["scored_s"] = keep.sum() * dt
+    scores["vafv_K_minus_vafv_B"] = scores["vafv_K"] - scores["vafv_B"]
     if p.paired_noise_free:   # the same record (same perturbation) without the noise of 'nsr'
         exp0 = case_experiment(ctx.experiment, dataclasses.replace(p, nsr=0.0))
         clean = sims.simulate(exp0, ctx.seed)
@@ -342,6 +354,15 @@ def track(ctx: Context) -> None:
         s0["vaf_output"] = o0[p.output]
         for k in ("vafm_K", "vafv_K", "vafm_B", "vafv_B", "vafm_I", "vafv_I", "vaf_output"):
             scores[f"drop_{k}"] = s0[k] - scores[k]
+    if p.paired_settings:     # the same record fitted with the part's own settings (check X8)
+        base = case_estimator(ctx.estimators[p.estimator],
+                              dataclasses.replace(p, estimator_settings=ctx.params.estimator_settings))
+        fit1 = fit_gated(base, trial) if p.regressors == "filtered" else exact_fit(base, trial)
+        s1 = _scores(fit1, trial.truth, keep, dt)
+        s1["vaf_output"] = (output_vafs(fit1, trial, keep, signals=(p.output,))[p.output]
+                            if p.regressors == "filtered" else vaf(fit1.y[keep], fit1.yhat[keep]))
+        for k in ("vafm_K", "vafv_K", "vafm_B", "vafv_B", "vafm_I", "vafv_I", "vaf_output"):
+            scores[f"abs_change_{k}"] = abs(scores[k] - s1[k])
     for k, v in scores.items():
         ctx.metric(k, v, est.name, **labels)
     if ctx.seed < p.curve_seeds:   # the lowest seeds (numbered from 0 by default)
