@@ -50,15 +50,23 @@ def _grouped(sel: pd.DataFrame, column: str, how: str) -> pd.Series:
 
 
 def _trend(c: Check, rows: pd.DataFrame) -> tuple[float, str, int]:
-    """Largest move against ``c.direction`` between consecutive aggregates over ``c.over``."""
+    """Largest move against ``c.direction`` between consecutive aggregates over ``c.over``; with ``c.by``, the
+    trend of each value of ``by`` (e.g. each parameter of one claim), the largest move of any of them."""
     sel = select(rows, c.part, {**c.select, **(c.domain or {})})
-    m = _grouped(sel, c.over, c.aggregate)
-    if len(m) < 2:
+    if c.by and c.by not in sel.columns:
         return np.nan, "", len(sel)
-    d = np.diff(m.to_numpy(float))
-    against = d if c.direction == "decreasing" else -d
-    spread = ", ".join(f"{k}: {v:.4g}" for k, v in m.items())
-    return float(np.max(against)), f"{c.over} -> {spread}", len(sel)
+    groups = [("", sel)] if not c.by else list(sel.groupby(sel[c.by].astype(str), sort=True))
+    worst, spreads = np.nan, []
+    for key, g in groups:
+        m = _grouped(g, c.over, c.aggregate)
+        if len(m) < 2:
+            return np.nan, "", len(sel)
+        d = np.diff(m.to_numpy(float))
+        against = float(np.max(d if c.direction == "decreasing" else -d))
+        worst = against if not np.isfinite(worst) else max(worst, against)
+        body = ", ".join(f"{k}: {v:.4g}" for k, v in m.items())
+        spreads.append((f"{key}: " if c.by else "") + f"{c.over} -> {body}")
+    return worst, "; ".join(spreads), len(sel)
 
 
 def _differences(c: Check, a: pd.DataFrame, b: pd.DataFrame) -> pd.Series:
@@ -100,7 +108,8 @@ def _outside(c: Check, rows: pd.DataFrame) -> str:
 
 CHECK_COLUMNS = ["check", "description", "published", "reproduced", "low", "high", "status", "evidence",
                       "reading", "free_parameter", "aggregate", "n", "spread", "out_of_domain", "part",
-                      "source", "tolerance_reason", "domain_reason", "note", "count", "target", "cause", "commit"]
+                      "source", "tolerance_reason", "domain_reason", "note", "count", "target", "cause",
+                      "discriminating", "discrimination", "commit"]
 
 
 def verdict(c: Check, rows: pd.DataFrame, part: str | None = None) -> tuple[float, str, int, float, float, str]:
@@ -125,25 +134,33 @@ def verdict(c: Check, rows: pd.DataFrame, part: str | None = None) -> tuple[floa
     return rep, spread, n, low, high, status
 
 
-def judge(checks: tuple[Check, ...], rows: pd.DataFrame, parts_run: set[str], commit: str = "") -> pd.DataFrame:
+def judge(checks: tuple[Check, ...], rows: pd.DataFrame, parts_run: set[str], commit: str = "",
+          swap=None) -> pd.DataFrame:
     """One row per check: published, reproduced, tolerance, pass/miss, and the kind of evidence.
 
     Check kinds: ``value`` (aggregate over seeds of the selected rows within [low, high]); ``trend``
     (aggregates per value of ``over`` must move in ``direction``; reproduced = the largest move against
     it, which must not exceed ``slack``); ``difference`` (aggregate of ``select`` minus that of ``versus``
     per value of ``by``, every one within [low, high]; reproduced = the one closest to or beyond a bound).
-    A check's ``domain`` restricts the scored rows; what the rest gives is in ``out_of_domain``.
+    A check's ``domain`` restricts the scored rows; what the rest gives is in ``out_of_domain``. A miss's
+    ``note`` and every ``cause`` are filled from the judged values (:func:`render_note`). With ``swap`` (a
+    study's ``method_swap``: part and two estimators) each check of one of the two methods says whether it
+    tells them apart (:func:`discrimination`).
     ``commit`` is stamped on every row (``...-dirty`` rows say loudly that they must not be committed).
     """
+    judged = {c.id: (c, verdict(c, rows)) for c in checks if c.part in parts_run}
+    figures = {cid: (v[0], c.published) for cid, (c, v) in judged.items()}
+    swapped = swap_estimators(rows, swap.part, tuple(swap.estimators)) if swap is not None else None
     out = []
-    for c in checks:
-        if c.part not in parts_run:
-            continue
-        rep, spread, n, low, high, status = verdict(c, rows)
+    for c, (rep, spread, n, low, high, status) in judged.values():
         if not np.isfinite(rep):
             note = "no result: the case failed or produced no such metric (see the failed cases)"
+        elif status == "pass":
+            note = ""
         else:
-            note = "" if status == "pass" else c.if_missed
+            side = c.if_missed_below if rep < low else c.if_missed_above if rep > high else ""
+            note = render_note(side or c.if_missed, c, rep, figures)
+        tells, why = discrimination(c, checks, swapped, swap, low, high) if swap is not None else ("", "")
         out.append({"check": c.id, "description": c.description, "published": c.published,
                     "reproduced": rep, "low": low, "high": high, "status": status,
                     "evidence": c.evidence, "reading": c.reading, "free_parameter": c.free_parameter,
@@ -151,8 +168,85 @@ def judge(checks: tuple[Check, ...], rows: pd.DataFrame, parts_run: set[str], co
                     "n": n, "spread": spread, "out_of_domain": _outside(c, rows), "part": c.part,
                     "source": c.source, "tolerance_reason": c.tolerance_reason,
                     "domain_reason": c.domain_reason, "note": note, "count": c.count, "target": c.target,
-                    "cause": c.cause, "commit": stamp(commit)})
+                    "cause": render_note(c.cause, c, rep, figures),
+                    "discriminating": tells, "discrimination": why, "commit": stamp(commit)})
     return pd.DataFrame(out, columns=CHECK_COLUMNS)
+
+
+class _Figure(float):
+    """A judged value in a note: formats as a float (``n/a`` when not finite or not run), ``.published``."""
+
+    def __new__(cls, value, published):
+        self = super().__new__(cls, value)
+        self.published = published
+        return self
+
+    def __format__(self, spec: str) -> str:
+        if not np.isfinite(self):
+            return "n/a"
+        return format(float(self), spec or ".4g")
+
+
+def render_note(text: str, c: Check, value: float, figures: Mapping[str, tuple[float, object]]) -> str:
+    """A note with its placeholders filled: ``{value}`` / ``{published}`` this check's reproduced and published
+    values, ``{ID}`` / ``{ID.published}`` another check's (``n/a`` for a check not judged in this run). The
+    one way a note states a result figure (issue 35: notes typed by hand had gone stale against the rows)."""
+    if not text or "{" not in text:
+        return text
+    fields = {cid: _Figure(v, p) for cid, (v, p) in figures.items()}
+    fields["value"] = _Figure(value, c.published)
+    fields["published"] = c.published
+
+    class _Missing(dict):
+        def __missing__(self, key):
+            return _Figure(np.nan, "n/a")
+
+    return text.format_map(_Missing(fields))
+
+
+def counterpart(c: Check, checks, estimators) -> Check | None:
+    """The check of the same published cell for the other of the two ``estimators`` (same part, kind and
+    selection but the estimator), or None."""
+    a, b = (str(e) for e in estimators)
+    mine = str(c.select.get("estimator", ""))
+    if mine not in (a, b) or c.kind != "value":
+        return None
+    other = b if mine == a else a
+    want = {**c.select, "estimator": other}
+    for d in checks:
+        if d.part == c.part and d.kind == "value" and dict(d.select) == want and d.domain == c.domain \
+                and d.aggregate == c.aggregate:
+            return d
+    return None
+
+
+def _number(published) -> float | None:
+    try:
+        return float(published)
+    except (TypeError, ValueError):
+        return None
+
+
+def discrimination(c: Check, checks, swapped: pd.DataFrame, swap, low: float, high: float) -> tuple[str, str]:
+    """Whether check ``c`` of one of the two compared methods tells them apart: ``("no", why)`` when it passes
+    with the other method's reproduced values too, or when the other method's published cell lies inside its
+    band (and no ``discrimination_reason`` argues the band); ``("yes", why)`` otherwise; ``("", "")`` for a
+    check of neither method or outside the swap's part (issue 35: the per-cell bands of Table I could not see
+    the paper's factor-2 method differences)."""
+    if c.part != swap.part or str(c.select.get("estimator", "")) not in {str(e) for e in swap.estimators} \
+            or c.kind != "value":
+        return "", ""
+    other = counterpart(c, checks, swap.estimators)
+    other_name = next(str(e) for e in swap.estimators if str(e) != str(c.select.get("estimator")))
+    if verdict(c, swapped)[5] == "pass":
+        return "no", f"passes with {other_name}'s reproduced values too"
+    pub = _number(other.published) if other is not None else None
+    if pub is not None and low <= pub <= high:
+        if c.discrimination_reason.strip():
+            return "yes", f"{other_name}'s published {pub:g} lies inside the band; argued: {c.discrimination_reason}"
+        return "no", f"{other_name}'s published {pub:g} lies inside the band"
+    return "yes", f"misses with {other_name}'s reproduced values" + (
+        f"; {other_name}'s published {pub:g} lies outside the band" if pub is not None else "")
 
 
 def _is_difference(comparison: pd.DataFrame) -> pd.Series:
@@ -203,6 +297,19 @@ def difference_counts(comparison: pd.DataFrame) -> tuple[int, int] | None:
     return int((d["status"] == "pass").sum()), len(d)
 
 
+def discriminating_counts(comparison: pd.DataFrame) -> tuple[int, int] | None:
+    """(passing reproduction checks that tell the compared methods apart, passing reproduction checks), or None
+    when no check of the study says (no ``method_swap``; a comparison written before the column existed)."""
+    if comparison.empty or "discriminating" not in comparison:
+        return None
+    rep = headline_rows(comparison)
+    rep = rep[(rep["evidence"] == "reproduction") & (rep["status"] == "pass")]
+    said = rep["discriminating"].fillna("").astype(str)
+    if not (said != "").any():
+        return None
+    return int((said == "yes").sum()), len(rep)
+
+
 def headline(comparison: pd.DataFrame) -> str:
     """``reproduction 9 of 14 pass; method differences 20 of 30; beside them: conditional 3 of 3, ...``"""
     counts = evidence_counts(comparison)
@@ -211,9 +318,12 @@ def headline(comparison: pd.DataFrame) -> str:
         return "no checks"
     rep = counts.get("reproduction")
     head = f"reproduction {rep[0]} of {rep[1]} pass" if rep else "no reproduction check"
+    disc = discriminating_counts(comparison)
+    if disc:
+        head += f" ({disc[0]} of those {disc[1]} passes tell the compared methods apart)"
     if diff:
         head += f"; method differences {diff[0]} of {diff[1]}"
-    notes = {"calibrated": " (not counted)"}
+    notes = {"calibrated": " (not counted)", "recording": " (measured on subjects: not counted)"}
     others = [f"{k} {p} of {n}{notes.get(k, '')}" for k, (p, n) in counts.items() if k != "reproduction"]
     return head + ("; beside them: " + ", ".join(others) if others else "")
 
@@ -299,6 +409,7 @@ def fidelity(comparison: pd.DataFrame) -> pd.DataFrame:
                      "method differences": count(comp["_diff"]),
                      "calibrated (not counted)": count(~comp["_diff"] & (ev == "calibrated")),
                      "sanity": count(~comp["_diff"] & (ev == "sanity")),
+                     "recordings (not counted)": count(~comp["_diff"] & (ev == "recording")),
                      "misses explained": f"{int((causes != '').sum())} of {int(miss.sum())}" if miss.any() else "–",
                      "causes of the misses": "; ".join(f"{c}: {n} check{'s' if n > 1 else ''}"
                                                        for c, n in named.items())})

@@ -20,14 +20,16 @@ from jointbench.core.schema import Problems, error, param, parse
 #: already, e.g. KBR - skirt of Table I: its own line beside the headline, never in it)
 COUNTS = ("headline", "method_difference")
 AGGREGATES = ("median", "mean", "min", "max", "std")
-#: kinds of evidence, in the order the report shows them; the headline counts ``reproduction`` only
-EVIDENCE = ("reproduction", "conditional", "calibrated", "sanity")
+#: kinds of evidence, in the order the report shows them; the headline counts ``reproduction`` only.
+#: ``recording``: a value the paper measured on real subjects (a human recording), which a simulation reaches only
+#: by inventing dynamics the paper does not give: shown beside the reproduced value, never counted (issue 35)
+EVIDENCE = ("reproduction", "conditional", "calibrated", "sanity", "recording")
 #: range conditions allowed in ``select``, ``versus`` and ``domain`` (``{f_v: {lt: 1.0}}``)
 RANGE_OPS = ("lt", "le", "gt", "ge")
 #: check kind -> fields it needs (besides the common ones) and fields it allows
 CHECK_KINDS = {
     "value": ({"low", "high"}, {"low", "high", "aggregate"}),
-    "trend": ({"over"}, {"over", "direction", "slack", "aggregate"}),
+    "trend": ({"over"}, {"over", "direction", "slack", "aggregate", "by"}),
     "difference": ({"versus"}, {"versus", "by", "low", "high", "aggregate"}),
 }
 _KIND_NAMES = tuple(CHECK_KINDS)
@@ -41,8 +43,12 @@ class Check:
     ``evidence`` says what a pass means (:data:`EVIDENCE`): ``reproduction`` (an independent published
     value or claim, judged), ``conditional`` (passes only under ``reading``, a reading chosen by its
     outcome), ``calibrated`` (``free_parameter`` was chosen to match it: shown, never counted as a
-    pass) or ``sanity`` (arithmetic or self-consistency). ``tolerance_reason`` states why the band is
-    what it is. ``domain`` restricts the scored rows (e.g. ``{f_v: {lt: 1.0}}``, the paper's domain;
+    pass), ``sanity`` (arithmetic or self-consistency) or ``recording`` (a value measured on real subjects:
+    shown beside the reproduced value, never counted). ``tolerance_reason`` states why the band is
+    what it is. Notes (``if_missed``, ``if_missed_below`` / ``if_missed_above`` for a miss on one side of the
+    band, ``cause``) state no result figure by hand: ``{value}``, ``{published}``, ``{CHECK-ID}`` and
+    ``{CHECK-ID.published}`` (format specs allowed) are filled from the judged rows (:func:`note_fields`).
+    ``discrimination_reason`` argues a band that also holds the compared method's published cell. ``domain`` restricts the scored rows (e.g. ``{f_v: {lt: 1.0}}``, the paper's domain;
     ``domain_reason`` says why); the rows outside it are shown, not scored.
     """
 
@@ -71,6 +77,9 @@ class Check:
     count: str = "headline"        # COUNTS: 'method_difference' = a difference of cells counted already
     target: str = ""               # the published table or figure it belongs to (the Fidelity table)
     cause: str = ""                # one-line cause of a miss, shared by the misses it explains
+    if_missed_below: str = ""      # the note of a miss below ``low`` (else ``if_missed``)
+    if_missed_above: str = ""      # the note of a miss above ``high`` (else ``if_missed``)
+    discrimination_reason: str = ""  # why the band tells the compared methods apart though it holds the other's cell
 
     @property
     def readings(self) -> tuple[str, ...]:
@@ -133,7 +142,7 @@ class CheckEntry(Check):
     direction: Literal["decreasing", "increasing"] | None = param(None, doc="trend: its direction")
     slack: float | None = param(None, ge=0, doc="trend: how much it may go the other way")
     versus: Mapping[str, Any] | None = param(None, parser=_conditions(True), doc="difference: the other rows")
-    by: str = param("", doc="difference: the column the difference is paired by")
+    by: str = param("", doc="difference: the column the difference is paired by; trend: one trend per value of it")
     evidence: Literal[EVIDENCE] = param(doc="what a pass means")
     reading: str = param("", doc="conditional: the reading(s) it passes under")
     free_parameter: str = param("", doc="calibrated: the parameter chosen to match it")
@@ -225,4 +234,41 @@ def load_checks(path: Path, parts: Mapping[str, Any]) -> tuple[Check, ...]:
                 raise error(where, "part", f"unknown part {check.part!r}; parts: {', '.join(parts)}")
             out.append(check)
     problems.raise_all()
+    for check in out:
+        with problems.catch():
+            _check_notes(check, seen, f"{path}: check {check.id}")
+    problems.raise_all()
     return tuple(out)
+
+
+#: the note fields whose figures come from the rows
+NOTE_FIELDS = ("if_missed", "if_missed_below", "if_missed_above", "cause")
+
+
+def note_fields(text: str) -> list[tuple[str, str]]:
+    """The placeholders of a note: ``(check id or 'value' / 'published', attribute)`` for each ``{...}``."""
+    import string
+
+    out = []
+    for _, name, _, _ in string.Formatter().parse(text or ""):
+        if name is None:
+            continue
+        head, _, attr = name.partition(".")
+        out.append((head, attr))
+    return out
+
+
+def _check_notes(check: Check, ids: set[str], where: str) -> None:
+    """Every placeholder of a note names ``value``, ``published`` or a check of the file (``.published``
+    the only attribute); one-sided notes only where the band has that side."""
+    for field in NOTE_FIELDS:
+        try:
+            names = note_fields(getattr(check, field))
+        except ValueError as exc:
+            raise error(where, field, f"not a valid note template ({exc}); write a literal brace as '{{{{'")
+        for head, attr in names:
+            if head not in ids | {"value", "published"} or attr not in ("", "published"):
+                raise error(where, field, f"unknown placeholder {{{head}{'.' + attr if attr else ''}}}: use "
+                                          f"{{value}}, {{published}}, {{CHECK-ID}} or {{CHECK-ID.published}}")
+    if (check.if_missed_below or check.if_missed_above) and check.kind == "trend":
+        raise error(where, "if_missed_below", "a trend has no band below or above: use 'if_missed'")

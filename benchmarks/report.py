@@ -19,8 +19,8 @@ from jointbench.benchmarks.config import EVIDENCE, Study
 from jointbench.benchmarks.harness.pages import (Code, Figure, Items, Page, Paragraph, Section, paragraphs, table,
                                                  to_html, to_markdown)
 from jointbench.benchmarks.tables import DIRTY_BANNER
-from jointbench.benchmarks.checks import (difference_counts, difference_rows, evidence_counts, fidelity, headline,
-                                          headline_rows)
+from jointbench.benchmarks.checks import (difference_counts, difference_rows, discriminating_counts, evidence_counts,
+                                          fidelity, headline, headline_rows)
 from jointbench.core.files import write_text
 
 #: what each kind of evidence means, as the report says it
@@ -32,6 +32,9 @@ EVIDENCE_TEXT = {
                   "shown, never counted as a pass",
     "sanity": "arithmetic on the paper's own numbers, or a self-consistency of the harness (e.g. a fit "
               "recovering the simulation's own truth): shown separately",
+    "recording": "a value the paper measured on real subjects (a human recording): a simulation reaches it only "
+                 "by inventing dynamics the paper does not give, so it is shown beside the reproduced value and "
+                 "never counted, pass or miss",
     "unrecorded": "generated before the kind of evidence was recorded",
     "method_difference": "the difference between two methods' published cells (e.g. KBR - skirt), whose cells "
                          "are checked one by one already: counted on their own line, never in the headline",
@@ -80,6 +83,8 @@ def _group(comp: pd.DataFrame, evidence: str) -> CheckGroup:
         cols.insert(7, "free_parameter")
     if "out_of_domain" in comp and comp["out_of_domain"].fillna("").astype(str).str.len().gt(0).any():
         cols.append("out_of_domain")
+    if "discriminating" in comp and comp["discriminating"].fillna("").astype(str).str.len().gt(0).any():
+        cols.append("discriminating")
     t = comp[[c for c in cols if c in comp.columns]].rename(
         columns={"aggregate": "over", "free_parameter": "free parameter",
                  "out_of_domain": "outside the domain (shown, not scored)"})
@@ -144,9 +149,14 @@ def model(study: Study, comparison: pd.DataFrame, part_reports: dict, failed: li
     }
 
 
-def _headline_sentence(counts: dict, differences: tuple[int, int] | None = None) -> str:
+def _headline_sentence(counts: dict, differences: tuple[int, int] | None = None,
+                       discriminating: tuple[int, int] | None = None) -> str:
     rep = counts.get("reproduction", (0, 0))
     out = f"**Reproduction: {rep[0]} of {rep[1]} checks pass.** (One published value or claim each.)"
+    if discriminating:
+        out += (f" **{discriminating[0]} of those {discriminating[1]} passes tell the compared methods apart** (column "
+                "`discriminating`: they would miss with the other method's reproduced values, and their band does "
+                "not hold the other method's published cell unless argued).")
     if differences:
         out += (f" **Method differences: {differences[0]} of {differences[1]}** (gaps between two methods' "
                 "published cells, whose cells are counted above already: their own line, not in the headline).")
@@ -154,6 +164,7 @@ def _headline_sentence(counts: dict, differences: tuple[int, int] | None = None)
     for kind, what in (("conditional", "each under a reading chosen by its outcome"),
                        ("calibrated", "a free parameter was chosen to match them: not evidence, not counted"),
                        ("sanity", "arithmetic or self-consistency"),
+                       ("recording", "values measured on the paper's subjects: shown, not counted"),
                        ("unrecorded", "kind of evidence not recorded")):
         if kind in counts:
             p, n = counts[kind]
@@ -167,7 +178,7 @@ def _checks_section(m: dict, empty: bool) -> Section:
     sec = Section("Checks against the published values", anchor="checks")
     if empty:
         return sec.add(Paragraph("_(no check belongs to the parts run)_"))
-    sec.add(Paragraph(_headline_sentence(m["counts"], m.get("differences"))),
+    sec.add(Paragraph(_headline_sentence(m["counts"], m.get("differences"), discriminating_counts(m["comparison"]))),
             Paragraph("`reproduced` combines the seeds as `over` says; `spread` is min to max over seeds; a pass "
                       "needs low <= reproduced <= high. The reason for each band is under its table (column "
                       "`band: why`)."))

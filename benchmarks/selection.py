@@ -12,9 +12,15 @@ def matches(column: pd.Series, value) -> pd.Series:
     """Which cells of ``column`` meet one condition of a check.
 
     ``value`` is a range (a mapping ``{lt|le|gt|ge: bound}``: numbers within every bound; a cell that is no
-    number is outside), a number (cells equal to it within a relative 1e-9; text is no number) or anything
-    else, compared as text (``str`` of the cell and of the value: ``True``, ``nan``, ``native``).
+    number is outside), a number (cells equal to it within a relative 1e-9; text is no number), a list (cells
+    meeting any one of its values: the variations or metrics one claim covers, issue 35) or anything else,
+    compared as text (``str`` of the cell and of the value: ``True``, ``nan``, ``native``).
     """
+    if isinstance(value, (list, tuple)):
+        ok = pd.Series(False, index=column.index)
+        for one in value:
+            ok |= matches(column, one)
+        return ok
     if isinstance(value, Mapping):
         num = pd.to_numeric(column, errors="coerce").astype(float)
         ok = num.notna()

@@ -14,7 +14,8 @@ import pandas as pd
 
 from jointbench.benchmarks.config import EVIDENCE
 from jointbench.benchmarks.harness.pages import markdown_table as markdown
-from jointbench.benchmarks.checks import difference_counts, evidence_counts, fidelity, headline
+from jointbench.benchmarks.checks import (difference_counts, discriminating_counts, evidence_counts, fidelity,
+                                         headline)
 from jointbench.core.errors import ConfigError
 
 BEGIN = "<!-- status:begin -->"
@@ -42,14 +43,21 @@ def _count(counts: dict, kind: str) -> str:
     return f"{counts[kind][0]} of {counts[kind][1]}" if kind in counts else "–"
 
 
+def _discriminating(comp: pd.DataFrame) -> str:
+    """`` (7 of 18 passes discriminating)`` where the study compares two methods (:func:`discriminating_counts`)."""
+    d = discriminating_counts(comp)
+    return f" ({d[0]} of {d[1]} passes discriminating)" if d else ""
+
+
 def overview(comps: dict[str, pd.DataFrame]) -> pd.DataFrame:
     """One row per study: the commit and the pass counts per kind of evidence."""
     recs = []
     for study, comp in comps.items():
         counts = evidence_counts(comp)
         rec = {"study": f"`{study}`", "report": f"[report](results/{study}/report.md)", "commit": _commit(comp),
-               "reproduction (headline)": _count(counts, "reproduction"),
+               "reproduction (headline)": _count(counts, "reproduction") + _discriminating(comp),
                "method differences": _count({"d": difference_counts(comp)} if difference_counts(comp) else {}, "d"),
+               "recordings (not counted)": _count(counts, "recording"),
                "conditional": _count(counts, "conditional"),
                "calibrated (not counted)": _count(counts, "calibrated"), "sanity": _count(counts, "sanity")}
         if "unrecorded" in counts:
@@ -88,9 +96,12 @@ def block(results: Path | None = None) -> str:
     lines += ["Headline = reproduction checks, one per published value (an independent published value, judged). "
               "Method differences = differences between two methods' published cells (e.g. KBR - skirt of "
               "Table I), whose cells the headline counts already: their own column, never in the headline. "
-              "Beside it: conditional "
-              "(passes only under a reading chosen by its outcome), calibrated (a free parameter was chosen to "
-              "match: not counted as a pass), sanity (arithmetic or self-consistency).", "",
+              "Discriminating: of the passing reproduction checks of a method compared with another, those that "
+              "would miss with the other method's reproduced values and whose band does not hold the other "
+              "method's published cell (or argues why it still tells them apart). Recordings = values the paper "
+              "measured on real subjects, shown with the reproduced value, never counted. Beside them: "
+              "conditional (passes only under a reading chosen by its outcome), calibrated (a free parameter was "
+              "chosen to match: not counted as a pass), sanity (arithmetic or self-consistency).", "",
               markdown(overview({k: c for k, c in comps.items() if not c.empty}))]
     for study, comp in comps.items():
         if not comp.empty:

@@ -388,7 +388,7 @@ def _outcome(run: _Run, results: list[CaseResult], wall: float, ran_on: str | No
         rows = pd.concat([rows, pd.DataFrame(skipped_rows(run.study.id, run.skipped)).assign(git_commit=commit)],
                          ignore_index=True)
     shown = [p for p in run.study.parts if p in run.parts or p in from_cache]
-    checks = judge(run.study.checks, rows, set(shown), commit)
+    checks = judge(run.study.checks, rows, set(shown), commit, swap=run.study.method_swap)
     meta = {"commit": commit, "command": run.command, "n_cases": len(run.cases), "n_cached": n_cached,
             "wall_s": wall, "workers": run.n_workers, "parts": run.parts, "from_cache": from_cache,
             "folder": run.folder, "backend": run.options.backend, "stage": None, "ran_on": ran_on}

@@ -152,6 +152,24 @@ def test_trend_and_difference_checks():
     assert "0.1: -10" in out.loc["d1", "spread"]
 
 
+def test_one_claim_over_several_groups():
+    """Issue 35 (one claim, one check): a list in ``select`` takes the rows of any of its values, and a trend
+    ``by`` a column is judged per value of it (the largest move against the direction of any group)."""
+    rows = pd.DataFrame({"part": "p", "status": "ok", "metric": ["a"] * 3 + ["b"] * 3 + ["c"] * 3,
+                         "f": [0.1, 0.5, 1.0] * 3, "value": [90, 85, 80, 70, 72, 60, 1, 2, 3]})
+    base = dict(part="p", description="d", source="s", published="falls", low=-np.inf, high=np.inf)
+    checks = (
+        Check("ab", select={"metric": ["a", "b"]}, kind="trend", over="f", by="metric", slack=1.0, **base),
+        Check("a", select={"metric": ["a"]}, kind="trend", over="f", by="metric", slack=1.0, **base),
+        Check("v", **{**base, "low": 0, "high": 100}, select={"metric": ["a", "c"]}, aggregate="max"),
+    )
+    out = judge(checks, rows, {"p"}).set_index("check")
+    assert out.loc["ab", "reproduced"] == 2.0 and out.loc["ab", "status"] == "miss"    # b rises 70 -> 72
+    assert "a: f -> " in out.loc["ab", "spread"] and "b: f -> " in out.loc["ab", "spread"]
+    assert out.loc["a", "reproduced"] == -5.0 and out.loc["a", "status"] == "pass"
+    assert out.loc["v", "reproduced"] == 90 and out.loc["v", "n"] == 6
+
+
 @pytest.mark.parametrize("check, message", [
     ({"kind": "trend"}, "needs key 'over'"),
     ({"kind": "trend", "over": "f", "versus": {"metric": "m"}}, "'versus' does not apply to check kind 'trend'"),

@@ -52,7 +52,7 @@ def _check(**over) -> dict:
 @pytest.mark.parametrize("over, message", [
     ({"evidence": None}, "missing required key 'evidence'"),
     ({"evidence": "anecdote"},
-     "'evidence': 'anecdote' not allowed; allowed: reproduction, conditional, calibrated, sanity"),
+     "'evidence': 'anecdote' not allowed; allowed: reproduction, recording, conditional, calibrated, sanity"),
     ({"evidence": "conditional"}, "evidence 'conditional' needs key 'reading'"),
     ({"evidence": "conditional", "reading": "the first one"}, "needs key 'reading'"),
     ({"reading": "R1"}, "'reading' applies to evidence 'conditional' only"),
@@ -226,15 +226,16 @@ def _published_cells(checks) -> dict:
 
 
 def test_table1_gap_checks_cover_every_resolvable_cell():
-    """A sign check of KBR - skirt for every cell whose published gap exceeds the seed spread plus the rounding,
-    and a size check unless its band would be a near-copy of the sign (inner edge below SIZE_INNER_MIN of the
-    gap); the size band always excludes zero (so it implies the sign). All count as method differences."""
+    """A sign check of KBR - skirt for every cell whose printed gap is larger than the printed rounding of its
+    two cells, and a size check (a factor 2 on the gap after that rounding) unless its band would be a near-copy
+    of the sign (inner edge below SIZE_INNER_MIN of the gap); the size band always excludes zero (so it implies
+    the sign). All count as method differences (issue 35: the set follows from the printed table alone)."""
     gen = _load_generator()
     s = load_study("vanderuit2018_table1")
     ids = {c.id: c for c in s.checks}
     expected = [(v, snr, col) for v in gen.VARIATIONS for snr in gen.SNRS for col in gen.COLUMNS
                 if gen.resolvable(v, snr, col) is not None]
-    assert len(expected) >= 19
+    assert len(expected) == 36            # 40 printed gaps; 0.0 (twice), 0.01 and 0.1 are within the rounding
     n_size = 0
     for v, snr, col in expected:
         sign, size = ids[f"D-{v}-{snr}-{col}-sign"], ids.get(f"D-{v}-{snr}-{col}-size")
@@ -245,10 +246,12 @@ def test_table1_gap_checks_cover_every_resolvable_cell():
         if size is None:
             continue
         n_size += 1
+        u = 2 * gen.ROUND[col]
+        assert sorted(map(abs, (size.low, size.high))) == pytest.approx([(abs(gap) - u) / 2, 2 * (abs(gap) + u)])
         assert size.kind == "difference" and size.count == "method_difference"
         assert size.low <= gap <= size.high and (size.low > 0 or size.high < 0)
         assert min(abs(size.low), abs(size.high)) >= gen.SIZE_INNER_MIN * abs(gap) - 1e-9
-    assert n_size == len(expected) - 2          # two RMSE_k size bands were near-copies of their sign
+    assert n_size == len(expected)            # with the printed rounding as the only widening, none is a near-copy
     assert len([c for c in s.checks if c.id.startswith("D-")]) == len(expected) + n_size
 
 

@@ -6,6 +6,7 @@ import math
 import numpy as np
 import pandas as pd
 import pytest
+import yaml
 
 from jointbench import sims
 from jointbench.benchmarks.config import load_study
@@ -57,19 +58,29 @@ def test_config_parses_with_every_table1_cell_and_reading():
             else:                          # a factor on the residual 100 - VAF after the printed rounding
                 f = {"vaf_optim": 2.0}.get(metric, 1.25) if noisy else 3.0
                 res = 100 - pub
-                assert (c.low, c.high) == pytest.approx((100 - (res + 0.05) * f, min(100, 100 - (res - 0.05) / f)))
+                # reading R14: the noise-free VAF_self of the sine is a lower bound (no upper edge)
+                high = 100 if (var == "sine20" and not noisy) else min(100, 100 - (res - 0.05) / f)
+                assert (c.low, c.high) == pytest.approx((100 - (res + 0.05) * f, high))
                 assert c.low > 0 and (c.high < 100 or not noisy)
             assert c.select["snr_db"] == (math.inf if snr == "inf" else float(snr))
             # the noise level was fitted to the noisy VAF_val and VAF_optim cells (reading R1)
             calibrated = noisy and metric != "rmse_k"      # issue 19: VAF_optim took part in the fit too
-            # issue 19: the skirt's other cells depend on its time basis, read from the printed rows (R12)
-            expected = "calibrated" if calibrated else "conditional" if est == "skirt" else "reproduction"
+            # issue 19: the skirt's other cells depend on its time basis, read from the printed rows (R12);
+            # issue 35: the noise-free sine's VAF_self, a lower bound only under R14 (chosen by outcome), on R14
+            lower_bound = var == "sine20" and not noisy and metric == "vaf_self"
+            readings = (("R12",) if est == "skirt" else ()) + (("R14",) if lower_bound else ())
+            expected = "calibrated" if calibrated else "conditional" if readings else "reproduction"
             assert c.evidence == expected, cid
-            assert (c.readings == ("R12",)) == (expected == "conditional"), cid
+            assert c.readings == (readings if expected == "conditional" else ()), cid
             assert (c.free_parameter != "") == calibrated
     kinds = {c.kind for c in s.checks if c.id.startswith("Q")}
     assert kinds == {"difference", "trend", "value"}
-    assert all(c.if_missed and c.tolerance_reason for c in s.checks)
+    assert all(c.tolerance_reason for c in s.checks)
+    # every check says what a miss means: one note, or one per side it can miss on (issue 35)
+    raw = yaml.safe_load((STUDIES / "vanderuit2018_table1" / "published.yaml").read_text())["checks"]
+    for c in raw:
+        sides = [k for k in ("if_missed_below", "if_missed_above") if c.get(k)]
+        assert bool(c.get("if_missed")) != bool(sides), c["id"]
 
 
 def test_cases_expand_and_noise_free_settings_apply():

@@ -43,13 +43,15 @@ def elbow(study):
 
 # ------------------------------------------------------------------------------------------- config
 def test_config_parses_with_parts_checks_and_readings(study):
-    assert set(study.parts) == {"fig2", "fig3", "fig3_angle_noise", "traces", "calibration", "readings"}
+    assert set(study.parts) == {"fig2", "fig3", "fig3_angle_noise", "traces", "calibration", "arithmetic",
+                                "readings"}
     ids = {c.id.split("-")[0] for c in study.checks}
-    assert ids == {"X1", "X2", "X3", "X4", "X5", "X6", "X7", "X8"}
+    assert ids == {"X1", "X2", "X3", "X4", "X5", "X6", "X7", "X8", "X9"}
     assert all(c.part in study.parts for c in study.checks)
-    assert {r.id for r in study.readings} >= {f"R{i}" for i in range(1, 22)}
+    assert {r.id for r in study.readings} >= {f"R{i}" for i in range(1, 23)}
     for name, part in study.parts.items():
-        assert len(part.seeds) >= 10, name
+        if name != "arithmetic":              # arithmetic on the paper's numbers: no simulation, one case
+            assert len(part.seeds) >= 10, name
     fig2 = study.parts["fig2"]
     assert fig2.sweep["f_v"] == (0.05, 0.1, 0.2, 0.3, 0.5, 0.75, 1.0, 1.5, 2.0)
     assert set(fig2.sweep["condition"]) == {"posture", "movement"}
@@ -166,7 +168,8 @@ def smoke(tmp_path_factory):
     def edit(d):
         for part in d["parts"].values():
             part["seeds"] = 1
-            part["experiment"] = {**part["experiment"], "duration": "14 s"}
+            if "experiment" in part:           # part arithmetic simulates nothing
+                part["experiment"] = {**part["experiment"], "duration": "14 s"}
         d["parts"]["fig2"]["sweep"] = {"condition": ["posture", "movement"], "f_v": [0.5, 1.5]}
         d["parts"]["fig3"]["sweep"] = {"nsr": [0, 0.2]}
         d["parts"]["fig3_angle_noise"]["sweep"] = {"nsr": [0.2]}

@@ -1,22 +1,71 @@
-"""Figure and tables of the lpv study (protocol ``lpv.kmap``), drawn from the tidy rows and curves."""
+"""Figure and tables of the lpv study (protocol ``lpv.kmap``), drawn from the tidy rows and curves.
+
+Which method is better in a movement is said only from a paired test (:func:`paired_tests`: the two
+methods' errors paired by seed, Wilcoxon signed-rank, Holm over the movements; reading L6), and the
+report's sentence is written from its outcome (:func:`_summary`).
+"""
 from __future__ import annotations
 
+import numpy as np
 import pandas as pd
 
+from jointbench.benchmarks.compare import stats as cs
+from jointbench.benchmarks.compare.tables import ALPHA
 from jointbench.benchmarks.figures import PartReport, new_figure, register, save
 from jointbench.benchmarks.tables import median_range, over_seeds
 from jointbench.core.intervals import LEVEL
+
+#: the columns that make one movement (the sweep)
+MOVEMENT = ["movement_frequency", "range_scale"]
+#: the two methods compared, in the order of the paired difference (first minus second)
+METHODS = ("pv_irf", "fsewls")
+#: what the methods are compared on (smaller is better)
+SCORE = "kmap_rmse_pct"
 
 
 def _ok(rows: pd.DataFrame) -> pd.DataFrame:
     return rows[rows["status"] == "ok"] if "status" in rows.columns else rows
 
 
+def paired_tests(rows: pd.DataFrame, metric: str = SCORE, methods: tuple[str, str] = METHODS) -> pd.DataFrame:
+    """Per movement, the two ``methods``' ``metric`` (smaller is better) paired by seed (both fit the same
+    simulated trial): :func:`benchmarks.compare.stats.paired_comparisons` (two-sided Wilcoxon signed-rank,
+    the median paired difference ``methods[0] - methods[1]`` with its 90 % bootstrap interval), then Holm's
+    correction over the movements (one family: the count the report states). Columns: the movement's,
+    ``n`` (seeds paired), ``median_diff``, ``diff_lo``, ``diff_hi``, ``p``, ``p_holm``, ``favours`` (the
+    method the median difference favours, '' on 0) and ``better`` (``favours`` when ``p_holm < ALPHA``,
+    else '').
+
+    References
+    ----------
+    Wilcoxon (1945); Holm (1979) (:mod:`benchmarks.compare.stats`).
+    """
+    a, b = methods
+    sel = rows[(rows["metric"] == metric) & rows["estimator"].isin(methods)]
+    recs = []
+    for key, g in sel.groupby(MOVEMENT, sort=True):
+        values = {m: dict(zip(h["seed"].astype(int), h["value"].astype(float))) for m, h in g.groupby("estimator")}
+        pair = cs.paired_comparisons({a: values.get(a, {}), b: values.get(b, {})}, "min", ALPHA)
+        if not pair:
+            continue
+        r = pair[0]
+        recs.append({**dict(zip(MOVEMENT, key)), "n": r["n"], "median_diff": r["median_diff"], "diff_lo": r["diff_lo"],
+                     "diff_hi": r["diff_hi"], "p": r["p"], "favours": {"a": a, "b": b}.get(r["favours"], "")})
+    out = pd.DataFrame(recs)
+    if out.empty:
+        return out
+    out["p_holm"] = cs.holm(out["p"].to_numpy(float))
+    out["better"] = np.where(out["p_holm"] < ALPHA, out["favours"], "")
+    return out
+
+
 def error_table(rows: pd.DataFrame) -> pd.DataFrame:
-    """K(theta) errors per movement (frequency x range) and method: median (min to max) over seeds."""
+    """K(theta) errors per movement (frequency x range) and method: median (min to max) over seeds; the
+    paired test of the two methods' errors (:func:`paired_tests`)."""
     st = over_seeds(rows, ["movement_frequency", "range_scale", "estimator", "metric"],
                     ["kmap_rmse_pct", "band_coverage", "band_halfwidth"])
     span = over_seeds(rows[rows["estimator"].fillna("") == ""], ["movement_frequency", "range_scale"], ["range_rad"])
+    tests = paired_tests(rows)
     out = []
     for (f, r), g in st.groupby(["movement_frequency", "range_scale"]):
         row = {"movement (Hz)": f, "range scale": r}
@@ -29,21 +78,42 @@ def error_table(rows: pd.DataFrame) -> pd.DataFrame:
             x = g[(g["estimator"] == est) & (g["metric"] == metric)]
             row[label] = median_range(float(x["median"].iloc[0]), float(x["min"].iloc[0]), float(x["max"].iloc[0]),
                                       int(x["n"].iloc[0]), 3) if len(x) else "not fitted"
+        t = tests[(tests["movement_frequency"] == f) & (tests["range_scale"] == r)] if len(tests) else tests
+        if len(t):
+            t = t.iloc[0]
+            row["pv_irf - FSEWLS (points; median paired, 90 % interval)"] = (
+                f"{t['median_diff']:+.3f} ({t['diff_lo']:+.3f} to {t['diff_hi']:+.3f})")
+            row["p (signed-rank, Holm)"] = f"{t['p_holm']:.2g}"
+            row["significantly smaller error"] = t["better"] or "neither"
         out.append(row)
     return pd.DataFrame(out)
 
 
+def _movements(t: pd.DataFrame) -> str:
+    return ", ".join(f"{f:g} Hz x {r:g}" for f, r in zip(t["movement_frequency"], t["range_scale"]))
+
+
 def _summary(rows: pd.DataFrame) -> str:
-    st = over_seeds(rows, ["movement_frequency", "range_scale", "estimator"], ["kmap_rmse_pct"])
-    if st.empty:
+    """The comparison written from the paired tests' outcome (:func:`paired_tests`), and each method's range
+    of errors (medians over seeds)."""
+    st = over_seeds(rows, ["movement_frequency", "range_scale", "estimator"], [SCORE])
+    tests = paired_tests(rows)
+    if st.empty or tests.empty:
         return ""
     piv = st.pivot_table(index=["movement_frequency", "range_scale"], columns="estimator", values="median")
-    if not {"pv_irf", "fsewls"} <= set(piv.columns):
+    if not set(METHODS) <= set(piv.columns):
         return ""
-    better = int((piv["pv_irf"] < piv["fsewls"]).sum())
-    return (f"pv_irf's K(theta) has the smaller RMS error in {better} of the {len(piv)} movements (medians over "
-            f"seeds); its error ranges from {piv['pv_irf'].min():.2g} % to {piv['pv_irf'].max():.2g} % of the mean K, "
-            f"FSEWLS mapped through theta from {piv['fsewls'].min():.2g} % to {piv['fsewls'].max():.2g} %.")
+    m = len(tests)
+    n = f"{tests['n'].min()}" if tests["n"].min() == tests["n"].max() else f"{tests['n'].min()} to {tests['n'].max()}"
+    a, b = (tests[tests["better"] == e] for e in METHODS)
+    text = (f"Paired by seed (both methods fit the same trial; two-sided Wilcoxon signed-rank over {n} seeds, Holm "
+            f"over the {m} movements, alpha {ALPHA:g}; reading L6), pv_irf's K(theta) has the significantly smaller "
+            f"RMS error in {len(a)} of the {m} movements" + (f" ({_movements(a)})" if len(a) else "") +
+            f", FSEWLS mapped through theta in {len(b)}" + (f" ({_movements(b)})" if len(b) else "") +
+            f"; no significant difference in {m - len(a) - len(b)}.")
+    pv, fs = piv["pv_irf"], piv["fsewls"]
+    return (text + f" Medians over seeds: pv_irf's error ranges from {pv.min():.2g} % to {pv.max():.2g} % of the "
+            f"mean K, FSEWLS mapped through theta's from {fs.min():.2g} % to {fs.max():.2g} %.")
 
 
 @register("lpv.kmap")

@@ -93,6 +93,8 @@ def sampling_rate_experiment(part, rows, curves, folder, checks) -> PartReport:
              .reset_index().sort_values("fs_hz"))
     params = summary_over_seeds(rows[rows["metric"].isin(["I", "B", "K"])], part.name, [])
     shape = summary_over_seeds(rows[rows["metric"] == "shape_diff_pct"], part.name, ["fs_hz"])
+    invariance = summary_over_seeds(rows[rows["metric"].isin(["vaf_parametric_irf_range", "residual_ratio_lowest_rate",
+                                                              "lowest_rate_over_nyquist"])], part.name, [])
     return PartReport(figures=[(name, "Fig. 7: nonparametric (solid) and parametric (dashed) IRFs, seed "
                                 f"{int(c0['seed'].min())}")],
                       tables=[("Table I: parametric IRF fit (%VAF) by sampling rate, over seeds (published values: "
@@ -100,7 +102,11 @@ def sampling_rate_experiment(part, rows, curves, folder, checks) -> PartReport:
                               (f"I, B, K fitted at {max(float(f) for f in part.params['fs']):g} Hz"
                                if part.params.get("fs") else "I, B, K", params),
                               ("Shape difference (%) of each rate's nonparametric IRF against the 500 Hz one "
-                               "(reading R16; checks W7-shape)", shape)])
+                               "(reading R16; checks W7-shape)", shape),
+                              ("Change of the parametric IRF fit (%VAF) with the sampling rate, per trial: its range "
+                               "over the rates, the unexplained variance at the lowest rate over that at the highest, "
+                               "and the lowest rate over the band's Nyquist rate (reading R19; check "
+                               "W5-rate-invariance)", invariance)])
 
 
 @register("westwick2012.input_noise")

@@ -208,6 +208,8 @@ def sampling_rate_experiment(ctx: Context) -> None:
     The nonparametric IRF is estimated at each rate from the same simulated trial resampled; one set
     of I, B, K is fitted at the highest rate and turned into an IRF at every rate (eqs. 10, 12, 13);
     both are band-limited by the same zero-phase Butterworth and compared by %VAF over the lag window.
+    Per trial, the rates' %VAF are also compared with each other (:func:`rate_invariance`: Sec. V-D,
+    'virtually unchanged for sampling frequencies as low as 1.25 times the Nyquist rate').
     """
     p = ctx.params
     for key in (p.nonparametric, p.parametric):
@@ -221,7 +223,7 @@ def sampling_rate_experiment(ctx: Context) -> None:
     I, B, K = (float(np.mean(v)) for v in (fit.I, fit.B, fit.K))
     for name, v in (("I", I), ("B", B), ("K", K)):
         ctx.metric(name, v, p.parametric)
-    top_irf = None
+    top_irf, vafs = None, {}
     for fs in sorted(p.fs, reverse=True):
         tr = resample_trial(trial, fs)
         irf = fit_gated(ctx.estimators[p.nonparametric], tr)
@@ -230,12 +232,45 @@ def sampling_rate_experiment(ctx: Context) -> None:
         n = tr.n + tr.n % 2
         h_p = bandlimit_fb(d.two_sided(d.impedance_irf(I, B, K, fs, n), m1, m2)[1], fs, p.bandlimit,
                            p.bandlimit_order)
-        ctx.metric("vaf_parametric_irf", vaf(h_np, h_p), p.parametric, fs_hz=fs)
+        vafs[fs] = vaf(h_np, h_p)
+        ctx.metric("vaf_parametric_irf", vafs[fs], p.parametric, fs_hz=fs)
         if top_irf is None:
             top_irf = (irf.lags, h_np, fs)
         ctx.metric("shape_diff_pct", shape_difference(top_irf, (irf.lags, h_np, fs)), p.nonparametric, fs_hz=fs)
         ctx.curve("irf_over_fs2", irf.lags, h_np / fs ** 2, series="nonparametric", fs_hz=fs)
         ctx.curve("irf_over_fs2", irf.lags, h_p / fs ** 2, series="parametric", fs_hz=fs)
+    for name, v in rate_invariance(vafs, p.bandlimit).items():
+        ctx.metric(name, v, p.parametric)
+
+
+def rate_invariance(vafs: dict[float, float], bandlimit: float) -> dict[str, float]:
+    """How much the parametric-fit %VAF of one trial changes with the sampling rate (Table I's rows).
+
+    Parameters
+    ----------
+    vafs : dict
+        Sampling rate (Hz) -> %VAF of the parametric against the nonparametric band-limited IRF.
+    bandlimit : float
+        The IRFs' band limit (Hz), whose Nyquist rate is ``2 bandlimit``.
+
+    Returns
+    -------
+    dict
+        ``vaf_parametric_irf_range``: largest minus smallest %VAF over the rates (points);
+        ``residual_ratio_lowest_rate``: unexplained variance (100 - %VAF) at the lowest rate over that at
+        the highest; ``lowest_rate_over_nyquist``: the lowest rate over the band's Nyquist rate (1.25 for
+        50 Hz and a 20 Hz band).
+
+    References
+    ----------
+    Westwick & Perreault (2012), Sec. V-D ('virtually unchanged for sampling frequencies as low as 1.25
+    times the Nyquist rate (see Table I)'), Table I.
+    """
+    v = np.asarray(list(vafs.values()), float)
+    lo, hi = min(vafs), max(vafs)
+    return {"vaf_parametric_irf_range": float(v.max() - v.min()),
+            "residual_ratio_lowest_rate": float((100.0 - vafs[lo]) / (100.0 - vafs[hi])),
+            "lowest_rate_over_nyquist": float(lo / (2.0 * bandlimit))}
 
 
 def shape_difference(ref: tuple, other: tuple) -> float:

@@ -357,3 +357,10 @@ def readings(part, rows, curves, folder, checks) -> PartReport:
     return PartReport(figures=[(name, "VAFV of K by reading (median over seeds)")], text=text,
                       tables=[("Candidate readings", what),
                               ("What each reading gives: median (min to max) over seeds", t)])
+
+
+@register("xu1998.filter_ratio")
+def filter_ratio(part, rows, curves, folder, checks) -> PartReport:
+    table = rows[rows["status"] == "ok"][["estimator", "metric", "value"]].reset_index(drop=True)
+    return PartReport(tables=[("The ratio of L's cutoff and the stated limit of the parameter variation, both ways "
+                               "round (reading R22; check X9-ratio-6.4)", table)])

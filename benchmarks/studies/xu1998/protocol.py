@@ -65,6 +65,9 @@ class TrackParams:
         "filtered_torque", doc="signal whose prediction gives 'vaf_output' (all three are recorded)")
     paired_noise_free: bool = param(False, doc="also fit the same record without the noise and record "
                                     "the drops of the VAFs")
+    paired_settings: bool = param(False, doc="also fit the same record with the part's own estimator_settings "
+                                  "(this variant's left out) and record abs_change_<metric>, the absolute change "
+                                  "of each VAF (how much a setting changes the results, check X8)")
     curve_seeds: int = param(1, ge=0, doc="the lowest seeds whose time courses are stored for the figures")
     curve_params: tuple[str, ...] = param(("K", "B", "I"), doc="parameters whose time courses are stored")
     curve_rate: float = param(50.0, unit="Hz", gt=0, doc="rate of the stored time courses")
@@ -304,7 +307,15 @@ def track(ctx: Context) -> None:
     ``abs_err_pct_X`` for X in I, B, K; ``mean_zeta`` and ``true_mean_zeta``; ``vaf_output`` (the
     signal named by ``output``) and ``vaf_output_<signal>`` for each candidate of :func:`output_vafs`;
     with ``paired_noise_free``, ``drop_<metric>`` = metric without noise - metric with noise on the
-    same record. Labels: ``condition`` and ``f_v`` (Hz, when set).
+    same record; with ``paired_settings``, ``abs_change_<metric>`` = |metric - metric with the part's own
+    estimator settings| on the same record; ``vafv_K_minus_vafv_B`` (check X7: K tracked worst). Labels:
+    ``condition`` and ``f_v`` (Hz, when set).
+
+    References
+    ----------
+    Xu, Y. & Hollerbach, J. M. (1998). Identification of human joint mechanical properties from single trial
+    data. IEEE Trans. Biomed. Eng. 45(9), 1051-1060: Sec. III-B (Figs. 2, 3; 'A 10%-15% variation of lambda
+    did not change the following simulated results much').
     """
     p = resolve_variant(ctx.params)
     if p.estimator not in ctx.estimators:
@@ -331,6 +342,7 @@ def track(ctx: Context) -> None:
     else:   # the exact regression's own output: tau against Phi^T Theta_hat
         scores["vaf_output"] = vaf(fit.y[keep], fit.yhat[keep])
     scores["scored_s"] = keep.sum() * dt
+    scores["vafv_K_minus_vafv_B"] = scores["vafv_K"] - scores["vafv_B"]
     if p.paired_noise_free:   # the same record (same perturbation) without the noise of 'nsr'
         exp0 = case_experiment(ctx.experiment, dataclasses.replace(p, nsr=0.0))
         clean = sims.simulate(exp0, ctx.seed)
@@ -342,6 +354,15 @@ def track(ctx: Context) -> None:
         s0["vaf_output"] = o0[p.output]
         for k in ("vafm_K", "vafv_K", "vafm_B", "vafv_B", "vafm_I", "vafv_I", "vaf_output"):
             scores[f"drop_{k}"] = s0[k] - scores[k]
+    if p.paired_settings:     # the same record fitted with the part's own settings (check X8)
+        base = case_estimator(ctx.estimators[p.estimator],
+                              dataclasses.replace(p, estimator_settings=ctx.params.estimator_settings))
+        fit1 = fit_gated(base, trial) if p.regressors == "filtered" else exact_fit(base, trial)
+        s1 = _scores(fit1, trial.truth, keep, dt)
+        s1["vaf_output"] = (output_vafs(fit1, trial, keep, signals=(p.output,))[p.output]
+                            if p.regressors == "filtered" else vaf(fit1.y[keep], fit1.yhat[keep]))
+        for k in ("vafm_K", "vafv_K", "vafm_B", "vafv_B", "vafm_I", "vafv_I", "vaf_output"):
+            scores[f"abs_change_{k}"] = abs(scores[k] - s1[k])
     for k, v in scores.items():
         ctx.metric(k, v, est.name, **labels)
     if ctx.seed < p.curve_seeds:   # the lowest seeds (numbered from 0 by default)
@@ -358,3 +379,51 @@ def track(ctx: Context) -> None:
             ctx.curve(name, t[sel], np.broadcast_to(np.asarray(getattr(trial.truth, name), float),
                                                     keep.shape)[sel], series="truth", **labels)
 
+
+
+# ------------------------------------------------------------------------ the paper's arithmetic (X9)
+@dataclasses.dataclass(frozen=True)
+class RatioParams:
+    """The stated tracking limit whose ratio to the state-variable filter's cutoff Sec. III-B gives."""
+
+    variation_limit: float = param(0.5, unit="Hz", gt=0, doc="the maximum parameter variation Sec. III-B states "
+                                   "('should not be more than 0.5 Hz as indicated in Fig. 2(b)')")
+    estimator: str = param("fsewls", doc="the estimator whose svf_cutoff (L's cutoff, eq. 4) is used")
+
+
+def filter_ratios(svf_cutoff: float, variation_limit: float) -> dict[str, float]:
+    """The ratio Sec. III-B states between the parameter variation and the cutoff of L, both ways round.
+
+    Parameters
+    ----------
+    svf_cutoff : float
+        Cutoff of the state-variable filter L (Hz; 3.2 in the paper).
+    variation_limit : float
+        The maximum frequency of the parameter variation (Hz; 0.5 in the paper).
+
+    Returns
+    -------
+    dict
+        ``cutoff_over_variation`` (the order under which the printed 'about 6.4' is possible, reading R22)
+        and ``variation_over_cutoff`` (the order as printed: 'the ratio of the parameter variation frequency
+        to the filter cutoff frequency').
+
+    References
+    ----------
+    Xu & Hollerbach (1998), Sec. III-B ('The ratio of the parameter variation frequency to the filter cutoff
+    frequency in (4) is about 6.4'); Appendix A ('the ratio of the frequencies of the parameter variation
+    and the low-pass filter must be smaller than one').
+    """
+    return {"cutoff_over_variation": svf_cutoff / variation_limit,
+            "variation_over_cutoff": variation_limit / svf_cutoff}
+
+
+@register("xu1998.filter_ratio", RatioParams)
+def filter_ratio(ctx: Context) -> None:
+    """X9: the paper's ratio of L's cutoff (the configured estimator's ``svf_cutoff``) to the stated limit of
+    the parameter variation (Sec. III-B), arithmetic on its own numbers: no simulation."""
+    p = ctx.params
+    if p.estimator not in ctx.estimators:
+        raise KeyError(f"estimator {p.estimator!r} must be listed in the part's estimators")
+    for name, v in filter_ratios(ctx.estimators[p.estimator].settings.svf_cutoff, p.variation_limit).items():
+        ctx.metric(name, v, p.estimator)
