@@ -23,7 +23,7 @@ AGGREGATES = ("median", "mean", "min", "max", "std")
 #: kinds of evidence, in the order the report shows them; the headline counts ``reproduction`` only.
 #: ``recording``: a value the paper measured on real subjects (a human recording), which a simulation reaches only
 #: by inventing dynamics the paper does not give: shown beside the reproduced value, never counted (issue 35)
-EVIDENCE = ("reproduction", "conditional", "calibrated", "sanity", "recording")
+EVIDENCE = ("reproduction", "recording", "conditional", "calibrated", "sanity")
 #: range conditions allowed in ``select``, ``versus`` and ``domain`` (``{f_v: {lt: 1.0}}``)
 RANGE_OPS = ("lt", "le", "gt", "ge")
 #: check kind -> fields it needs (besides the common ones) and fields it allows
@@ -48,8 +48,9 @@ class Check:
     what it is. Notes (``if_missed``, ``if_missed_below`` / ``if_missed_above`` for a miss on one side of the
     band, ``cause``) state no result figure by hand: ``{value}``, ``{published}``, ``{CHECK-ID}`` and
     ``{CHECK-ID.published}`` (format specs allowed) are filled from the judged rows (:func:`note_fields`).
-    ``discrimination_reason`` argues a band that also holds the compared method's published cell. ``domain`` restricts the scored rows (e.g. ``{f_v: {lt: 1.0}}``, the paper's domain;
-    ``domain_reason`` says why); the rows outside it are shown, not scored.
+    ``discrimination_reason`` argues a band that also holds the compared method's published cell. ``domain``
+    restricts the scored rows (e.g. ``{f_v: {lt: 1.0}}``, the paper's domain; ``domain_reason`` says why); the
+    rows outside it are shown, not scored.
     """
 
     id: str
