@@ -71,6 +71,8 @@ def _westwick(d):
 
 def _xu(d):
     for part in d["parts"].values():
+        if "experiment" not in part:          # the arithmetic part (X9): nothing simulated
+            continue
         part["seeds"] = 1
         part["experiment"] = {**part["experiment"], "duration": "14 s"}
     d["parts"]["fig2"]["sweep"] = {"condition": ["posture", "movement"], "f_v": [0.5]}
