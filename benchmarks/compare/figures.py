@@ -30,6 +30,7 @@ from jointbench.benchmarks.compare import pairs as pairs_
 from jointbench.benchmarks.compare import plots
 from jointbench.benchmarks.compare import tables as ct
 from jointbench.benchmarks.compare.tables import METRICS, labelled  # noqa: F401  (the public names)
+from jointbench.benchmarks.compare.tuning import edge_sentence
 from jointbench.core.files import write_text
 
 #: paired wins written out in the text per tuning column (the win tables have them all)
@@ -197,6 +198,9 @@ def _text(g: _Grid) -> list[str]:
         if s:
             text.append(f"The most frequent significant paired wins ({tuning} column; all in the win tables): "
                         + "; ".join(s) + ".")
+    edges = edge_sentence(g.rows)
+    if edges:
+        text.append(edges)
     agree = ct.backend_agreement(g.table, g.primary)
     if agree:
         text.append("Backend agreement, one line per scenario:\n\n" + "\n\n".join(agree))

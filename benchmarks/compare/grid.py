@@ -19,7 +19,8 @@ combination of its axes, one case per estimator and combination (all R realizati
         data: [trial, ensemble]      # fit single trials or ensembles (default: what the estimator takes)
         joint: [native, arm_xu1998_calibration]   # a model of configs/models instead of the scenario's
         tuning: [paper, tuned]       # the settings as given, or chosen on tuning realizations (below)
-      tuning: {sds: {window: [0.5 s, 1 s, 2 s]}}   # the search of 'tuned' (benchmarks/compare/tuning.py)
+      tuning: {sds: {window: [0.5 s, 1 s, 2 s]}}   # the search of 'tuned' (benchmarks/compare/tuning.py); an
+                                     # estimator not named: the search its settings declare (param tune=)
       only:                          # run part of the grid; the rest is skipped with the reason
         - {when: {backend: mujoco}, keep: {tuning: paper, data: trial}, reason: "MuJoCo on a subset"}
       scenarios:                     # name -> an experiment and how to score it
@@ -60,7 +61,8 @@ from typing import Any, Callable, Mapping
 from jointbench import estimators
 from jointbench import sims
 from jointbench.benchmarks.compare.tuning import (AXES, AxisValues, OnlyRule, candidates, check_known_estimators,
-                                                  check_search, check_search_applies, grid_settings, skip_summary)
+                                                  check_search, check_search_applies, grid_settings, nothing_to_tune,
+                                                  search_for, skip_summary)
 from jointbench.core.errors import ConfigError, Incompatible
 from jointbench.core.schema import Problems, number, param, parse
 
@@ -303,8 +305,8 @@ def _search(spec: GridSpec, scenarios: Mapping[str, _ScenarioSpec], axes: Mappin
     for sname, sc in scenarios.items():
         check_search(sc.tuning, f"{where}: scenarios.{sname}.tuning")
         for est in axes["estimator"]:
-            for cand in candidates(est, {**grid_settings(part_estimators, est), **(sc.estimators.get(est) or {})},
-                                   {**spec.tuning.get(est, {}), **(sc.tuning.get(est) or {})}):
+            settings = {**grid_settings(part_estimators, est), **(sc.estimators.get(est) or {})}
+            for cand in candidates(est, settings, search_for(est, settings, spec.tuning, sc.tuning)):
                 estimators.make(est, cand, f"{where}: tuning of {est} (scenario {sname})")
     return spec.tuning
 
@@ -404,13 +406,12 @@ def expand_grid(study_id: str, part, backend: str | None = None) -> tuple[list[d
         exp = built[key]
         settings = {**grid.settings[est], **(sc.estimators.get(est) or {})}
         tuned = combo.get("tuning") == "tuned"
-        search = candidates(est, settings, {**grid.search.get(est, {}), **(sc.tuning.get(est) or {})}) if tuned else []
+        search = candidates(est, settings, search_for(est, settings, grid.search, sc.tuning)) if tuned else []
         reason = exp if isinstance(exp, str) else (cls.supports(exp) or _refusal(cls, mode))
         if not reason:
             reason = next((rule.reason for rule in grid.only if rule.skips({**combo, "data": mode})), None)
         if not reason and tuned and not search:
-            reason = (f"nothing to tune: the tuning search names no setting of {est} (its tuned column is its "
-                      f"paper column)")
+            reason = nothing_to_tune(est, grid.search, sc.tuning)
         if reason:
             skipped.append({**combo, "data": mode, "reason": reason})
             continue

@@ -334,8 +334,9 @@ def settings_table(rows: pd.DataFrame) -> pd.DataFrame:
 
 
 def tuning_table(rows: pd.DataFrame) -> pd.DataFrame:
-    """The tuning search: per method and cell, the candidates tried, the chosen one and its held-out
-    output VAF (rows ``tuning_vaf_output``)."""
+    """The tuning search: per method and cell, the candidates tried, the chosen one, whether it lies on an
+    edge of the candidates (the rows' ``tuning_edge``) and its held-out output VAF (rows
+    ``tuning_vaf_output``)."""
     sel = rows[rows["metric"] == "tuning_vaf_output"]
     if sel.empty:
         return pd.DataFrame()
@@ -343,8 +344,10 @@ def tuning_table(rows: pd.DataFrame) -> pd.DataFrame:
     for (method, cell, backend), g in sel.groupby(["method", "cell", "backend"], sort=False):
         chosen = g[g["chosen"].astype(str).str.lower().isin(["true", "1", "1.0"])] if "chosen" in g else g.iloc[0:0]
         c = chosen.iloc[0] if len(chosen) else g.loc[g["value"].astype(float).idxmax()]
+        edge = c.get("tuning_edge", "")
         recs.append({"method": method, "scenario": cell, "backend": backend, "candidates": len(g),
-                     "chosen": _settings_text(c.get("candidate", "")), "held-out output VAF (%)": float(c["value"]),
+                     "chosen": _settings_text(c.get("candidate", "")), "edge": "" if pd.isna(edge) else edge,
+                     "held-out output VAF (%)": float(c["value"]),
                      "worst candidate (%)": float(g["value"].astype(float).min())})
     return pd.DataFrame(recs)
 
