@@ -198,16 +198,16 @@ def _exports_text(files: list[str]) -> str:
 
 
 def _board_text(g: _Grid) -> str:
-    """What the leaderboards show and over what, from the leaderboard's rows."""
-    part = lb.partial(g.board)
-    few = sorted(dict.fromkeys(part["method"]))
+    """What the leaderboards show and over what (the backend; whether some method is ranked in fewer scenarios
+    than its leaderboard counts, from the leaderboard's rows)."""
+    few = not lb.partial(g.board).empty
     return (f"Leaderboards, per ranked metric and tuning column on the {g.primary} backend over the ranked "
             "scenarios: a method's mean share of the other methods ranked in a scenario that it is strictly "
             "ahead of (100 %: first alone in every scenario), the scenarios it ranks first in (ties included) and "
             "its median distance to each scenario's best (times the best for an error or a time, points behind "
             "for a VAF). A description, not a test"
-            + (f"; {_join(few)} {'is' if len(few) == 1 else 'are'} ranked in fewer scenarios than others on some "
-               "metric (the scenarios column says how many): their share is over those only." if few else "."))
+            + ("; a method ranked in fewer scenarios than its leaderboard counts says 'n of N' in the scenarios "
+               "column: its share is over those n only." if few else "."))
 
 
 def _intervals_text(primary: str) -> str:
@@ -358,7 +358,7 @@ def _write_page(g: _Grid, text: list[str], tables: list, sets: dict, order: dict
     study = str(rows["study"].dropna().iloc[0]) if "study" in rows and rows["study"].notna().any() else ""
     title = f"Method comparison: {study + ', part ' if study else 'part '}{g.name}"
     intro = [re.sub(r"\[([^\]]+)\]\([^)]+\)", r"\1", p) for p in text[:2]]
-    static = [(t, df) for t, df in tables if not t.startswith(tuple(g.cells))]
+    static = [(t, df) for t, df in tables if not t.startswith((*g.cells, "Leaderboard on"))]   # in the overview
     main = _main_metric(g.table)
     overview = cp.Overview(boards=cp.board_tables(g.board), heatmaps=heat, styles=g.styles,
                            summary=cp.summary_over_scenarios(cd_figures, summary), note=_board_text(g),

@@ -28,8 +28,9 @@ from typing import Iterable
 MARKERS = ("o", "s", "^", "D", "v", "P", "X", "<", ">", "p", "h", "*", "d")
 #: contrast ratio against white a method's colour must reach (WCAG 2.1 SC 1.4.11, graphics)
 MIN_CONTRAST = 3.0
-#: above this contrast against white a colour is too close to the truth's black (black: 21)
-MAX_CONTRAST = 15.0
+#: above this contrast against white a colour is too dark: it reads as the truth's black, and dark colours are
+#: hard to tell apart as thin lines (10: relative luminance 0.055, CIELAB lightness about 28; black: 21)
+MAX_CONTRAST = 10.0
 #: the colour of the truth in every figure and on the page
 TRUTH = "#000000"
 
