@@ -31,3 +31,126 @@ def test_jointbench_run_with_set_and_no_out_writes_set_runs_not_the_study_folder
     assert again.returncode == 0, again.stderr
     assert (own / "report.md").is_file() and (own / "checks.csv").read_text() != "committed\n"
     assert "set-runs" not in again.stderr
+
+
+
+# ---------------------------------------------------------------------------------- every error at once
+def test_a_study_files_errors_come_all_at_once(tmp_path):
+    """A study with a misspelt key in one part and two variations missing profile keys: one run names them all
+    (the variations' keys came one combination, so one run, at a time: ramp 'duration', then smooth_random's)."""
+    from tests.harness_studies import tiny_grid_part
+
+    part = tiny_grid_part(["sds"], realizations=2, noise=[0.05], variation=["ramp", "random"])
+    part["variations"] = {"ramp": {"shape": "ramp"}, "random": {"shape": "smooth_random"}}
+    path = tiny_study(tmp_path / "c", extra_parts={"grid": part})
+    text = path.read_text().replace("protocol: parametric_fit", "protocol: parametric_fit\n    sedes: 2", 1)
+    path.write_text(text)
+    got = cli_here("run", path, "--out", tmp_path / "out")
+    assert got.returncode == 2
+    lines = got.stderr.removeprefix("jointbench: error: ").strip().splitlines()
+    assert lines == [f"{path}: parts.fit: unknown key 'sedes'; allowed: " + lines[0].split("allowed: ")[1],
+                     f"{path}: parts.grid: variations.ramp (ramp): missing required key 'duration'",
+                     f"{path}: parts.grid: variations.random (smooth_random): missing required key 'bandwidth'",
+                     f"{path}: parts.grid: variations.random (smooth_random): missing required key 'seed'"], lines
+
+
+def test_errors_found_when_the_cases_are_made_come_all_at_once(tmp_path):
+    """Errors that show only once the cases are made (a part's experiment, a grid's combinations): every part's
+    and every combination's in one run, each distinct error once, naming a combination that has it."""
+    from tests.harness_studies import tiny_grid_part
+
+    part = tiny_grid_part(["sds"], realizations=2, noise=[0, 0.05], perturbation=["slow", "flat"])
+    part["perturbations"] = {"slow": {"kind": "filtered_noise", "cutoff": "-2 Hz"},
+                             "flat": {"kind": "prbs", "amplitude": 0}}
+    path = tiny_study(tmp_path / "c", extra_parts={"grid": part})
+    path.write_text(path.read_text().replace("fs_sim: 2 kHz", "fs_sim: -2 kHz", 1))      # the part 'fit'
+    got = cli_here("run", path, "--out", tmp_path / "out")
+    assert got.returncode == 2
+    lines = got.stderr.removeprefix("jointbench: error: ").strip().splitlines()
+    assert lines == [
+        f"{path}: parts.fit: experiment: key 'fs_sim': must be > 0 Hz, got -2000.0 Hz",
+        f"{path}: parts.grid: the combination scenario=elbow, variation=square, perturbation=slow, noise=0, "
+        f"backend=analytic (and 1 more with this error): perturbation: key 'cutoff': must be > 0 Hz, got -2.0 Hz",
+        f"{path}: parts.grid: the combination scenario=elbow, variation=square, perturbation=flat, noise=0, "
+        f"backend=analytic (and 1 more with this error): perturbation: key 'amplitude': must be > 0, got 0.0"], lines
+
+
+# ------------------------------------------------------------------------------- the light install (no MuJoCo)
+def _without_mujoco(monkeypatch):
+    """This process as the light install: ``import mujoco`` / ``dm_control`` fail and ``find_spec`` finds
+    neither (a None entry in sys.modules is how Python marks a module that cannot be imported)."""
+    for name in ("mujoco", "dm_control"):
+        monkeypatch.setitem(sys.modules, name, None)
+    from jointbench import sims
+
+    assert sims.BACKENDS.get("mujoco").unavailable()          # the simulation of the missing extra holds
+
+
+@pytest.fixture
+def without_mujoco(monkeypatch):
+    _without_mujoco(monkeypatch)
+
+
+def _expanded(study_id: str):
+    from jointbench.benchmarks.config import load_study
+    from jointbench.benchmarks.runner import expand_study
+
+    return expand_study(load_study(study_id))
+
+
+def _labels(case_or_skip) -> tuple:
+    d = case_or_skip.sweep if hasattr(case_or_skip, "sweep") else case_or_skip
+    return tuple(sorted((k, str(v)) for k, v in d.items() if k not in ("reason", "part")))
+
+
+def test_every_shipped_study_runs_its_analytic_rows_without_the_mujoco_extra(monkeypatch):
+    """Without the extra every shipped study expands to the analytic cases it has with the extra, and the matrix
+    skips exactly the MuJoCo combinations that would run with it, each with the reason naming the extra; a
+    study with no analytic row (apparatus) is one line naming the extra."""
+    from jointbench.benchmarks.locate import study_ids
+    from jointbench.core.errors import ConfigError
+
+    with_extra = {sid: _expanded(sid) for sid in study_ids() if sid != "apparatus"}
+    mujoco_cases = {_labels(c) for c in with_extra["matrix"][0] if c.backend == "mujoco" and c.protocol == "compare"}
+    assert mujoco_cases                       # the grid has MuJoCo rows when the extra is installed
+    _without_mujoco(monkeypatch)
+    for sid in study_ids():
+        if sid == "apparatus":
+            with pytest.raises(ConfigError, match=r"backend 'mujoco' needs .*pip install 'jointbench\[mujoco\]'"):
+                _expanded(sid)
+            continue
+        cases, skipped = _expanded(sid)
+        before = with_extra[sid][0]
+        assert [c.case_id for c in cases] == [c.case_id for c in before if c.backend != "mujoco"], sid
+        extra = {_labels(s) for s in skipped if "pip install 'jointbench[mujoco]'" in s["reason"]}
+        assert extra == (mujoco_cases if sid == "matrix" else set()), sid
+
+
+def test_a_grid_with_mujoco_rows_runs_the_analytic_ones_and_says_which_need_the_extra(tmp_path, without_mujoco):
+    from tests.harness_studies import tiny_grid_part
+
+    part = tiny_grid_part(["sds"], realizations=2, noise=[0.05], backend=["analytic", "mujoco"])
+    path = tiny_study(tmp_path / "c", extra_parts={"grid": part})
+    got = cli_here("run", path, "--parts", "grid", "--serial", "--quiet", "--out", tmp_path / "out")
+    assert got.returncode == 0, got.stderr
+    line = [x for x in got.stderr.splitlines() if "on backend mujoco left out" in x]
+    assert line == [f"jointbench: {path}: parts.grid: 1 combination on backend mujoco left out (the others run): "
+                    f"simulation backend 'mujoco' needs mujoco and dm_control, not installed: pip install "
+                    f"'jointbench[mujoco]' (or jointbench[all])"], got.stderr
+    import pandas as pd
+
+    rows = pd.read_csv(tmp_path / "out" / "tiny" / "cases.csv", low_memory=False)
+    assert set(rows.loc[rows["metric"] != "skipped", "backend"]) == {"analytic"}
+    skipped = rows[rows["metric"] == "skipped"]
+    assert list(skipped["backend"]) == ["mujoco"] and "jointbench[mujoco]" in skipped["reason"].iloc[0]
+    assert "jointbench[mujoco]" in (tmp_path / "out" / "tiny" / "report.md").read_text()
+
+
+def test_api_scenarios_says_what_it_leaves_out(without_mujoco):
+    from jointbench import api
+
+    with pytest.warns(UserWarning, match=r"leaves out .*study apparatus: .*jointbench\[mujoco\]"):
+        frame = api.scenarios()
+    assert set(frame.attrs["left_out"]) == {"apparatus"}
+    assert "apparatus" not in set(frame["study"])
+    assert {"matrix:xu1998_elbow", "matrix:framework_square"} <= set(frame["name"])   # the grid loads without it

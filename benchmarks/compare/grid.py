@@ -42,9 +42,12 @@ A combination an estimator cannot run is skipped and reported with the reason: a
 identify from (:meth:`estimators.Estimator.supports`: skirt and KBR need a multisine), data it does not
 take (its ``accepts``: an ensemble method given single trials), or valid settings that cannot go together
 (:class:`~jointbench.core.errors.Incompatible`: a rate that does not divide the simulation rate, a model on the
-wrong apparatus, a backend that cannot simulate the experiment). Any other error in a combination (a
-typo'd key, a negative duration, zero inertia, a profile file that is missing or makes K negative, an
-unstable MuJoCo step) is a config error naming the combination, before anything runs (exit 2). A name or
+wrong apparatus, a backend that cannot simulate the experiment), or a backend this installation lacks (MuJoCo
+without the ``[mujoco]`` extra: the other backends' rows run, and the run says how many were left out and what to
+install, :func:`missing_extra_lines`). Any other error in a combination (a typo'd key, a negative duration, zero
+inertia, a profile file that is missing or makes K negative, an unstable MuJoCo step) is a config error naming the
+combination, before anything runs (exit 2): every distinct error at once, and a variation's keys when the study is
+loaded, with the file's other errors. A name or
 value the grid does not know, or a value listed twice (``[1, 1.0]``, ``[100 Hz, 0.1 kHz]``), is a config
 error naming the axis, the value and what is allowed; so is a grid of more than :data:`MAX_COMBINATIONS`.
 """
@@ -63,6 +66,7 @@ from jointbench.benchmarks.compare.tuning import (AXES, AxisValues, OnlyRule, ca
                                                   check_search, check_search_applies, grid_settings, skip_summary)
 from jointbench.core.errors import ConfigError, Incompatible
 from jointbench.core.schema import Problems, number, param, parse
+from jointbench.sims.profile import parse_profile
 
 NATIVE = "native"
 DATA = ("trial", "ensemble")
@@ -168,6 +172,8 @@ def parse_grid(data: Mapping, experiment: Mapping | None, part_estimators: Mappi
         _check_values(axes, where)
     with problems.catch():
         _check_size(axes, where)
+    with problems.catch():
+        _check_variations(spec.variations, scenarios, where)
     problems.raise_all()
     found["settings"] = _settings(axes, scenarios, part_estimators, where)     # of the estimators named
     found["search"] = _search(spec, scenarios, axes, part_estimators, where, overridden)
@@ -217,6 +223,20 @@ def _check_names(axes: Mapping[str, tuple], scenarios: Mapping, spec: GridSpec, 
         if missing:
             raise ConfigError(f"{where}: scenarios.{missing[0]}: the grid has a 'variation' axis, so the scenario "
                               f"needs 'stiffness: {{mean, amplitude, period}}' (the levels the variations take)")
+
+
+def _check_variations(variations: Mapping[str, dict], scenarios: Mapping[str, _ScenarioSpec], where: str) -> None:
+    """Every variation makes a profile at a scenario's levels (the first scenario with ``stiffness``): a missing
+    or wrong key of a variation is found when the study is loaded, with the file's other errors, every one at
+    once (not one per run, combination by combination, as the grid is expanded)."""
+    levels = next((sc.stiffness for sc in scenarios.values() if sc.stiffness is not None), None)
+    if levels is None:
+        return
+    problems = Problems()
+    for name, variation in variations.items():
+        with problems.catch():
+            parse_profile(stiffness_profile(variation, levels), f"{where}: variations.{name}")
+    problems.raise_all()
 
 
 def _names(axis: str, values: tuple, known, where: str, what: str, native: bool = True) -> None:
@@ -283,9 +303,6 @@ def _check_values(axes: dict[str, tuple], where: str) -> None:
         if not isinstance(v, str) or v not in sims.BACKENDS:
             raise ConfigError(f"{where}: grid.backend[{i}]: unknown simulation backend {v!r}; known: "
                               f"{', '.join(sims.BACKENDS.names())}")
-        if getattr(sims.BACKENDS.get(v), "unavailable", lambda: None)():     # an extra not installed
-            raise ConfigError(f"{where}: grid.backend[{i}]: simulation backend {v!r} "
-                              f"{sims.BACKENDS.get(v).unavailable()}")
     for axis, allowed in (("data", DATA), ("tuning", TUNING)):
         for i, v in enumerate(axes.get(axis, ())):
             if v not in allowed:
@@ -362,6 +379,56 @@ def _experiment(grid: Grid, combo: Mapping[str, Any]) -> dict:
     return exp
 
 
+def backend_missing(name: str) -> str | None:
+    """Why simulation backend ``name`` cannot run in this installation (an extra not installed: MuJoCo without
+    ``jointbench[mujoco]``), as the reason of the combinations on it, or None. Those combinations are skipped
+    (the others run: the light install runs a grid's analytic rows) and :func:`missing_extra_lines` says so."""
+    why = getattr(sims.BACKENDS.get(name), "unavailable", lambda: None)()
+    return f"simulation backend {name!r} {why}" if why else None
+
+
+def missing_extra_lines(skipped: list[dict]) -> list[str]:
+    """One line per part and backend whose combinations were skipped because the backend's extra is not
+    installed (:func:`backend_missing`): how many, and what to install."""
+    counts: dict[tuple, int] = {}
+    for s in skipped:
+        if s.get("backend") is not None and s["reason"] == backend_missing(s["backend"]):
+            key = (s.get("part", ""), s["backend"], s["reason"])
+            counts[key] = counts.get(key, 0) + 1
+    return [f"{part + ': ' if part else ''}{n} combination{'s' if n > 1 else ''} on backend {backend} left out "
+            f"(the others run): {reason}" for (part, backend, reason), n in counts.items()]
+
+
+def _build(built: dict, mapping: Mapping, backend: str):
+    """The experiment of ``mapping`` on ``backend``, built once (memo ``built``): an :class:`sims.Experiment`,
+    the message of an :class:`Incompatible` (valid settings that cannot go together: the combination is
+    skipped with it), or the :class:`ConfigError` of an invalid config (raised by the caller, with the others)."""
+    key = json.dumps([mapping, backend], sort_keys=True, default=str)
+    if key not in built:
+        try:
+            built[key] = sims.Experiment.from_mapping(mapping, "the experiment", backend=backend)
+        except Incompatible as exc:
+            built[key] = str(exc)
+        except ConfigError as exc:
+            built[key] = exc
+    return built[key]
+
+
+def _skip_reason(grid: Grid, combo: Mapping, cls, mode: str, exp, lacking: str | None,
+                 idle: bool) -> str | None:
+    """Why a combination does not run (None: it runs), the first that applies: its experiment cannot be
+    simulated (``exp`` is the message), the estimator cannot identify from it (:meth:`supports`) or does not
+    take the data, a rule of the grid's ``only``, nothing to tune (``idle``), and last the backend's extra
+    missing (``lacking``: then ``exp`` was built on the analytic backend, to judge the estimator's reasons)."""
+    if isinstance(exp, str) and not lacking:
+        return exp
+    return ((cls.supports(exp) if isinstance(exp, sims.Experiment) else None) or _refusal(cls, mode)
+            or next((rule.reason for rule in grid.only if rule.skips({**combo, "data": mode})), None)
+            or (f"nothing to tune: the tuning search names no setting of {cls.name} (its tuned column is its "
+                f"paper column)" if idle else None)
+            or lacking)
+
+
 def _refusal(cls, mode: str) -> str | None:
     if mode in cls.accepts:
         return None
@@ -383,6 +450,8 @@ def expand_grid(study_id: str, part, backend: str | None = None) -> tuple[list[d
     cases, skipped = [], []
     identified: dict[str, dict] = {}       # params.identify: one identifiability case per experiment and seed
     built: dict[str, Any] = {}
+    missing = {b: backend_missing(b) for b in axes["backend"]}
+    errors: dict[str, dict] = {}           # an invalid experiment's error -> the combinations (no estimator) with it
     for values in itertools.product(*(axes[a] for a in names)):
         combo = dict(zip(names, values))
         est = combo["estimator"]
@@ -390,27 +459,17 @@ def expand_grid(study_id: str, part, backend: str | None = None) -> tuple[list[d
         mode = combo.get("data") or ("trial" if "trial" in cls.accepts else "ensemble")
         sc = grid.scenarios[combo["scenario"]]
         mapping = _experiment(grid, combo)
-        key = json.dumps([mapping, combo["backend"]], sort_keys=True, default=str)
-        if key not in built:
-            try:
-                built[key] = sims.Experiment.from_mapping(mapping, "the experiment", backend=combo["backend"])
-            except Incompatible as exc:  # valid settings that cannot go together: skipped, with the reason
-                built[key] = str(exc)
-            except ConfigError as exc:   # an invalid config: an error before anything runs
-                labels = ", ".join(f"{a}={v}" for a, v in combo.items() if a != "estimator")
-                raise ConfigError("\n".join(f"{part.where}: the combination {labels}: "
-                                            f"{line.removeprefix('the experiment: ')}"
-                                            for line in str(exc).splitlines())) from None
-        exp = built[key]
+        lacking = missing[combo["backend"]]
+        # a backend whose extra is missing (MuJoCo on the light install): skipped with that reason unless another
+        # would skip the combination anyway (the estimator's, judged on the analytic backend's experiment)
+        exp = _build(built, mapping, "analytic" if lacking else combo["backend"])
+        if isinstance(exp, ConfigError) and not lacking:     # an invalid config: an error before anything runs
+            errors.setdefault(str(exp), {})[", ".join(f"{a}={v}" for a, v in combo.items() if a != "estimator")] = 1
+            continue
         settings = {**grid.settings[est], **(sc.estimators.get(est) or {})}
         tuned = combo.get("tuning") == "tuned"
         search = candidates(est, settings, {**grid.search.get(est, {}), **(sc.tuning.get(est) or {})}) if tuned else []
-        reason = exp if isinstance(exp, str) else (cls.supports(exp) or _refusal(cls, mode))
-        if not reason:
-            reason = next((rule.reason for rule in grid.only if rule.skips({**combo, "data": mode})), None)
-        if not reason and tuned and not search:
-            reason = (f"nothing to tune: the tuning search names no setting of {est} (its tuned column is its "
-                      f"paper column)")
+        reason = _skip_reason(grid, combo, cls, mode, exp, lacking, tuned and not search)
         if reason:
             skipped.append({**combo, "data": mode, "reason": reason})
             continue
@@ -432,6 +491,12 @@ def expand_grid(study_id: str, part, backend: str | None = None) -> tuple[list[d
                                          params={k: v for k, v in params.items() if k not in ("data", "search")},
                                          sweep=scen, experiment=mapping, estimators={}, seed=seed,
                                          where=part.where, backend=combo["backend"])
+    if errors:                           # every invalid combination at once, each distinct error once
+        raise ConfigError("\n".join(
+            f"{part.where}: the combination {next(iter(combos))}"
+            + (f" (and {len(combos) - 1} more with this error)" if len(combos) > 1 else "")
+            + f": {line.removeprefix('the experiment: ')}"
+            for text, combos in errors.items() for line in text.splitlines()))
     if not cases:
         raise ConfigError(f"{part.where}: nothing to run: {skip_summary(skipped)}; change the grid's axes or "
                           f"its 'only' rules{' or --backend' if backend is not None else ''}")
