@@ -154,3 +154,33 @@ def test_api_scenarios_says_what_it_leaves_out(without_mujoco):
     assert set(frame.attrs["left_out"]) == {"apparatus"}
     assert "apparatus" not in set(frame["study"])
     assert {"matrix:xu1998_elbow", "matrix:framework_square"} <= set(frame["name"])   # the grid loads without it
+
+
+# ------------------------------------------------------------------------- identify by default, and the hint
+@pytest.mark.parametrize("identify", [None, False])
+def test_an_unranked_scenario_says_why(tmp_path, identify):
+    """A new grid without 'identify' gets the identifiability rows (on by default), and the report says why a
+    scenario is not ranked with their figures; with 'identify: false' it says how to get them."""
+    from jointbench.benchmarks.study import run_study
+    from tests.harness_studies import tiny_grid_part
+
+    part = tiny_grid_part(["ibk_spectral"], realizations=2, noise=[0.05])    # time-invariant: no VAF of k > 0
+    part["params"].pop("identify")                    # a new study's grid, as written by its author
+    if identify is not None:
+        part["params"]["identify"] = identify
+    run = run_study(tiny_study(tmp_path / "c", extra_parts={"grid": part}), parts=["grid"], serial=True,
+                    progress=False, out_root=tmp_path / "out")
+    rows = run.rows
+    ident = rows[rows["estimator"] == "(scenario)"]
+    assert len(ident) == (0 if identify is False else 4)
+    best = rows[(rows["metric"] == "vaf_stiffness")]["value"].median()
+    assert best <= 0
+    text = (run.folder / "report.md").read_text()
+    assert "**0 of 1 scenarios are ranked**" in text
+    hint = next(line for line in text.splitlines() if "Not ranked, and why: " in line)
+    hint = hint[hint.index("Not ranked, and why: "):]
+    if identify is False:
+        assert "no identifiability rows (the part's params.identify is false" in hint
+    else:
+        tv = float(ident.set_index("metric")["value"]["tv_share"])
+        assert f"the time-varying stiffness torque is {tv:.3g} % of the measured torque's variance" in hint

@@ -170,7 +170,8 @@ def _overview(g: _Grid) -> list[str]:
             f"**{len(g.ranked)} of {len(g.cells)} scenarios are ranked**"
             + (f"; {len(g.infeasible)} are infeasible (no method's median VAF of k is above 0 %, i.e. none beats a "
                f"constant at the true mean) and left out of every ranking and count: {_join(g.infeasible)}."
-               if g.infeasible else "; in every scenario some method beats a constant at the true mean.")]
+               if g.infeasible else "; in every scenario some method beats a constant at the true mean.")
+            + (" " + ct.unranked_hint(g.rows, g.table, g.primary)).rstrip()]
 
 
 def _intervals_text(primary: str) -> str:

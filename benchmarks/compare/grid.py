@@ -34,9 +34,10 @@ combination of its axes, one case per estimator and combination (all R realizati
       perturbations: {pralds: {kind: pralds, ...}}
       estimators: {fsewls: {...}}    # settings of the estimators on the axis
 
-With ``params.identify: true`` every resolved experiment (the axes but estimator, data and tuning) also gets
-one case of protocol ``identifiability`` (rows with estimator ``(scenario)``: how much of the measured torque
-the stiffness and its time variation explain, :mod:`jointbench.benchmarks.compare.identifiability`).
+Every resolved experiment (the axes but estimator, data and tuning) also gets one case of protocol
+``identifiability`` (rows with estimator ``(scenario)``: how much of the measured torque the stiffness and its
+time variation explain, :mod:`jointbench.benchmarks.compare.identifiability`): the report's diagnosis of a
+scenario no method can rank. ``params.identify: false`` leaves them out (the report then says how to get them).
 
 A combination an estimator cannot run is skipped and reported with the reason: a perturbation it cannot
 identify from (:meth:`estimators.Estimator.supports`: skirt and KBR need a multisine), data it does not
@@ -65,7 +66,8 @@ from jointbench import sims
 from jointbench.benchmarks.compare.tuning import (AXES, AxisValues, OnlyRule, candidates, check_known_estimators,
                                                   check_search, check_search_applies, grid_settings, skip_summary)
 from jointbench.core.errors import ConfigError, Incompatible
-from jointbench.core.schema import Problems, number, param, parse
+from jointbench.benchmarks.compare.protocol import CompareParams
+from jointbench.core.schema import Problems, boolean, number, param, parse
 from jointbench.sims.profile import parse_profile
 
 NATIVE = "native"
@@ -452,6 +454,7 @@ def expand_grid(study_id: str, part, backend: str | None = None) -> tuple[list[d
     built: dict[str, Any] = {}
     missing = {b: backend_missing(b) for b in axes["backend"]}
     errors: dict[str, dict] = {}           # an invalid experiment's error -> the combinations (no estimator) with it
+    identify = boolean(part.params.get("identify", CompareParams.identify), f"{part.where}: params", "identify")
     for values in itertools.product(*(axes[a] for a in names)):
         combo = dict(zip(names, values))
         est = combo["estimator"]
@@ -486,7 +489,7 @@ def expand_grid(study_id: str, part, backend: str | None = None) -> tuple[list[d
                               seed=seed, where=part.where, backend=combo["backend"]))
             scen = {a: v for a, v in combo.items() if a in SCENARIO_AXES}
             ident = json.dumps([scen, seed], sort_keys=True, default=str)
-            if part.params.get("identify") and ident not in identified:
+            if identify and ident not in identified:
                 identified[ident] = dict(study=study_id, part=part.name, protocol="identifiability",
                                          params={k: v for k, v in params.items() if k not in ("data", "search")},
                                          sweep=scen, experiment=mapping, estimators={}, seed=seed,
