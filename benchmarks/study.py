@@ -289,7 +289,7 @@ def _prepare(ref: str | Path, opts: RunOptions) -> _Run:
     study = load_study(ref, overrides=opts.overrides)
     for part in study.parts.values():
         figure_maker(part)
-    from jointbench.benchmarks.compare.grid import missing_extra_lines
+    from jointbench.benchmarks.compare.skips import missing_extra_lines
 
     cases, skipped = expand_study(study, opts.parts, opts.backend)
     for line in missing_extra_lines([{**s, "part": study.parts[s["part"]].where} for s in skipped]):
@@ -387,7 +387,7 @@ def _outcome(run: _Run, results: list[CaseResult], wall: float, ran_on: str | No
     commit = fingerprint.git_commit()
     rows = cases_frame(results, commit)
     if run.skipped:
-        from jointbench.benchmarks.compare.grid import skipped_rows
+        from jointbench.benchmarks.compare.skips import skipped_rows
 
         rows = pd.concat([rows, pd.DataFrame(skipped_rows(run.study.id, run.skipped)).assign(git_commit=commit)],
                          ignore_index=True)
