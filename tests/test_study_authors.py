@@ -54,6 +54,29 @@ def test_a_study_files_errors_come_all_at_once(tmp_path):
                      f"{path}: parts.grid: variations.random (smooth_random): missing required key 'seed'"], lines
 
 
+@pytest.mark.parametrize("joint, errors", [
+    ({"model": "time_varying"}, ["missing required key 'I'", "missing required key 'K'"]),
+    ({"model": "time_varying", "I": 0.1, "K": {"shape": "ramp", "initial": 40, "final": 60}},
+     ["key 'K' (ramp): missing required key 'duration'", "give exactly one of 'B' (number or profile) and "
+                                                         "'damping_ratio'"]),
+    ({"model": "wrist_contact", "I": 0.003, "b": 0.035, "k": {"shape": "smooth_random", "mean": 5, "amplitude": 1}},
+     ["key 'k' (smooth_random): missing required key 'bandwidth'", "key 'k' (smooth_random): missing required "
+                                                                    "key 'seed'"]),
+])
+def test_a_joint_models_errors_come_at_once(joint, errors):
+    """A joint model's missing keys and its profiles' come together (K was checked after the other keys, and a
+    profile's keys after the damping)."""
+    from jointbench import sims
+    from jointbench.core.errors import ConfigError
+
+    exp = {"joint": joint, "perturbation": {"kind": "filtered_noise", "cutoff": "20 Hz"}, "fs_sim": "1 kHz",
+           "duration": "2 s"}
+    with pytest.raises(ConfigError) as exc:
+        sims.Experiment.from_mapping(exp, "experiment")
+    lines = str(exc.value).splitlines()
+    assert len(lines) == len(errors) and all(e in line for e, line in zip(errors, lines)), lines
+
+
 def test_errors_found_when_the_cases_are_made_come_all_at_once(tmp_path):
     """Errors that show only once the cases are made (a part's experiment, a grid's combinations): every part's
     and every combination's in one run, each distinct error once, naming a combination that has it."""
@@ -143,7 +166,9 @@ def test_a_grid_with_mujoco_rows_runs_the_analytic_ones_and_says_which_need_the_
     assert set(rows.loc[rows["metric"] != "skipped", "backend"]) == {"analytic"}
     skipped = rows[rows["metric"] == "skipped"]
     assert list(skipped["backend"]) == ["mujoco"] and "jointbench[mujoco]" in skipped["reason"].iloc[0]
-    assert "jointbench[mujoco]" in (tmp_path / "out" / "tiny" / "report.md").read_text()
+    report = (tmp_path / "out" / "tiny" / "report.md").read_text()
+    assert "jointbench[mujoco]" in report                         # the skipped rows, with the reason
+    assert "backend analytic;" in report and "analytic and mujoco" not in report    # nothing ran on MuJoCo
 
 
 def test_api_scenarios_says_what_it_leaves_out(without_mujoco):

@@ -152,7 +152,8 @@ def _grid(part, rows: pd.DataFrame, curves: pd.DataFrame, folder) -> _Grid:
         pairs.to_csv(folder / f"{part.name}_pairs.csv", index=False)
     return _Grid(part.name, rows, curves, table, pairs, primary, feas, methods=sorted(dict.fromkeys(table["method"])),
                  cells=cells, tunings=[t for t in dict.fromkeys(table["tuning"]) if t],
-                 backends=[b for b in dict.fromkeys(rows["backend"]) if b], ranked=ranked,
+                 backends=[b for b in dict.fromkeys(rows.loc[rows["metric"] != "skipped", "backend"]) if b],
+                 ranked=ranked,
                  infeasible=[c for c in cells if c not in ranked and (c, primary) in feas])
 
 
