@@ -289,7 +289,11 @@ def _prepare(ref: str | Path, opts: RunOptions) -> _Run:
     study = load_study(ref, overrides=opts.overrides)
     for part in study.parts.values():
         figure_maker(part)
+    from jointbench.benchmarks.compare.skips import missing_extra_lines
+
     cases, skipped = expand_study(study, opts.parts, opts.backend)
+    for line in missing_extra_lines([{**s, "part": study.parts[s["part"]].where} for s in skipped]):
+        print(f"jointbench: {line}", file=sys.stderr)      # e.g. a grid's MuJoCo rows on the light install
     root = results_root(opts.out_root)
     folder = _output_folder(study, root, opts)
     cache_dir = root / CACHE_FOLDER
@@ -393,7 +397,7 @@ def _outcome(run: _Run, results: list[CaseResult], wall: float, ran_on: str | No
     plugins = run_plugins([r.case for r in results], run.skipped)
     rows = cases_frame(results, commit, plugins)
     if run.skipped:
-        from jointbench.benchmarks.compare.grid import skipped_rows
+        from jointbench.benchmarks.compare.skips import skipped_rows
 
         skipped = pd.DataFrame(skipped_rows(run.study.id, run.skipped)).assign(git_commit=commit)
         if plugins:

@@ -83,7 +83,7 @@ def _joint_and_reflex(value: Any, where: str, key: str) -> tuple[Any, Any]:
 
 
 @dataclasses.dataclass(frozen=True, kw_only=True)
-class _ExperimentSpec:
+class ExperimentSpec:
     """The experiment block of a study config, as written (:meth:`Experiment.from_mapping`)."""
 
     joint: tuple = param(parser=_joint_and_reflex, doc="joint model {model: ..., reflex: {...}}")
@@ -177,7 +177,7 @@ class Experiment:
             Unknown or missing key, wrong unit or type, impossible value; the message names ``where``,
             the section and the key.
         """
-        spec = parse(_ExperimentSpec, mapping, where)
+        spec = parse(ExperimentSpec, mapping, where)
         joint, reflex = spec.joint
         return cls(joint=joint, reflex=reflex, perturbation=spec.perturbation, apparatus=spec.apparatus,
                    voluntary=spec.voluntary, sensors=spec.sensors, acquisition=spec.acquisition, gravity=spec.gravity,

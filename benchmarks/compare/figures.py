@@ -164,8 +164,8 @@ def _grid(part, rows: pd.DataFrame, curves: pd.DataFrame, folder) -> _Grid:
     board = lb.leaderboard(table, primary)
     return _Grid(part.name, rows, curves, table, pairs, primary, feas, methods=sorted(dict.fromkeys(table["method"])),
                  cells=cells, tunings=[t for t in dict.fromkeys(table["tuning"]) if t],
-                 backends=[b for b in dict.fromkeys(rows["backend"]) if b], ranked=ranked,
-                 infeasible=[c for c in cells if c not in ranked and (c, primary) in feas],
+                 backends=[b for b in dict.fromkeys(rows.loc[rows["metric"] != "skipped", "backend"]) if b],
+                 ranked=ranked, infeasible=[c for c in cells if c not in ranked and (c, primary) in feas],
                  styles=method_styles(list(table["method"]) + list(drawn)), board=board,
                  exports=export.write_summary(board, table, primary, folder, part.name))
 
@@ -187,7 +187,8 @@ def _overview(g: _Grid) -> list[str]:
             f"**{len(g.ranked)} of {len(g.cells)} scenarios are ranked**"
             + (f"; {len(g.infeasible)} are infeasible (no method's median VAF of k is above 0 %, i.e. none beats a "
                f"constant at the true mean) and left out of every ranking and count: {_join(g.infeasible)}."
-               if g.infeasible else "; in every scenario some method beats a constant at the true mean.")]
+               if g.infeasible else "; in every scenario some method beats a constant at the true mean.")
+            + (" " + ct.unranked_hint(g.rows, g.table, g.primary)).rstrip()]
 
 
 def _exports_text(files: list[str]) -> str:

@@ -29,8 +29,8 @@ chosen value is the lowest or highest of the candidates scored (``forgetting=hig
 the method, bounded the choice; :func:`edge_of`). The search is the study's ``tuning`` for the estimator, or
 what the estimator's settings declare (:func:`jointbench.benchmarks.compare.tuning.search_for`).
 
-Protocol ``identifiability`` (estimator ``(scenario)``, one case per resolved experiment when the part's
-``params.identify`` is true): the figures of
+Protocol ``identifiability`` (estimator ``(scenario)``, one case per resolved experiment unless the part's
+``params.identify`` is false): the figures of
 :mod:`jointbench.benchmarks.compare.identifiability` from the truth, median over the first ``min(R, 3)`` realizations.
 
 Every method is given the impedance direction, angle to torque (:func:`impedance`), and ``vaf_output``
@@ -89,7 +89,7 @@ class CompareParams:
     data: Literal["trial", "ensemble"] = param("trial", doc="fit single trials or ensembles")
     tuning: Literal["paper", "tuned"] = param("paper", doc="label: the paper's settings, or tuned on tuning "
                                                            "realizations (never scored) among 'search'")
-    identify: bool = param(False, doc="the grid adds one identifiability case per resolved experiment")
+    identify: bool = param(True, doc="the grid adds one identifiability case per resolved experiment (false: none)")
     search: Any = param(None, doc="tuned: the candidate settings (full mappings; the grid's tuning search)")
     estimator: str = param("", doc="label: the estimator of the case (its settings: the case's estimators)")
     scenario: str = param("", doc="label: the scenario")

@@ -254,6 +254,32 @@ def identifiability(rows: pd.DataFrame, table: pd.DataFrame) -> pd.DataFrame:
     return out
 
 
+def unranked_hint(rows: pd.DataFrame, table: pd.DataFrame, primary: str) -> str:
+    """Why each scenario of the ``primary`` backend is not ranked, in one line ('' when every one is): no method
+    was scored there (every combination skipped, failed or refused); or none beats a constant, with how much of
+    the measured torque the time-varying stiffness explains (the identifiability rows), or, without those rows,
+    how to get them (``params.identify``, on by default)."""
+    ident = identifiability(rows, table)
+    if ident.empty:
+        return ""
+    v = table[(table["metric"] == "vaf_stiffness") & (table["backend"] == primary)]
+    scored = set(v[np.isfinite(v["value"].to_numpy(float))]["cell"])
+    tv, snr = IDENTIFIABILITY["tv_share"], IDENTIFIABILITY["tv_snr_db"]
+    why = []
+    for r in ident[(ident["backend"] == primary) & (ident["ranked"] != "yes")].to_dict("records"):
+        cell, best = r["scenario"], r["best median VAF of k (%)"]
+        if cell not in scored:
+            why.append(f"{cell}: no method was scored (see the combinations skipped or not fitted)")
+        elif pd.notna(r.get(tv, np.nan)):
+            why.append(f"{cell}: best median VAF of k {_num(best)} %; the time-varying stiffness torque is "
+                       f"{_num(r[tv])} % of the measured torque's variance, SNR {_num(r[snr])} dB")
+        else:
+            why.append(f"{cell}: best median VAF of k {_num(best)} %; no identifiability rows (the part's "
+                       f"params.identify is false; true, the default, says how much of the torque the time-varying "
+                       f"stiffness explains)")
+    return ("Not ranked, and why: " + "; ".join(why) + ".") if why else ""
+
+
 # ----------------------------------------------------------------------------- backends, settings
 def backend_agreement(table: pd.DataFrame, primary: str) -> list[str]:
     """One line per cell run on more than one backend: how far the other backend's values lie from the
