@@ -485,8 +485,12 @@ def estimate_seconds(cases: list, groups: list[list[int]]) -> float:
         for i in g:
             c = cases[i]
             n = exp.n if exp is not None else 0
-            if c.protocol == "identifiability":     # N_IDENTIFY realizations, with and without noise
-                total += 2 * min(R, 3) * (exp.n_sim * TRIAL_S_PER_STEP if exp is not None else 0) + CASE_OVERHEAD_S
+            if c.protocol == "identifiability":     # N_IDENTIFY realizations, with and without noise; the oracle
+                # bound's R realizations (x M on the analytic backend: its ensembles), each acquired with and
+                # without noise and its regressors filtered and acquired like a third (compare/oracle.py)
+                m_oracle = M if first.backend in ("", "analytic") else 1
+                trials = 2 * min(R, 3) + 3 * R * m_oracle
+                total += trials * (exp.n_sim * TRIAL_S_PER_STEP if exp is not None else 0) + CASE_OVERHEAD_S
                 continue
             est = next(iter(c.estimators), "")
             k = M if c.sweep.get("data") == "ensemble" else 1

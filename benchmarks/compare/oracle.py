@@ -267,7 +267,7 @@ def bound_text(eff: pd.DataFrame, primary: str) -> str:
     if len(below):
         text += (f" {len(below)} lie below 1 (biased estimates whose error over these realizations is smaller "
                  "than the unbiased oracle's; the bound holds for unbiased estimators): "
-                 + "; ".join(f"{r.method} ({r.tuning}) on {r.cell} {r.efficiency:.2f}"
+                 + "; ".join(f"{r.method}, {r.tuning}, on {r.cell} {r.efficiency:.2f}"
                              for r in below.sort_values("efficiency").head(5).itertuples())
                  + ("; ..." if len(below) > 5 else "") + ".")
     return text

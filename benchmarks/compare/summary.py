@@ -130,7 +130,8 @@ def summarize(table: pd.DataFrame, backend: str, alpha: float = ALPHA) -> tuple[
                 continue
             design, gone_m, gone_c = block_design(values)
             listed = table[(table["metric"] == metric) & (table["tuning"] == tuning) & (table["backend"] == backend)]
-            gone_m = [f"{m} (never ranked)" for m in dict.fromkeys(listed["method"]) if m not in values.columns] + gone_m
+            never = [f"{m} (never ranked)" for m in dict.fromkeys(listed["method"]) if m not in values.columns]
+            gone_m = never + gone_m
             rec = {"metric": metric, "tuning": tuning, "scenarios": int(design.shape[0]),
                    "methods": int(design.shape[1]), "friedman_chi2": np.nan, "p": np.nan,
                    "left out (methods)": "; ".join(gone_m), "left out (scenarios)": "; ".join(gone_c)}
@@ -163,8 +164,8 @@ def cd_diagram(mean_rank: pd.Series, pvalues: pd.DataFrame, title: str, folder, 
                colours: dict | None = None, alpha: float = ALPHA) -> list[str]:
     """The critical-difference diagram of one metric and tuning column (scikit-posthocs): the methods at
     their mean ranks, a bar joining every group Nemenyi's test cannot tell apart at ``alpha``. Written as
-    ``name`` (PNG) and the same stem as SVG and PDF (the vector formats) in ``folder``; returns the file names. ``colours``: method ->
-    colour (the report's fixed palette, when given).
+    ``name`` (PNG) and the same stem as SVG and PDF (the vector formats) in ``folder``; returns the file
+    names. ``colours``: method -> colour (the report's fixed palette, when given).
 
     References
     ----------
@@ -210,7 +211,8 @@ def cd_figures(posthoc: dict, tests: pd.DataFrame, part: str, folder, colours: d
         out.append((files[0], f"Critical-difference diagram, {head} ({tuning} column): mean rank of {t['methods']} "
                               f"methods over {t['scenarios']} scenarios (1 = best); a bar joins methods Nemenyi's "
                               f"test cannot tell apart at {alpha:g}; Friedman chi^2 = {t['friedman_chi2']:.3g}, "
-                              f"p = {t['p']:.2g} ({t['verdict']})" + (f"; {left}" if left else "") + "; also as SVG and PDF"))
+                              f"p = {t['p']:.2g} ({t['verdict']})" + (f"; {left}" if left else "")
+                              + "; also as SVG and PDF"))
     return out
 
 
@@ -293,7 +295,7 @@ def _efficiency_tables(eff: pd.DataFrame, orc: pd.DataFrame, primary: str) -> li
                      "oracle total error": float(o["oracle_total_error"].iloc[0]) if len(o) else np.nan,
                      "oracle, ensembles": (float(o["oracle_total_error_ensemble"].iloc[0])
                                            if len(o) and "oracle_total_error_ensemble" in o else np.nan),
-                     "closest method": f"{best['method']} ({best['tuning']})",
+                     "closest method": f"{best['method']}, {best['tuning']}",
                      "its efficiency": float(best["efficiency"])})
     return [("Efficiency against the oracle bound, per method: total error / the oracle's on the same scenario "
              f"({primary}; an ensemble method against the oracle fitted to the same ensembles; 1 = as good as the "
