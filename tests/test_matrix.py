@@ -209,4 +209,6 @@ def test_a_tuned_case_is_estimated_to_cost_more_than_its_paper_case(tmp_path):
 
     cases, _ = expand_study(load_study(_tuned_study(tmp_path)), ["grid"])
     cost = {c.sweep.get("tuning", "identifiability"): estimate_seconds([c], [[0]]) for c in cases}
-    assert cost["tuned"] > cost["paper"] > cost["identifiability"] > 0
+    # the identifiability case carries the oracle bound (R realizations, x M for its ensembles): no longer
+    # cheaper than a paper case
+    assert cost["tuned"] > cost["paper"] > 0 and cost["identifiability"] > 0

@@ -39,7 +39,7 @@ import pandas as pd
 from jointbench import sims
 from jointbench.benchmarks import metrics
 from jointbench.benchmarks.compare.identifiability import torque_channel, without_torque_noise
-from jointbench.benchmarks.compare.tables import SCENARIO_ROWS
+from jointbench.benchmarks.compare.tables import PRIMARY_BACKEND, SCENARIO_ROWS
 from jointbench.benchmarks.scoring import frozen_stiffness, scored_samples
 from jointbench.sims.experiment import limb_response
 
@@ -200,6 +200,19 @@ def oracle_errors(exp, seed, realizations: int, discard: float, ensemble_size: i
             E.append(oracle_estimate(exp, members)[keep])
         out["oracle_total_error_ensemble"] = metrics.total_error(kc, np.asarray(E))
     return out
+
+
+def fits_ensembles(backend: str) -> bool:
+    """Whether the oracle is also fitted to ensembles on ``backend``: on the ranked one (no backend axis:
+    the default), where the ensemble methods run and efficiency is reported."""
+    return backend in ("", PRIMARY_BACKEND)
+
+
+def trials_estimate(realizations: int, ensemble_size: int, backend: str) -> int:
+    """Trials' worth of acquisitions :func:`oracle_errors` makes in an identifiability case (for the grid's
+    budget estimate): each realization acquired with and without noise and its regressors filtered and
+    acquired like a third, R of them, times M on the ranked backend (its ensembles, as the protocol asks)."""
+    return 3 * realizations * (ensemble_size if fits_ensembles(backend) else 1)
 
 
 # ----------------------------------------------------------------------------------- the report's side
