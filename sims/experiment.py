@@ -363,6 +363,20 @@ def simulate(experiment: Experiment, seed: int | np.random.SeedSequence, backend
     return trial
 
 
+def limb_response(experiment: Experiment, seed: int | np.random.SeedSequence,
+                  realization: int = 0) -> tuple[Response, np.ndarray]:
+    """``(response, voluntary torque)`` of realization ``realization``: the limb's response at the simulation
+    rate as the backend computed it (:class:`sims.backend.Response`: angle, velocity and acceleration from the
+    dynamics, the measured and the impedance torque), before sensors, noise and acquisition; the one
+    :func:`simulate` acquires (the same random streams; inside a :class:`sims.reuse.reuse_responses` block
+    computed once for both). For code that needs the exact signals, e.g. the oracle of a comparison grid
+    (``benchmarks/compare/oracle.py``), which sees the truth by design."""
+    exp, runner = _resolved(experiment, seed, None, 0, realization)
+    key = _reuse.response_key(exp, seed, realization, exp.backend)
+    (_drive, tv, resp), _ = _reuse.lookup(key, lambda: _respond(exp, runner, streams(seed, 0, realization)))
+    return resp, tv
+
+
 def _resolved(exp: Experiment, seed: Any, backend: str | Any | None, replicate: int,
               realization: int) -> tuple[Experiment, Any]:
     """The experiment to simulate (on ``backend`` when it is given and not the experiment's, checked there)

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import dataclasses
 import re
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -33,6 +34,7 @@ from jointbench.benchmarks.compare import leaderboard as lb
 from jointbench.benchmarks.compare import page as cp
 from jointbench.benchmarks.compare import pairs as pairs_
 from jointbench.benchmarks.compare import plots
+from jointbench.benchmarks.compare import summary as csum
 from jointbench.benchmarks.compare import tables as ct
 from jointbench.benchmarks.compare.styles import MethodStyle, method_styles
 from jointbench.benchmarks.compare.tables import METRICS, labelled  # noqa: F401  (the public names)
@@ -92,15 +94,7 @@ def _paired_text(pairs: pd.DataFrame, rows: pd.DataFrame) -> str:
             f"{ct.ALPHA:g} and the median difference favours A.")
     if pairs.empty:
         return text + " No pair could be compared in this run."
-    fam = pairs.groupby(["cell", "tuning", "metric"]).agg(m=("p", "size"), n=("n", "max"))
-    blind = fam[[cs.min_signed_rank_p(int(n)) >= ct.ALPHA / m for m, n in zip(fam["m"], fam["n"])]]
-    if len(blind):
-        n_min = int(blind["n"].min())
-        text += (f" In {len(blind)} of the {len(fam)} families the test cannot reject at all: with n = {n_min} "
-                 f"realizations the smallest possible p-value is 2/2^{n_min} = {cs.min_signed_rank_p(n_min):.2g}, "
-                 f"above Holm's first threshold {ct.ALPHA:g}/m for m = {int(blind['m'].min())} or more pairs; "
-                 "more realizations are needed for a verdict there (the counts 'ahead' say which way the median "
-                 "paired difference points).")
+    text += pairs_.attainability_text(pairs, ct.ALPHA)
     sig = int((pairs["verdict"] != "").sum())
     text += f" Significant after correction: {sig} of {len(pairs)} pairs."
     return text
@@ -383,10 +377,16 @@ def compare_figures(part, rows, curves, folder, checks) -> PartReport:
     g = _grid(part, rows, curves, folder)
     text = _text(g)
     ident = ct.identifiability(g.rows, g.table)
-    rep = PartReport(text="\n\n".join(text), title=_title(g))
-    rep.tables = _method_tables(g, ident) + _scenario_tables(g, ident)
+    colours = {m: st.color for m, st in g.styles.items()}
+    summary = csum.report_parts(g.name, g.table, g.rows, g.pairs, g.primary, folder, colours=colours)
+    rep = PartReport(text="\n\n".join(text + summary.text), title=_title(g))
+    rep.tables = _method_tables(g, ident) + summary.tables + _scenario_tables(g, ident)
     rep.figures, sets, order, heat = _figures(g, folder)
-    _write_page(g, text, rep.tables, sets, order, heat, folder)
+    rep.figures += summary.figures
+    cd = {(m, t): Path(folder) / f"{g.name}_cd_{m}_{t}.png"
+          for m, t in zip(summary.tests.get("metric", []), summary.tests.get("tuning", []))}
+    _write_page(g, text, rep.tables, sets, order, heat, folder, cd_figures={k: f for k, f in cd.items() if f.exists()},
+                summary=summary.tables[0][1] if summary.tables else None)
     return rep
 
 

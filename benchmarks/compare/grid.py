@@ -54,8 +54,8 @@ import json
 import math
 from typing import Any, Callable, Mapping
 
-from jointbench import estimators
-from jointbench import sims
+from jointbench import estimators, sims
+from jointbench.benchmarks.compare.oracle import trials_estimate as oracle_trials
 from jointbench.benchmarks.compare.tuning import (AXES, AxisValues, OnlyRule, candidates, check_known_estimators,
                                                   check_search, check_search_applies, grid_settings, nothing_to_tune,
                                                   search_for, skip_summary)
@@ -481,8 +481,9 @@ def estimate_seconds(cases: list, groups: list[list[int]]) -> float:
         for i in g:
             c = cases[i]
             n = exp.n if exp is not None else 0
-            if c.protocol == "identifiability":     # N_IDENTIFY realizations, with and without noise
-                total += 2 * min(R, 3) * (exp.n_sim * TRIAL_S_PER_STEP if exp is not None else 0) + CASE_OVERHEAD_S
+            if c.protocol == "identifiability":     # N_IDENTIFY realizations, with and without noise; the oracle's
+                trials = 2 * min(R, 3) + oracle_trials(R, M, first.backend)
+                total += trials * (exp.n_sim * TRIAL_S_PER_STEP if exp is not None else 0) + CASE_OVERHEAD_S
                 continue
             est = next(iter(c.estimators), "")
             k = M if c.sweep.get("data") == "ensemble" else 1

@@ -59,6 +59,7 @@ from jointbench import estimators, sims
 from jointbench.benchmarks import metrics
 from jointbench.core.scores import vaf
 from jointbench.benchmarks.compare.identifiability import FIGURES, trial_identifiability, without_torque_noise
+from jointbench.benchmarks.compare import oracle
 from jointbench.benchmarks.protocols import Context, register
 from jointbench.benchmarks.scoring import fit_timed, frozen_stiffness, scored_samples
 from jointbench.core.ensemble import Ensemble, valid_mask
@@ -361,3 +362,8 @@ def identify(ctx: Context) -> None:
         figs.append(trial_identifiability(trial, clean, frozen_stiffness(trial), keep))
     for f in FIGURES:
         ctx.metric(f, float(np.median([d[f] for d in figs])), SCENARIO_ROW, n=n)
+    # the oracle bound (benchmarks/compare/oracle.py): on single trials, and on ensembles where they run
+    if not oracle.not_applicable(ctx.experiment):
+        ens = p.ensemble_size if oracle.fits_ensembles(p.backend) else 0
+        for metric, value in oracle.oracle_errors(ctx.experiment, ctx.seed, p.realizations, p.discard, ens).items():
+            ctx.metric(metric, value, SCENARIO_ROW, n=p.realizations)
