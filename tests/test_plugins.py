@@ -70,9 +70,9 @@ def test_the_plugin_runs_everywhere_and_an_edit_recomputes_its_cases(plugin, tmp
     assert "sliding_ibk" in listed and "a plugin example" in listed
     study, out = src / "comparison.yaml", tmp_path / "results"
     pool = _jb(env, "run", study, "--out", out, "--workers", "2", "--quiet", cwd=tmp_path)
-    assert "5 cases (0 from cache, 5 computed), 0 failed" in pool.stdout    # sliding_ibk, fsewls tuned too
+    assert "6 cases (0 from cache, 6 computed), 0 failed" in pool.stdout    # sliding_ibk, fsewls tuned too; identify
     first = _numbers(out / "plugin_comparison" / "cases.csv")
-    assert set(first["estimator"]) == {"sliding_ibk", "fsewls", "irf2_ls"}
+    assert set(first["estimator"]) == {"sliding_ibk", "fsewls", "irf2_ls", "(scenario)"}   # identify: on by default
     assert (first["status"] == "ok").sum() == len(first) - 1                # irf2_ls tuned: "nothing to tune"
     assert first[first["status"] != "ok"]["reason"].str.startswith("nothing to tune: irf2_ls").all()
     before = _cases(out)
@@ -91,7 +91,7 @@ def test_the_plugin_runs_everywhere_and_an_edit_recomputes_its_cases(plugin, tmp
     init.write_text(init.read_text() + "\n_EDITED = True\n")
     _pip_install(src, target)
     again = _jb(env, "run", study, "--out", out, "--executor", "dask", "--workers", "2", "--quiet", cwd=tmp_path)
-    assert "5 cases (3 from cache, 2 computed), 0 failed" in again.stdout
+    assert "6 cases (4 from cache, 2 computed), 0 failed" in again.stdout
     cases = _cases(out)
     def of(frame, est, column="cache_key"):
         return list(frame.loc[frame.index == est, column])
