@@ -40,7 +40,21 @@ from jointbench.core.schema import Problems, error, param, parse
 
 @dataclasses.dataclass(frozen=True)
 class Reading:
-    """One chosen reading of an ambiguous passage (rendered in the report's Interpretation)."""
+    """One chosen reading of an ambiguous passage (rendered in the report's Interpretation).
+
+    Parameters
+    ----------
+    id : str
+        Its id (``R1``, ``M7``), named by the checks that pass only under it (their ``reading``).
+    topic : str
+        What it is about, in a few words.
+    passage : str
+        The passage of the paper that is ambiguous (quoted or summarised, with its place).
+    reading : str
+        The reading chosen, and why.
+    alternatives : str
+        The other readings, and how to run them (e.g. a ``--set``).
+    """
 
     id: str
     topic: str

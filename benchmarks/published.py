@@ -51,6 +51,29 @@ class Check:
     ``discrimination_reason`` argues a band that also holds the compared method's published cell. ``domain``
     restricts the scored rows (e.g. ``{f_v: {lt: 1.0}}``, the paper's domain; ``domain_reason`` says why); the
     rows outside it are shown, not scored.
+
+    Parameters
+    ----------
+    id : str
+        The check's id, unique in the file (the rows of ``checks.csv``).
+    part : str
+        The part of the study whose rows it reads.
+    description : str
+        What is checked, in words.
+    source : str
+        Where the published value is (table, figure, page of the paper).
+    published : number or text
+        The published value (or claim).
+    if_missed : str
+        The likely reason of a miss, shown beside it.
+    target : str
+        The published table or figure it belongs to (the report's Fidelity table).
+    cause : str
+        The one-line cause of a miss, shared by the misses it explains.
+    if_missed_below, if_missed_above : str
+        The note of a miss below ``low`` / above ``high`` (in place of ``if_missed``).
+    discrimination_reason : str
+        Why the band tells the compared methods apart though it holds the other method's published cell.
     """
 
     id: str
@@ -96,8 +119,14 @@ def _kind_defaults() -> dict:
     return {"low": -math.inf, "high": math.inf, **out}
 
 @dataclasses.dataclass(frozen=True)
-class _Range:
-    """A range condition of ``select``, ``versus`` or ``domain`` (``{f_v: {lt: 1.0}}``): at least one bound."""
+class Range:
+    """A range condition of ``select``, ``versus`` or ``domain`` (``{f_v: {lt: 1.0}}``): at least one bound.
+
+    Parameters
+    ----------
+    lt, le, gt, ge : float
+        The column's values below, at most, above, at least this.
+    """
 
     lt: float | None = None
     le: float | None = None
@@ -118,7 +147,7 @@ def _conditions(need_metric: bool):
         for col, v in value.items():
             if isinstance(v, Mapping):
                 with problems.catch():
-                    bounds = parse(_Range, v, f"{where}: key '{key}.{col}'")
+                    bounds = parse(Range, v, f"{where}: key '{key}.{col}'")
                     out[col] = {op: b if isinstance(b, (int, float)) and not isinstance(b, bool)
                                 else getattr(bounds, op) for op, b in v.items()}
         problems.raise_all()

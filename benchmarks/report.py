@@ -223,6 +223,15 @@ def _part(study: Study, name: str, rep, folder) -> Section:
     return sec
 
 
+def plugins_sentence(plugins: dict[str, str] | None) -> str:
+    """`` Plugin estimators (distribution==version, source hash): ...`` of the estimators from outside
+    jointbench a run's cases used (the code that made their numbers, beside the commit); '' when none."""
+    if not plugins:
+        return ""
+    return (" Plugin estimators (distribution==version, source hash; also the rows' column `plugin`): "
+            + "; ".join(f"`{name}` from `{text}`" for name, text in sorted(plugins.items())) + ".")
+
+
 def page(study: Study, comparison: pd.DataFrame, part_reports: dict, failed: list, meta: dict) -> Page:
     """The report as a page of the report model (every section of :func:`model`, in reading order)."""
     m = model(study, comparison, part_reports, failed, meta)
@@ -232,7 +241,8 @@ def page(study: Study, comparison: pd.DataFrame, part_reports: dict, failed: lis
         f"Study `{study.id}` (paper `{study.paper}`), config `{study.path.name}`. Generated {m['generated']} at "
         f"commit `{m['commit']}` by `{meta['command']}`: {meta['n_cases']} cases ({meta['n_cached']} from cache, "
         f"{len(failed)} failed, {len(meta.get('refused') or [])} refused), {meta['wall_s']:.1f} s wall time on "
-        f"{meta.get('ran_on') or str(meta['workers']) + ' worker(s)'}.")]
+        f"{meta.get('ran_on') or str(meta['workers']) + ' worker(s)'}."
+        + plugins_sentence(meta.get("plugins")))]
     if meta["parts"] != list(study.parts):
         lines = [f"This run computed the parts {', '.join(meta['parts'])}"
                  + (f"; the parts {', '.join(meta['from_cache'])} come from the cache of an earlier run with the "

@@ -23,7 +23,7 @@ from jointbench.benchmarks.harness.pool import (InlineExecutor, WorkerPool, clos
                                                 run_task)
 from jointbench.benchmarks.harness.workers import DEFAULT_CASE_TIME_LIMIT_S, ExecutorLost, WorkerMismatch
 from jointbench.core.errors import ConfigError
-from jointbench.core.schema import parse
+from jointbench.core.schema import Problems, parse
 
 __all__ = ["Case", "CaseResult", "Cache", "RunInterrupted", "expand", "expand_study", "group_cases", "run_case",
            "run_cases"]
@@ -103,9 +103,8 @@ def expand_study(study: Study, parts: Iterable[str] | None = None,
                  backend: str | None = None) -> tuple[list[Case], list[dict]]:
     """All cases of the selected parts, validated up front (config errors surface before any run), and
     the combinations of comparison grids that are skipped, with their reasons (:mod:`benchmarks.compare.grid`).
-    ``backend`` (e.g. ``jointbench run --backend mujoco``) replaces every part's own backend."""
-    from jointbench.benchmarks.compare.grid import expand_grid
-
+    ``backend`` (e.g. ``jointbench run --backend mujoco``) replaces every part's own backend. The config errors
+    of every part are raised at once."""
     names = list(study.parts) if parts is None else list(dict.fromkeys(parts))
     unknown = [p for p in names if p not in study.parts]
     if unknown:
@@ -117,24 +116,13 @@ def expand_study(study: Study, parts: Iterable[str] | None = None,
         raise ConfigError(f"{study.path}: the selected parts expand to {n_cases} cases, {n_fits} fits with their "
                           f"estimators ({big}: {sizes[big][0]} cases, {sizes[big][1]} fits), more than the "
                           f"{MAX_FITS} fits a run may hold; lower the seeds, the sweeps or the grid's axes")
-    cases, skipped = [], []
-    for name in names:
-        part: Part = study.parts[name]
-        if part.grid is not None:
-            specs, skip = expand_grid(study.id, part, backend)
-            got = [Case(**spec) for spec in specs]
+    cases, skipped, problems = [], [], Problems()
+    for name in names:               # every part's errors at once
+        with problems.catch():
+            got, skip = _expand_part(study, name, backend)
             cases += got
-            skipped += [{"part": name, **s} for s in skip]
-            if got:
-                parse_inputs(got[0])       # the protocol's parameters, once per part
-            continue
-        for combo in part.grid_combinations():
-            for seed in part.seeds:
-                cases.append(Case(study=study.id, part=name, protocol=part.protocol, params=dict(part.params),
-                                  sweep=combo, experiment=part.experiment, estimators=dict(part.estimators),
-                                  seed=seed, where=part.where, backend=backend or part.backend))
-        _, _, exp, ests = parse_inputs(cases[-1])   # validate once per part
-        _check_estimators(part, exp, ests)
+            skipped += skip
+    problems.raise_all()
     seen: dict = {}
     for c in cases:                  # two cases under one id would be one row of the history twice
         if (c.part, c.case_id) in seen:
@@ -142,6 +130,26 @@ def expand_study(study: Study, parts: Iterable[str] | None = None,
                               f"e.g. [1, '1']); list each value once")
         seen[(c.part, c.case_id)] = c
     return cases, skipped
+
+
+def _expand_part(study: Study, name: str, backend: str | None) -> tuple[list[Case], list[dict]]:
+    """The cases of part ``name`` and its skipped grid combinations, validated (:func:`expand_study`)."""
+    from jointbench.benchmarks.compare.grid import expand_grid
+
+    part: Part = study.parts[name]
+    if part.grid is not None:
+        specs, skip = expand_grid(study.id, part, backend)
+        got = [Case(**spec) for spec in specs]
+        if got:
+            parse_inputs(got[0])       # the protocol's parameters, once per part
+        return got, [{"part": name, **s} for s in skip]
+    got = [Case(study=study.id, part=name, protocol=part.protocol, params=dict(part.params), sweep=combo,
+                experiment=part.experiment, estimators=dict(part.estimators), seed=seed, where=part.where,
+                backend=backend or part.backend)
+           for combo in part.grid_combinations() for seed in part.seeds]
+    _, _, exp, ests = parse_inputs(got[-1])   # validate once per part
+    _check_estimators(part, exp, ests)
+    return got, []
 
 
 def expand(study: Study, parts: Iterable[str] | None = None, backend: str | None = None) -> list[Case]:

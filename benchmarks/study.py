@@ -289,7 +289,11 @@ def _prepare(ref: str | Path, opts: RunOptions) -> _Run:
     study = load_study(ref, overrides=opts.overrides)
     for part in study.parts.values():
         figure_maker(part)
+    from jointbench.benchmarks.compare.skips import missing_extra_lines
+
     cases, skipped = expand_study(study, opts.parts, opts.backend)
+    for line in missing_extra_lines([{**s, "part": study.parts[s["part"]].where} for s in skipped]):
+        print(f"jointbench: {line}", file=sys.stderr)      # e.g. a grid's MuJoCo rows on the light install
     root = results_root(opts.out_root)
     folder = _output_folder(study, root, opts)
     cache_dir = root / CACHE_FOLDER
@@ -309,7 +313,8 @@ def _begin(run: _Run) -> None:
     run.history = History(run.root / HISTORY_FILE)
     run.run_id = run.history.begin_run(study.id if opts.backend is None else f"{study.id}@{opts.backend}",
                                        run.parts, config_hash(study), len(run.cases), kind=opts.kind,
-                                       nightly_id=opts.nightly_id, command=run.command, workers=run.n_workers)
+                                       nightly_id=opts.nightly_id, command=run.command, workers=run.n_workers,
+                                       plugins=run_plugins(run.cases, run.skipped))
 
 
 def _run_cases(run: _Run) -> tuple[list[CaseResult], float, str | None]:
@@ -374,6 +379,14 @@ def _cached_parts(run: _Run) -> tuple[list[CaseResult], list[str]]:
     return results, names
 
 
+def run_plugins(cases, skipped=()) -> dict[str, str]:
+    """The plugin estimators of a run's ``cases`` and ``skipped`` combinations: estimator ->
+    ``"<distribution>==<version> <source hash>"`` (:func:`benchmarks.harness.fingerprint.plugin_hash`), for
+    the rows, the report and the history."""
+    names = {e for c in cases for e in c.estimators} | {s["estimator"] for s in skipped}
+    return fingerprint.plugin_hash(names)
+
+
 def _outcome(run: _Run, results: list[CaseResult], wall: float, ran_on: str | None) -> _Outcome:
     """The tidy rows and curves of the results (and of the parts the cache holds), the checks judged on the
     parts shown, and the facts the report states."""
@@ -381,15 +394,19 @@ def _outcome(run: _Run, results: list[CaseResult], wall: float, ran_on: str | No
     extra, from_cache = _cached_parts(run)
     results = results + extra
     commit = fingerprint.git_commit()
-    rows = cases_frame(results, commit)
+    plugins = run_plugins([r.case for r in results], run.skipped)
+    rows = cases_frame(results, commit, plugins)
     if run.skipped:
-        from jointbench.benchmarks.compare.grid import skipped_rows
+        from jointbench.benchmarks.compare.skips import skipped_rows
 
-        rows = pd.concat([rows, pd.DataFrame(skipped_rows(run.study.id, run.skipped)).assign(git_commit=commit)],
-                         ignore_index=True)
+        skipped = pd.DataFrame(skipped_rows(run.study.id, run.skipped)).assign(git_commit=commit)
+        if plugins:
+            skipped["plugin"] = skipped["estimator"].map(plugins)
+        rows = pd.concat([rows, skipped], ignore_index=True)
     shown = [p for p in run.study.parts if p in run.parts or p in from_cache]
     checks = judge(run.study.checks, rows, set(shown), commit, swap=run.study.method_swap)
-    meta = {"commit": commit, "command": run.command, "n_cases": len(run.cases), "n_cached": n_cached,
+    meta = {"commit": commit, "plugins": plugins, "command": run.command, "n_cases": len(run.cases),
+            "n_cached": n_cached,
             "wall_s": wall, "workers": run.n_workers, "parts": run.parts, "from_cache": from_cache,
             "folder": run.folder, "backend": run.options.backend, "stage": None, "ran_on": ran_on}
     return _Outcome(results, wall, rows, curves_frame(results), checks, shown, meta)

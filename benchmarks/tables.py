@@ -10,16 +10,21 @@ import pandas as pd
 
 
 ROW_FRONT = ["study", "part", "case_id", "seed", "estimator", "metric", "value", "status", "error",
-             "wall_time_s", "git_commit"]
+             "wall_time_s", "git_commit", "plugin"]
 
 
-def cases_frame(results, commit: str) -> pd.DataFrame:
-    """One row per metric per case (a failed case gives one row with its error)."""
+def cases_frame(results, commit: str, plugins: dict[str, str] | None = None) -> pd.DataFrame:
+    """One row per metric per case (a failed case gives one row with its error). ``plugins`` (estimator ->
+    ``"<distribution>==<version> <source hash>"``, :func:`benchmarks.harness.fingerprint.plugin_hash`): every
+    row of a case whose estimators include a plugin carries it in column ``plugin`` (several: joined by
+    ``"; "``), the code that made its numbers beside ``git_commit``."""
     recs = []
+    plugins = plugins or {}
     for r in results:
+        code = "; ".join(plugins[e] for e in r.case.estimators if e in plugins)
         base = {"study": r.case.study, "part": r.case.part, "case_id": r.case.case_id, "seed": r.case.seed,
                 **{k: v for k, v in r.case.sweep.items()}, "status": r.status, "error": r.error,
-                "wall_time_s": round(r.wall_time_s, 4), "git_commit": commit,
+                "wall_time_s": round(r.wall_time_s, 4), "git_commit": commit, **({"plugin": code} if code else {}),
                 "backend": getattr(r.case, "backend", "analytic"),
                 "sim_time_s": round(sum(e[1] for e in r.sim_times), 6), "n_trials": len(r.sim_times),
                 "n_responses": sum(1 for e in r.sim_times if not (len(e) > 2 and e[2]))}

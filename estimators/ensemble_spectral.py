@@ -15,7 +15,7 @@ from jointbench.core.band import coherence_threshold, frf_and_coherence, has_pow
 from jointbench.core.ensemble import Ensemble
 from jointbench.core.errors import InputError
 from jointbench.core.estimate_tv import TVIRFEstimate
-from jointbench.core.schema import param
+from jointbench.core.schema import Tune, param
 
 #: bins whose input power (time mean) is below this fraction of the strongest bin's are not fitted: there the
 #: input may be mostly the taper's leakage from its band (Hann: -31 dB sidelobes), and ``H`` that of other bins
@@ -249,7 +249,7 @@ class EnsembleSpectral(EnsembleEstimator):
     @dataclasses.dataclass(frozen=True)
     class Settings:
         window: float = param(1.0, unit="s", gt=0, doc="short-time window: the FRF is taken frozen over it "
-                                                        "(frequency resolution 1/window)")
+                                                        "(frequency resolution 1/window)", tune=Tune())
         step: float | None = param(None, unit="s", gt=0, doc="distance between window centres; none = one sample")
         taper: str = param("hann", doc="taper of each window (a scipy.signal.get_window name)")
         detrend: Literal["constant", "linear", "none"] = param("constant", doc="trend removed from each window")

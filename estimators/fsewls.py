@@ -20,7 +20,7 @@ from jointbench.core.band import MIN_RUN, chance, excited_share, input_band
 from jointbench.core.errors import InputError
 from jointbench.core.estimate import Intervals, ParametricEstimate, Prediction
 from jointbench.core.intervals import LEVEL
-from jointbench.core.schema import param
+from jointbench.core.schema import Tune, param
 from jointbench.core.scores import vaf
 from jointbench.core.types import Trial
 
@@ -175,7 +175,7 @@ class FSEWLS(Estimator):
         svf_form: Literal["printed", "lowpass"] = param("printed", doc="L = s^(n-2) a^n/(s+a)^n as printed, or "
                                                                        "a^n/(s+a)^n")
         forgetting: float | Literal["auto"] = param(20.0, unit="1/s", gt=0, doc="forgetting rate lambda of the EWLS "
-                                                    "(eq. 6); auto = the held-out prediction's best")
+                                                    "(eq. 6); auto = the held-out prediction's best", tune=Tune())
         init_window: float = param(0.5, unit="s", gt=0, doc="first seconds fitted for Theta(0) and P(0)")
 
     #: the setting ``--set auto=true`` chooses from the data (:meth:`choose_forgetting`)

@@ -15,7 +15,7 @@ from jointbench.core.ensemble import Ensemble
 from jointbench.core.errors import InputError
 from jointbench.core.intervals import psd_solve
 from jointbench.core.estimate_tv import TVIRFEstimate
-from jointbench.core.schema import param
+from jointbench.core.schema import Tune, param
 
 BasisKind = Literal["gaussian", "bspline", "legendre"]
 
@@ -136,7 +136,7 @@ class Guarin(EnsembleEstimator):
     @dataclasses.dataclass(frozen=True)
     class Settings(TVLagSettings, JackknifeSettings):
         basis: BasisKind = param("gaussian", doc="basis functions of time: 'gaussian', 'bspline' or 'legendre'")
-        n_basis: int = param(21, ge=1, doc="number of basis functions M")
+        n_basis: int = param(21, ge=1, doc="number of basis functions M", tune=Tune())
         width: float = param(1.0, gt=0, doc="Gaussian width, in centre spacings")
         remove_mean: Literal["record", "ensemble", "none"] = param("record", doc="'record': each realization's "
                                                                                 "mean; 'ensemble': the mean over "

@@ -12,7 +12,7 @@ from jointbench.estimators._multisine_lines import multisine_bins
 from jointbench.core.errors import InputError
 from jointbench.core.estimate import Estimate, Intervals, Prediction
 from jointbench.core.intervals import LEVEL, z_quantile
-from jointbench.core.schema import param
+from jointbench.core.schema import Tune, param
 from jointbench.core.types import Trial
 
 
@@ -270,7 +270,7 @@ class KBR(Estimator):
         na: int = param(2, ge=0, le=6, doc="denominator order Na (eq. 9; a_0 = 1)")
         nb: int = param(3, ge=0, le=6, doc="numerator order Nb (eq. 9)")
         sigma: float | Literal["auto"] = param(20.0, unit="s", gt=0, doc="kernel width (eq. 15; paper: ~20 s with "
-                                               "noise, ~8 s without); auto = marginal likelihood")
+                                               "noise, ~8 s without); auto = marginal likelihood", tune=Tune())
         gamma: float | None | Literal["auto"] = param(None, gt=0, doc="kernel scale (eq. 15) for every coefficient "
                                                                      "(paper: 25000 without noise); none = "
                                                                      "gamma_scale var(y)/var(x_p) per coefficient; "

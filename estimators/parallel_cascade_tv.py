@@ -18,7 +18,7 @@ from jointbench.core.errors import InputError
 from jointbench.core.intervals import psd_solve
 from jointbench.core.scores import vaf
 from jointbench.core.estimate_tv import TVIRFEstimate
-from jointbench.core.schema import param
+from jointbench.core.schema import Tune, param
 
 #: most alternations of gain and cascade in one parallel-cascade iteration (:meth:`TVParallelCascade._reflex`), and
 #: in the first one, which starts from a constant gain (later ones start from the last iteration's gain, so an
@@ -185,7 +185,7 @@ class TVParallelCascade(EnsembleEstimator):
     @dataclasses.dataclass(frozen=True)
     class Settings(rx.ReflexSettings, TVLagSettings):
         basis: BasisKind = param("gaussian", doc="basis functions of time: 'gaussian', 'bspline' or 'legendre'")
-        n_basis: int = param(11, ge=1, doc="number of basis functions M")
+        n_basis: int = param(11, ge=1, doc="number of basis functions M", tune=Tune())
         width: float = param(1.0, gt=0, doc="Gaussian width, in centre spacings")
         remove_mean: Literal["record", "ensemble"] = param("record", doc="mean removed from each realization, or "
                                                                          "the ensemble mean at every sample")

@@ -12,7 +12,7 @@ from jointbench.estimators._tvirf import EnsembleEstimator, TVLagSettings, fill_
 from jointbench.core.ensemble import Ensemble
 from jointbench.core.errors import InputError
 from jointbench.core.estimate_tv import TVIRFEstimate
-from jointbench.core.schema import param
+from jointbench.core.schema import Tune, param
 
 
 #: windows whose normal equations are formed at once (bounds memory at about 2000 L^2 numbers)
@@ -64,7 +64,8 @@ class SDS(EnsembleEstimator):
 
     @dataclasses.dataclass(frozen=True)
     class Settings(TVLagSettings, JackknifeSettings):
-        window: float = param(1.0, unit="s", gt=0, doc="segment length: the IRF is taken constant over it")
+        window: float = param(1.0, unit="s", gt=0, doc="segment length: the IRF is taken constant over it",
+                              tune=Tune())
         step: float | None = param(None, unit="s", gt=0, doc="distance between successive windows; none = one "
                                                               "sample")
         remove_mean: Literal["segment", "none"] = param("segment", doc="'segment': each segment's own mean "

@@ -31,7 +31,7 @@ from jointbench.estimators._multisine_lines import multisine_bins
 from jointbench.core.errors import InputError
 from jointbench.core.estimate import Estimate, Intervals, Prediction
 from jointbench.core.intervals import LEVEL, PINV_RCOND, psd_pinv, z_quantile
-from jointbench.core.schema import param
+from jointbench.core.schema import Tune, param
 from jointbench.core.types import Trial
 
 
@@ -266,7 +266,7 @@ class Skirt(Estimator):
     @dataclasses.dataclass(frozen=True)
     class Settings:
         n_p: int | Literal["auto"] = param(7, ge=0, doc="order N_p of the time variation: basis b_0 ... b_Np (eq. 14); "
-                                                        "auto = the order of least GCV")
+                                                        "auto = the order of least GCV", tune=Tune())
         band_halfwidth: int | None = param(None, ge=0, doc="D (bins): a triplet's band reaches D bins beyond "
                                                            "its outer lines; none = half the smallest spacing")
         transient_order: int | None = param(0, ge=0, doc="order N_r of the transient polynomial I_Y (eq. A.2); "

@@ -207,18 +207,25 @@ def joint(name: str) -> dict:
 
 def scenarios() -> "pd.DataFrame":
     """The named experiments of the shipped studies: ``name`` (``study:scenario`` of a comparison grid,
-    ``study:part`` of a part with an experiment), ``study``, ``kind``, ``description``. A study this
-    installation cannot load (its backend's extra missing) is left out."""
+    ``study:part`` of a part with an experiment), ``study``, ``kind``, ``description``.
+
+    A study this installation cannot load (every part of ``apparatus`` runs on MuJoCo: without the
+    ``[mujoco]`` extra) is left out, and said: one :class:`UserWarning` naming each study left out and why, and
+    the frame's ``attrs["left_out"]`` (study -> the reason). A comparison grid whose MuJoCo rows cannot run
+    here still lists its scenarios (they simulate on the analytic backend)."""
+    import warnings
+
     import pandas as pd
 
     from jointbench.benchmarks.config import load_study
     from jointbench.benchmarks.locate import study_ids
 
-    rows = []
+    rows, left_out = [], {}
     for sid in study_ids():
         try:
             study = load_study(sid)
-        except ConfigError:          # e.g. a study on the mujoco backend without the [mujoco] extra
+        except ConfigError as exc:   # e.g. a study on the mujoco backend without the [mujoco] extra
+            left_out[sid] = str(exc).splitlines()[0]
             continue
         for pname, part in study.parts.items():
             if part.grid is not None:
@@ -226,7 +233,12 @@ def scenarios() -> "pd.DataFrame":
                          for s in part.grid.scenarios]
             elif part.experiment is not None:
                 rows.append({"name": f"{sid}:{pname}", "study": sid, "kind": "part", "description": part.description})
-    return pd.DataFrame(rows)
+    if left_out:
+        warnings.warn("api.scenarios() leaves out what this installation cannot load: "
+                      + "; ".join(f"study {sid}: {why}" for sid, why in left_out.items()), stacklevel=2)
+    frame = pd.DataFrame(rows, columns=["name", "study", "kind", "description"])
+    frame.attrs["left_out"] = left_out
+    return frame
 
 
 def scenario(name: str) -> dict:

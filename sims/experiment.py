@@ -83,7 +83,7 @@ def _joint_and_reflex(value: Any, where: str, key: str) -> tuple[Any, Any]:
 
 
 @dataclasses.dataclass(frozen=True, kw_only=True)
-class _ExperimentSpec:
+class ExperimentSpec:
     """The experiment block of a study config, as written (:meth:`Experiment.from_mapping`)."""
 
     joint: tuple = param(parser=_joint_and_reflex, doc="joint model {model: ..., reflex: {...}}")
@@ -177,7 +177,7 @@ class Experiment:
             Unknown or missing key, wrong unit or type, impossible value; the message names ``where``,
             the section and the key.
         """
-        spec = parse(_ExperimentSpec, mapping, where)
+        spec = parse(ExperimentSpec, mapping, where)
         joint, reflex = spec.joint
         return cls(joint=joint, reflex=reflex, perturbation=spec.perturbation, apparatus=spec.apparatus,
                    voluntary=spec.voluntary, sensors=spec.sensors, acquisition=spec.acquisition, gravity=spec.gravity,
@@ -361,6 +361,20 @@ def simulate(experiment: Experiment, seed: int | np.random.SeedSequence, backend
     _backend.record(getattr(runner, "name", "") or type(runner).__name__, time.perf_counter() - t_start,
                      reused or whole)
     return trial
+
+
+def limb_response(experiment: Experiment, seed: int | np.random.SeedSequence,
+                  realization: int = 0) -> tuple[Response, np.ndarray]:
+    """``(response, voluntary torque)`` of realization ``realization``: the limb's response at the simulation
+    rate as the backend computed it (:class:`sims.backend.Response`: angle, velocity and acceleration from the
+    dynamics, the measured and the impedance torque), before sensors, noise and acquisition; the one
+    :func:`simulate` acquires (the same random streams; inside a :class:`sims.reuse.reuse_responses` block
+    computed once for both). For code that needs the exact signals, e.g. the oracle of a comparison grid
+    (``benchmarks/compare/oracle.py``), which sees the truth by design."""
+    exp, runner = _resolved(experiment, seed, None, 0, realization)
+    key = _reuse.response_key(exp, seed, realization, exp.backend)
+    (_drive, tv, resp), _ = _reuse.lookup(key, lambda: _respond(exp, runner, streams(seed, 0, realization)))
+    return resp, tv
 
 
 def _resolved(exp: Experiment, seed: Any, backend: str | Any | None, replicate: int,

@@ -70,7 +70,7 @@ class AngleFunction:
         if not isinstance(data, Mapping):
             raise ConfigError(f"key '{key}': expected a number, {{polynomial: [c0, c1, ...]}} or "
                               f"{{angle: [...], value: [...]}}, got {data!r}")
-        spec = parse(_AngleSpec, data, f"key '{key}'")
+        spec = parse(AngleSpec, data, f"key '{key}'")
         if spec.polynomial is not None and spec.angle is None and spec.value is None:
             if angle_range is None:
                 raise ConfigError(f"key 'angle_range': a polynomial {key}(theta) needs the angle range (rad) it "
@@ -145,7 +145,7 @@ def _nonempty(value: tuple[float, ...] | None) -> None:
 
 
 @dataclasses.dataclass(frozen=True)
-class _AngleSpec:
+class AngleSpec:
     """A function of the joint angle as written: ``{polynomial: [...]}`` or ``{angle: [...], value: [...]}``."""
 
     polynomial: tuple[float, ...] | None = param(None, doc="coefficients c0, c1, ... (ascending powers)")
@@ -177,7 +177,7 @@ class PositionDependentJoint:
     """
 
     I: float = param(unit="kg.m2", gt=0, doc="inertia")
-    K: Any = dataclasses.field(default=None, metadata={"doc": "stiffness K(theta): number, {polynomial: [...]} "
+    K: Any = dataclasses.field(metadata={"doc": "stiffness K(theta): number, {polynomial: [...]} "
                                                              "or {angle: [...], value: [...]}"})
     B: Any = dataclasses.field(default=None, metadata={"doc": "damping B(theta), same forms (or damping_ratio)"})
     damping_ratio: float | None = param(None, ge=0, doc="constant damping ratio; B = 2 zeta sqrt(K(theta) I)")

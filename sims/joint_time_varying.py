@@ -13,7 +13,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from jointbench.core.errors import ConfigError
-from jointbench.core.schema import param
+from jointbench.core.schema import Problems, param
 from jointbench.sims.registries import JOINTS
 from jointbench.sims.profile import parse_profile_fields, require_positive
 
@@ -44,7 +44,7 @@ class TimeVaryingJoint:
     """
 
     I: float = param(unit="kg.m2", gt=0, doc="inertia (constant)")
-    K: Any = dataclasses.field(default=None, metadata={"doc": "stiffness: number or profile {shape: ...}"})
+    K: Any = dataclasses.field(metadata={"doc": "stiffness: number or profile {shape: ...}"})
     B: Any = dataclasses.field(default=None, metadata={"doc": "damping: number or profile (or damping_ratio)"})
     damping_ratio: float | None = param(None, ge=0, doc="constant damping ratio; B = 2 zeta sqrt(K I)")
 
@@ -52,16 +52,22 @@ class TimeVaryingJoint:
     contact: ClassVar[None] = None
 
     def __post_init__(self):
-        if self.K is None:
-            raise ConfigError("missing required key 'K'")
-        if (self.B is None) == (self.damping_ratio is None):
-            raise ConfigError("give exactly one of 'B' (number or profile) and 'damping_ratio'")
-        if not math.isfinite(self.I):
-            raise ConfigError(f"key 'I': must be finite, got {self.I}")
-        parse_profile_fields(self, ("K", "B"))
-        require_positive("K", self.K, strict=True)
-        if self.B is not None:
-            require_positive("B", self.B, strict=False)
+        problems = Problems()                      # every error of the model at once
+        with problems.catch():
+            if self.K is None:
+                raise ConfigError("missing required key 'K'")
+            parse_profile_fields(self, ("K",))
+            require_positive("K", self.K, strict=True)
+        with problems.catch():
+            if (self.B is None) == (self.damping_ratio is None):
+                raise ConfigError("give exactly one of 'B' (number or profile) and 'damping_ratio'")
+            if self.B is not None:
+                parse_profile_fields(self, ("B",))
+                require_positive("B", self.B, strict=False)
+        with problems.catch():
+            if not math.isfinite(self.I):
+                raise ConfigError(f"key 'I': must be finite, got {self.I}")
+        problems.raise_all()
 
     @property
     def time_invariant(self) -> bool:

@@ -14,7 +14,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from jointbench.core.errors import ConfigError
-from jointbench.core.schema import param
+from jointbench.core.schema import Problems, param
 from jointbench.sims.registries import JOINTS
 from jointbench.sims.profile import parse_profile_fields, require_positive
 
@@ -45,20 +45,23 @@ class WristContactJoint:
 
     I: float = param(unit="kg.m2", gt=0, doc="inertia")
     b: float = param(unit="N.m.s/rad", ge=0, doc="intrinsic damping")
-    k: Any = dataclasses.field(default=None, metadata={"doc": "intrinsic stiffness: number or profile"})
+    k: Any = dataclasses.field(metadata={"doc": "intrinsic stiffness: number or profile"})
     b_c: float = param(10.0, unit="N.m.s/rad", gt=0, doc="contact damping")
     k_c: float = param(100.0, unit="N.m/rad", gt=0, doc="contact stiffness")
 
     model: ClassVar[str] = "wrist_contact"
 
     def __post_init__(self):
-        if self.k is None:
-            raise ConfigError("missing required key 'k'")
+        problems = Problems()                      # every error of the model at once
+        with problems.catch():
+            if self.k is None:
+                raise ConfigError("missing required key 'k'")
+            parse_profile_fields(self, ("k",))
+            require_positive("k", self.k, strict=True)
         for name in ("I", "b", "b_c", "k_c"):
             if not math.isfinite(getattr(self, name)):
-                raise ConfigError(f"key '{name}': must be finite")
-        parse_profile_fields(self, ("k",))
-        require_positive("k", self.k, strict=True)
+                problems.add(ConfigError(f"key '{name}': must be finite"))
+        problems.raise_all()
 
     @property
     def contact(self) -> tuple[float, float]:

@@ -73,7 +73,7 @@ class StretchReflex:
         Its damping ratio zeta.
     """
 
-    gain: Any = dataclasses.field(default=None, metadata={"doc": "reflex gain G(t), N.m.s/rad: number or profile"})
+    gain: Any = dataclasses.field(metadata={"doc": "reflex gain G(t), N.m.s/rad: number or profile (0: no torque)"})
     delay: float = param(0.04, unit="s", gt=0, doc="reflex loop delay")
     nonlinearity: Literal["half_wave", "none"] = param("half_wave", doc="static nonlinearity of the velocity")
     stretch: Literal["positive", "negative"] = param("positive", doc="velocity sign that stretches the muscle")

@@ -161,9 +161,11 @@ def temporaries(root: Path) -> list[Path]:
 
 def tiny_grid_part(estimators: list[str] | None = None, realizations: int = 3, **grid) -> dict:
     """A small comparison grid part (protocol compare): a time-varying elbow on a position servo, square or
-    sine stiffness, two noise levels; about 0.1 s a case."""
+    sine stiffness, two noise levels; about 0.1 s a case. Without identifiability cases (``identify: false``; a
+    grid has them by default)."""
     return {"protocol": "compare", "description": "tiny comparison grid",
-            "params": {"realizations": realizations, "ensemble_size": 2, "discard": "1 s", "spread_draws": 20},
+            "params": {"realizations": realizations, "ensemble_size": 2, "discard": "1 s", "spread_draws": 20,
+                       "identify": False},
             "grid": {"estimator": estimators or ["ibk_spectral", "kbr", "sds"], "scenario": ["elbow"],
                      "variation": ["square"], "noise": [0, 0.05], **grid},
             "scenarios": {"elbow": {

@@ -62,9 +62,8 @@ CONFIG_ERRORS = {
 @pytest.mark.parametrize("name", list(CONFIG_ERRORS))
 def test_a_config_error_inside_a_grid_is_an_error_naming_the_combination(tmp_path, name):
     edit, words = CONFIG_ERRORS[name]
-    study = load_study(_grid(tmp_path, edit))
-    with pytest.raises(ConfigError) as exc:
-        expand_study(study, ["grid"])
+    with pytest.raises(ConfigError) as exc:      # when the study is loaded (a variation's keys) or expanded
+        expand_study(load_study(_grid(tmp_path, edit)), ["grid"])
     msg = str(exc.value)
     assert words in msg and "parts.grid" in msg and "\n" not in msg, msg
     assert "the combination scenario=elbow" in msg or "grid" in msg

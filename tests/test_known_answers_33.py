@@ -294,19 +294,19 @@ class Method(Estimator):
 '''
 
 
-def _plugin(root, name: str, comment: str = "") -> None:
+def _plugin(root, name: str, edit: str = "") -> None:
     pkg = root / name
     (pkg / "methods").mkdir(parents=True)
     (pkg / "__init__.py").write_text(_PLUGIN_INIT)
     (pkg / "methods" / "__init__.py").write_text("")
-    (pkg / "methods" / "core.py").write_text(_PLUGIN_CORE + comment)
+    (pkg / "methods" / "core.py").write_text(_PLUGIN_CORE + edit)
 
 
 def test_a_plugins_source_hash_covers_its_subpackages(tmp_path, monkeypatch):
     """Three plugin packages with the same files (an estimator registered in a subpackage, under its
-    package's name); the second's subpackage module carries one more line (an edit), the third is the first
-    byte for byte. The source hash (of the files' relative names and bytes) must tell the edited one apart,
-    and not the copy.
+    package's name); the second's subpackage module carries one more line of code (an edit), the third is
+    the first byte for byte. The source hash (of the files' relative names and parsed code: a comment would
+    not count, tests/test_tuning_declared.py) must tell the edited one apart, and not the copy.
 
     Planted: ``base.glob("*.py")`` for ``base.rglob("*.py")`` in ``jointbench/core/plugins.py::source_files``
     (subpackages ignored). Failed with ``AssertionError: an edit in the plugin's subpackage left its source
@@ -314,7 +314,7 @@ def test_a_plugins_source_hash_covers_its_subpackages(tmp_path, monkeypatch):
     """
     names = ("kat33_plugin_a", "kat33_plugin_b", "kat33_plugin_c")
     _plugin(tmp_path, names[0])
-    _plugin(tmp_path, names[1], comment="# edited\n")
+    _plugin(tmp_path, names[1], edit="EDITED = True\n")
     _plugin(tmp_path, names[2])
     monkeypatch.setattr(sys, "path", list(sys.path))            # plugins.load puts the folder on it
     monkeypatch.setattr(plugins, "_LOADED", {})                 # and records the plugins: not beyond this test

@@ -47,8 +47,9 @@ def _jb(env, *args, cwd, timeout=600):
 
 
 def _numbers(path: Path) -> pd.DataFrame:
+    """The rows but their timings and the column naming the plugin's code (installed or not, edited or not)."""
     rows = pd.read_csv(path)
-    rows = rows.drop(columns=[c for c in TIMINGS if c in rows.columns])
+    rows = rows.drop(columns=[c for c in (*TIMINGS, "plugin") if c in rows.columns])
     rows = rows[rows["metric"] != "fit_time_s"]
     return rows.sort_values(["case_id", "estimator", "metric"], kind="stable").reset_index(drop=True)
 
@@ -69,31 +70,36 @@ def test_the_plugin_runs_everywhere_and_an_edit_recomputes_its_cases(plugin, tmp
     assert "sliding_ibk" in listed and "a plugin example" in listed
     study, out = src / "comparison.yaml", tmp_path / "results"
     pool = _jb(env, "run", study, "--out", out, "--workers", "2", "--quiet", cwd=tmp_path)
-    assert "3 cases (0 from cache, 3 computed), 0 failed" in pool.stdout
+    assert "6 cases (0 from cache, 6 computed), 0 failed" in pool.stdout    # sliding_ibk, fsewls tuned too; identify
     first = _numbers(out / "plugin_comparison" / "cases.csv")
-    assert set(first["estimator"]) == {"sliding_ibk", "fsewls", "irf2_ls"}
-    assert (first["status"] == "ok").all()
-    keys = _cases(out)["cache_key"]
+    assert set(first["estimator"]) == {"sliding_ibk", "fsewls", "irf2_ls", "(scenario)"}   # identify: on by default
+    assert (first["status"] == "ok").sum() == len(first) - 1                # irf2_ls tuned: "nothing to tune"
+    assert first[first["status"] != "ok"]["reason"].str.startswith("nothing to tune: irf2_ls").all()
+    before = _cases(out)
     # not installed: the study's plugins: finds the package folder beside it, and the workers of a local Dask
     # cluster import it from that folder (jointbench.core.plugins.ensure): every row identical to the pool's
     bare = {k: v for k, v in env.items() if k != "PYTHONPATH"}
     beside = tmp_path / "beside"
     _jb(bare, "run", study, "--out", beside, "--executor", "dask", "--workers", "2", "--quiet", cwd=tmp_path)
     pd.testing.assert_frame_equal(_numbers(beside / "plugin_comparison" / "cases.csv"), first)
-    # edit the plugin (a comment: its source hash changes), install it again: its cases recompute, only they,
-    # here on a local Dask cluster whose workers import the installed plugin (PYTHONPATH), with the pool's
-    # numbers. This run and the one beside are the Dask runs of the plugin installed and not installed; a third,
-    # of the whole grid with the plugin installed, checked nothing more (and took 7 CPU-s, a third of the test).
+    # edit the plugin's code (a statement that changes no number: its source hash changes; a comment would not,
+    # tests/test_tuning_declared.py), install it again: its cases recompute, only they, here on a local Dask
+    # cluster whose workers import the installed plugin (PYTHONPATH), with the pool's numbers. This run and the
+    # one beside are the Dask runs of the plugin installed and not installed; a third, of the whole grid with the
+    # plugin installed, checked nothing more (and took 7 CPU-s, a third of the test).
     init = src / "sliding_ibk" / "__init__.py"
-    init.write_text(init.read_text() + "\n# edited: the source hash changes\n")
+    init.write_text(init.read_text() + "\n_EDITED = True\n")
     _pip_install(src, target)
     again = _jb(env, "run", study, "--out", out, "--executor", "dask", "--workers", "2", "--quiet", cwd=tmp_path)
-    assert "3 cases (2 from cache, 1 computed), 0 failed" in again.stdout
+    assert "6 cases (4 from cache, 2 computed), 0 failed" in again.stdout
     cases = _cases(out)
-    assert cases.loc["sliding_ibk", "cached"] == 0 and cases.loc["fsewls", "cached"] == 1
-    assert cases.loc["sliding_ibk", "cache_key"] != keys["sliding_ibk"]
-    assert cases.loc["irf2_ls", "cache_key"] == keys["irf2_ls"]
-    pd.testing.assert_frame_equal(_numbers(out / "plugin_comparison" / "cases.csv"), first)   # a comment: same numbers
+    def of(frame, est, column="cache_key"):
+        return list(frame.loc[frame.index == est, column])
+
+    assert of(cases, "sliding_ibk", "cached") == [0, 0] and of(cases, "fsewls", "cached") == [1, 1]
+    assert not set(of(cases, "sliding_ibk")) & set(of(before, "sliding_ibk"))
+    assert of(cases, "irf2_ls") == of(before, "irf2_ls")
+    pd.testing.assert_frame_equal(_numbers(out / "plugin_comparison" / "cases.csv"), first)   # no number changed
 
 
 def test_a_plugin_by_path_and_its_errors(tmp_path):
@@ -111,7 +117,7 @@ def test_a_plugin_by_path_and_its_errors(tmp_path):
         from jointbench.benchmarks.harness.fingerprint import plugin_hash
 
         text = plugin_hash(["sliding_ibk", "fsewls"])
-        assert list(text) == ["sliding_ibk"] and text["sliding_ibk"].startswith("sliding_ibk==- ")
+        assert list(text) == ["sliding_ibk"] and text["sliding_ibk"].startswith("sliding_ibk==0.1.0 ")  # __version__
     finally:
         estimators.REGISTRY._items.pop("sliding_ibk", None)
         estimators.REGISTRY._tags.pop("sliding_ibk", None)

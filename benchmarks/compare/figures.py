@@ -2,12 +2,15 @@
 interval that contains its value and its rank, the scenarios' identifiability (infeasible ones shown and
 left out of the rankings), paired comparisons between methods over the same realizations and their win
 counts, the backends' agreement in one line per scenario, the settings of every method in both tuning
-columns, the figures (heat map, rise-time / random-error trade-off, k_hat(t) against the truth; PNG and
-SVG) and the interactive page ``<part>_comparison.html``. Every heading, count and reading is derived
-from the tidy rows.
+columns, the figures (heat map, rise-time / random-error trade-off, k_hat(t) against the truth; PNG, SVG
+and PDF), the leaderboard of every ranked metric and tuning column with its exports for a paper (LaTeX
+booktabs and wide CSV) and the interactive page ``<part>_comparison.html``, which opens on an overview.
+Every heading, count and reading is derived from the tidy rows.
 
 The tables are :mod:`jointbench.benchmarks.compare.tables` and :mod:`jointbench.benchmarks.compare.pairs`, the figures
-:mod:`jointbench.benchmarks.compare.plots`, the page :mod:`jointbench.benchmarks.compare.page`, the statistics
+:mod:`jointbench.benchmarks.compare.plots` (a method's colour and marker: :mod:`jointbench.benchmarks.compare.styles`),
+the leaderboard :mod:`jointbench.benchmarks.compare.leaderboard`, the exports
+:mod:`jointbench.benchmarks.compare.export`, the page :mod:`jointbench.benchmarks.compare.page`, the statistics
 :mod:`jointbench.benchmarks.compare.stats`.
 
 References
@@ -19,17 +22,23 @@ from __future__ import annotations
 
 import dataclasses
 import re
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
 from jointbench.benchmarks.compare import stats as cs
 from jointbench.benchmarks.figures import PartReport, register
+from jointbench.benchmarks.compare import export
+from jointbench.benchmarks.compare import leaderboard as lb
 from jointbench.benchmarks.compare import page as cp
 from jointbench.benchmarks.compare import pairs as pairs_
 from jointbench.benchmarks.compare import plots
+from jointbench.benchmarks.compare import summary as csum
 from jointbench.benchmarks.compare import tables as ct
+from jointbench.benchmarks.compare.styles import MethodStyle, method_styles
 from jointbench.benchmarks.compare.tables import METRICS, labelled  # noqa: F401  (the public names)
+from jointbench.benchmarks.compare.tuning import edge_sentence
 from jointbench.core.files import write_text
 
 #: paired wins written out in the text per tuning column (the win tables have them all)
@@ -85,15 +94,7 @@ def _paired_text(pairs: pd.DataFrame, rows: pd.DataFrame) -> str:
             f"{ct.ALPHA:g} and the median difference favours A.")
     if pairs.empty:
         return text + " No pair could be compared in this run."
-    fam = pairs.groupby(["cell", "tuning", "metric"]).agg(m=("p", "size"), n=("n", "max"))
-    blind = fam[[cs.min_signed_rank_p(int(n)) >= ct.ALPHA / m for m, n in zip(fam["m"], fam["n"])]]
-    if len(blind):
-        n_min = int(blind["n"].min())
-        text += (f" In {len(blind)} of the {len(fam)} families the test cannot reject at all: with n = {n_min} "
-                 f"realizations the smallest possible p-value is 2/2^{n_min} = {cs.min_signed_rank_p(n_min):.2g}, "
-                 f"above Holm's first threshold {ct.ALPHA:g}/m for m = {int(blind['m'].min())} or more pairs; "
-                 "more realizations are needed for a verdict there (the counts 'ahead' say which way the median "
-                 "paired difference points).")
+    text += pairs_.attainability_text(pairs, ct.ALPHA)
     sig = int((pairs["verdict"] != "").sum())
     text += f" Significant after correction: {sig} of {len(pairs)} pairs."
     return text
@@ -131,6 +132,9 @@ class _Grid:
     backends: list[str]
     ranked: list[str]                # the scenarios some method beats a constant in
     infeasible: list[str]
+    styles: dict[str, MethodStyle]   # every method's colour and marker, in every figure and on the page
+    board: pd.DataFrame              # the leaderboard (lb.leaderboard)
+    exports: list[str]               # the summary's files for a paper (export.write_summary)
 
     @property
     def page_name(self) -> str:
@@ -138,8 +142,8 @@ class _Grid:
 
 
 def _grid(part, rows: pd.DataFrame, curves: pd.DataFrame, folder) -> _Grid:
-    """The grid's results from its rows; the full table and the paired comparisons written beside the
-    report (``<part>_scores.csv``, ``<part>_pairs.csv``)."""
+    """The grid's results from its rows; the full table, the paired comparisons and the summary's exports
+    written beside the report (``<part>_scores.csv``, ``<part>_pairs.csv``, :func:`export.write_summary`)."""
     rows = labelled(rows)
     table = ct.full_table(rows, curves)
     table.to_csv(folder / f"{part.name}_scores.csv", index=False)
@@ -150,10 +154,14 @@ def _grid(part, rows: pd.DataFrame, curves: pd.DataFrame, folder) -> _Grid:
     pairs = pairs_.paired(rows, table)
     if not pairs.empty:
         pairs.to_csv(folder / f"{part.name}_pairs.csv", index=False)
+    drawn = labelled(curves.assign(metric="curve"))["method"] if curves is not None and len(curves) else []
+    board = lb.leaderboard(table, primary)
     return _Grid(part.name, rows, curves, table, pairs, primary, feas, methods=sorted(dict.fromkeys(table["method"])),
                  cells=cells, tunings=[t for t in dict.fromkeys(table["tuning"]) if t],
-                 backends=[b for b in dict.fromkeys(rows["backend"]) if b], ranked=ranked,
-                 infeasible=[c for c in cells if c not in ranked and (c, primary) in feas])
+                 backends=[b for b in dict.fromkeys(rows.loc[rows["metric"] != "skipped", "backend"]) if b],
+                 ranked=ranked, infeasible=[c for c in cells if c not in ranked and (c, primary) in feas],
+                 styles=method_styles(list(table["method"]) + list(drawn)), board=board,
+                 exports=export.write_summary(board, table, primary, folder, part.name))
 
 
 def _overview(g: _Grid) -> list[str]:
@@ -165,12 +173,37 @@ def _overview(g: _Grid) -> list[str]:
             + (f" (rankings on {g.primary}; the others in one agreement line per scenario)" if several else "")
             + f"; tuning column{'s' if len(g.tunings) > 1 else ''} {_join(g.tunings)}. Every number is from the tidy "
             f"rows (`cases.csv`); the full table is `{g.name}_scores.csv`, the paired comparisons "
-            f"`{g.name}_pairs.csv`, and [the interactive comparison page]({g.page_name}) has the full table sortable "
-            "and filtered by scenario and metric, and k_hat(t) of the best methods of every scenario.",
+            f"`{g.name}_pairs.csv`"
+            + (f"; for a paper, {_exports_text(g.exports)}" if g.exports else "")
+            + f"; [the interactive comparison page]({g.page_name}) opens on the leaderboards and heat maps, then has "
+            "the full table sortable and filtered by scenario and metric, and k_hat(t) of the best methods of "
+            "every scenario.",
             f"**{len(g.ranked)} of {len(g.cells)} scenarios are ranked**"
             + (f"; {len(g.infeasible)} are infeasible (no method's median VAF of k is above 0 %, i.e. none beats a "
                f"constant at the true mean) and left out of every ranking and count: {_join(g.infeasible)}."
-               if g.infeasible else "; in every scenario some method beats a constant at the true mean.")]
+               if g.infeasible else "; in every scenario some method beats a constant at the true mean.")
+            + (" " + ct.unranked_hint(g.rows, g.table, g.primary)).rstrip()]
+
+
+def _exports_text(files: list[str]) -> str:
+    """Each export of :func:`export.write_summary` written, named with what it holds."""
+    what = {"_summary.tex": "the leaderboards as LaTeX booktabs tables, one per tuning column",
+            "_summary_wide.csv": "the leaderboards, one row per method",
+            "_values_wide.csv": "every value, one row per tuning column and method"}
+    return "; ".join(f"`{f}` ({w})" for f in files for end, w in what.items() if f.endswith(end))
+
+
+def _board_text(g: _Grid) -> str:
+    """What the leaderboards show and over what (the backend; whether some method is ranked in fewer scenarios
+    than its leaderboard counts, from the leaderboard's rows)."""
+    few = not lb.partial(g.board).empty
+    return (f"Leaderboards, per ranked metric and tuning column on the {g.primary} backend over the ranked "
+            "scenarios: a method's mean share of the other methods ranked in a scenario that it is strictly "
+            "ahead of (100 %: first alone in every scenario), the scenarios it ranks first in (ties included) and "
+            "its median distance to each scenario's best (times the best for an error or a time, points behind "
+            "for a VAF). A description, not a test"
+            + ("; a method ranked in fewer scenarios than its leaderboard counts says 'n of N' in the scenarios "
+               "column: its share is over those n only." if few else "."))
 
 
 def _intervals_text(primary: str) -> str:
@@ -185,18 +218,24 @@ def _intervals_text(primary: str) -> str:
 
 def _text(g: _Grid) -> list[str]:
     """The report's paragraphs: the overview, the definitions, the intervals, the paired comparisons, the
-    most frequent wins and the backends' agreement (the first five make the page's introduction)."""
+    leaderboards, the most frequent wins and the backends' agreement (the first five make the page's
+    introduction and notes)."""
     text = [*_overview(g), DEFINITIONS, _intervals_text(g.primary), _paired_text(g.pairs, g.rows)]
+    if not g.board.empty:
+        text.append(_board_text(g))
     n_bad = int(g.table["interval"].str.contains("excludes").sum())
     if n_bad:
         text.append(f"{n_bad} study intervals exclude their own value (rows from before the study re-centred its "
                     "bootstrap): not shown.")
-    main = "error_rms" if (g.table["metric"] == "error_rms").any() else "vaf_stiffness"
+    main = _main_metric(g.table)
     for tuning in g.tunings:
         s = pairs_.beats_sentences(g.pairs, main, tuning, top=WIN_SENTENCES)
         if s:
             text.append(f"The most frequent significant paired wins ({tuning} column; all in the win tables): "
                         + "; ".join(s) + ".")
+    edges = edge_sentence(g.rows)
+    if edges:
+        text.append(edges)
     agree = ct.backend_agreement(g.table, g.primary)
     if agree:
         text.append("Backend agreement, one line per scenario:\n\n" + "\n\n".join(agree))
@@ -219,6 +258,11 @@ def _method_tables(g: _Grid, ident: pd.DataFrame) -> list[tuple[str, pd.DataFram
     readings = _readings(g.table, g.primary)
     if not readings.empty:
         out.append(("Who ranks first, counted over the ranked scenarios", readings))
+    main = _main_metric(g.table)
+    for (metric, tuning), board in g.board.groupby(["metric", "tuning"], sort=False):
+        if metric == main:
+            out.append((f"Leaderboard on {METRICS[metric][0]} ({tuning} column; every metric on the interactive "
+                        "page and in the exports)", lb.display(board)))
     st = ct.settings_table(g.rows)
     out.append(("Settings of every method" if not st.empty else
                 "Settings of every method: the rows carry no settings column (a run before settings "
@@ -266,47 +310,65 @@ def _scenario_tables(g: _Grid, ident: pd.DataFrame) -> list[tuple[str, pd.DataFr
     return out
 
 
-def _figures(g: _Grid, folder) -> tuple[list[tuple[str, str]], dict, dict]:
-    """The figures of each tuning column (heat map, trade-off, k_hat(t)) with their captions, and the curves
-    of the interactive page: ``{(scenario, backend, tuning): curves}`` and the methods in their order."""
-    out, sets, order = [], {}, {}
+def _figures(g: _Grid, folder) -> tuple[list[tuple[str, str]], dict, dict, dict]:
+    """The figures of each tuning column (heat map, trade-off, k_hat(t)) with their captions, the curves
+    of the interactive page: ``{(scenario, backend, tuning): curves}`` and the methods in their order, and
+    the heat maps by tuning column ``{tuning: (file, caption)}`` (the page's overview)."""
+    out, sets, order, heat = [], {}, {}, {}
+    vector = " and ".join(f.upper() for f in plots.VECTOR_FORMATS)
     for tuning in g.tunings:
         sfx = _suffix(tuning, g.tunings)
         f = plots.heat_map(g.table, g.rows, g.primary, tuning, g.feas, folder, f"{g.name}_heatmap{sfx}.png")
         if f:
-            out.append((f, f"Methods x scenarios ({tuning} column, {g.primary}): median VAF of k (%), diverging "
-                           f"at 0 % (blue: better than a constant at the true mean), colour clipped at "
-                           f"{plots.VAF_FLOOR:.0f} %, every cell printed; also as PDF"))
-        f, lines = plots.trade_off(g.table, g.primary, tuning, folder, f"{g.name}_tradeoff{sfx}.png")
+            cap = (f"Methods x scenarios ({tuning} column, {g.primary}): median VAF of k (%), diverging at 0 % (blue: "
+                   f"better than a constant at the true mean), colour clipped at {plots.VAF_FLOOR:.0f} %, every cell "
+                   "printed")
+            out.append((f, f"{cap}; also as {vector}"))
+            heat[tuning] = (folder / f, cap)
+        f, lines = plots.trade_off(g.table, g.primary, tuning, folder, f"{g.name}_tradeoff{sfx}.png", g.styles)
         if f:
             out.append((f, f"Rise time against random error, square-wave scenarios ({tuning} column): bars "
-                           "are the 90 % intervals; methods with an infinite rise time at the right edge ('>')"
-                           + (": " + "; ".join(lines) if lines else "") + "; also as PDF"))
+                           "are the 90 % intervals, each method in its colour and marker (as in every figure); "
+                           "methods with an infinite rise time hollow at the dotted right edge"
+                           + (": " + "; ".join(lines) if lines else "") + f"; also as {vector}"))
         s = plots.curve_sets(g.curves, g.primary, tuning)
-        f = plots.khat_figure(s, g.table, g.primary, tuning, folder, f"{g.name}_khat{sfx}.png")
+        f = plots.khat_figure(s, g.table, g.primary, tuning, folder, f"{g.name}_khat{sfx}.png", g.styles)
         if f:
             out.append((f, f"k_hat(t) against the truth ({tuning} column, {g.primary}): mean over realizations "
                            f"of the {plots.CURVES_PER_PANEL} methods with the highest median VAF of k per "
-                           f"scenario (band: 5th-95th percentile over realizations of the best {plots.BANDS}, "
-                           "where stored; the axis "
-                           "spans the truth's range with a margin); more methods on the interactive page; "
-                           "also as PDF"))
+                           f"scenario, each in its colour and marker (as in every figure and on the page; one legend "
+                           f"below), the truth in black over them (band: 5th-95th percentile over realizations of "
+                           f"the best {plots.BANDS}, where stored; the axis spans the truth's range with a margin); "
+                           f"more methods on the interactive page; also as {vector}"))
         for cell, d in s.items():
             sets[(cell, g.primary, tuning)] = d
             order[(cell, g.primary, tuning)] = plots.best_methods(g.table, cell, g.primary, tuning,
                                                                   len(d["methods"]))
-    return out, sets, order
+    return out, sets, order, heat
 
 
-def _write_page(g: _Grid, text: list[str], tables: list, sets: dict, order: dict, folder) -> None:
-    """The interactive page ``<part>_comparison.html``: the introduction (links as plain text), the curves,
-    the tables but the per-scenario ones (the page filters the full table by scenario)."""
+def _write_page(g: _Grid, text: list[str], tables: list, sets: dict, order: dict, heat: dict, folder,
+                cd_figures: dict | None = None, summary: pd.DataFrame | None = None) -> None:
+    """The interactive page ``<part>_comparison.html``: the introduction (links as plain text), the overview
+    (leaderboards, heat maps and, given ``cd_figures`` ((metric, tuning) -> file) or ``summary``, the summary
+    over scenarios: :func:`page.summary_over_scenarios`), the curves, the tables but the per-scenario ones (the
+    page filters the full table by scenario)."""
     rows = g.rows
     study = str(rows["study"].dropna().iloc[0]) if "study" in rows and rows["study"].notna().any() else ""
     title = f"Method comparison: {study + ', part ' if study else 'part '}{g.name}"
-    intro = [re.sub(r"\[([^\]]+)\]\([^)]+\)", r"\1", p) for p in text[:2]] + [DEFINITIONS, text[3], text[4]]
-    static = [(t, df) for t, df in tables if not t.startswith(tuple(g.cells))]
-    write_text(folder / g.page_name, cp.render(title, intro, cp.page_data(g.table, sets, order), static))
+    intro = [re.sub(r"\[([^\]]+)\]\([^)]+\)", r"\1", p) for p in text[:2]]
+    static = [(t, df) for t, df in tables if not t.startswith((*g.cells, "Leaderboard on"))]   # in the overview
+    main = _main_metric(g.table)
+    overview = cp.Overview(boards=cp.board_tables(g.board), heatmaps=heat, styles=g.styles,
+                           summary=cp.summary_over_scenarios(cd_figures, summary), note=_board_text(g),
+                           default_metric=main)
+    write_text(folder / g.page_name, cp.render(title, intro, cp.page_data(g.table, sets, order, g.styles), static,
+                                               overview, notes=[DEFINITIONS, text[3], text[4]]))
+
+
+def _main_metric(table: pd.DataFrame) -> str:
+    """The metric the text's wins and the page's overview lead with: the RMS error of k when the rows have it."""
+    return "error_rms" if (table["metric"] == "error_rms").any() else "vaf_stiffness"
 
 
 @register("compare")
@@ -315,10 +377,16 @@ def compare_figures(part, rows, curves, folder, checks) -> PartReport:
     g = _grid(part, rows, curves, folder)
     text = _text(g)
     ident = ct.identifiability(g.rows, g.table)
-    rep = PartReport(text="\n\n".join(text), title=_title(g))
-    rep.tables = _method_tables(g, ident) + _scenario_tables(g, ident)
-    rep.figures, sets, order = _figures(g, folder)
-    _write_page(g, text, rep.tables, sets, order, folder)
+    colours = {m: st.color for m, st in g.styles.items()}
+    summary = csum.report_parts(g.name, g.table, g.rows, g.pairs, g.primary, folder, colours=colours)
+    rep = PartReport(text="\n\n".join(text + summary.text), title=_title(g))
+    rep.tables = _method_tables(g, ident) + summary.tables + _scenario_tables(g, ident)
+    rep.figures, sets, order, heat = _figures(g, folder)
+    rep.figures += summary.figures
+    cd = {(m, t): Path(folder) / f"{g.name}_cd_{m}_{t}.png"
+          for m, t in zip(summary.tests.get("metric", []), summary.tests.get("tuning", []))}
+    _write_page(g, text, rep.tables, sets, order, heat, folder, cd_figures={k: f for k, f in cd.items() if f.exists()},
+                summary=summary.tables[0][1] if summary.tables else None)
     return rep
 
 

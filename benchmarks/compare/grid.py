@@ -12,41 +12,38 @@ combination of its axes, one case per estimator and combination (all R realizati
         estimator: [fsewls, kbr, skirt, sds]
         scenario: [xu1998_elbow, vanderuit2018_wrist]
         variation: [sine, square]
-        perturbation: [native, pralds]
         noise: [0.01, 0.1]           # var(noise) / var(torque) on the torque channel
-        fs: [native, 100 Hz]         # acquired rate
         backend: [analytic, mujoco]
         data: [trial, ensemble]      # fit single trials or ensembles (default: what the estimator takes)
-        joint: [native, arm_xu1998_calibration]   # a model of configs/models instead of the scenario's
         tuning: [paper, tuned]       # the settings as given, or chosen on tuning realizations (below)
-      tuning: {sds: {window: [0.5 s, 1 s, 2 s]}}   # the search of 'tuned' (benchmarks/compare/tuning.py)
+      tuning: {sds: {window: [0.5 s, 1 s, 2 s]}}   # the search of 'tuned' (benchmarks/compare/tuning.py); an
+                                     # estimator not named: the search its settings declare (param tune=)
       only:                          # run part of the grid; the rest is skipped with the reason
         - {when: {backend: mujoco}, keep: {tuning: paper, data: trial}, reason: "MuJoCo on a subset"}
       scenarios:                     # name -> an experiment and how to score it
         xu1998_elbow:
           experiment: {...}          # as in any part
           stiffness: {mean: 40, amplitude: 15, period: 2 s}   # levels and time scale of the variations
-          discard: 4 s               # not scored at each end
-          realizations: 100          # R of this scenario (over params.realizations)
           estimators: {fsewls: {...}}   # settings for this scenario (over the part's)
-          tuning: {sds: {window: [0.25 s, 0.5 s]}}   # the search for this scenario (over the part's)
       variations: {sine: {shape: sine}, square: {shape: square}}   # levels from the scenario
-      perturbations: {pralds: {kind: pralds, ...}}
       estimators: {fsewls: {...}}    # settings of the estimators on the axis
 
-With ``params.identify: true`` every resolved experiment (the axes but estimator, data and tuning) also gets
-one case of protocol ``identifiability`` (rows with estimator ``(scenario)``: how much of the measured torque
-the stiffness and its time variation explain, :mod:`jointbench.benchmarks.compare.identifiability`).
+The other axes (``joint``, ``perturbation``, ``fs``) and keys (a scenario's ``discard``, ``realizations``,
+``tuning``; ``perturbations``): docs/study_yaml.md, generated from the specs below.
 
-A combination an estimator cannot run is skipped and reported with the reason: a perturbation it cannot
-identify from (:meth:`estimators.Estimator.supports`: skirt and KBR need a multisine), data it does not
-take (its ``accepts``: an ensemble method given single trials), or valid settings that cannot go together
-(:class:`~jointbench.core.errors.Incompatible`: a rate that does not divide the simulation rate, a model on the
-wrong apparatus, a backend that cannot simulate the experiment). Any other error in a combination (a
-typo'd key, a negative duration, zero inertia, a profile file that is missing or makes K negative, an
-unstable MuJoCo step) is a config error naming the combination, before anything runs (exit 2). A name or
-value the grid does not know, or a value listed twice (``[1, 1.0]``, ``[100 Hz, 0.1 kHz]``), is a config
-error naming the axis, the value and what is allowed; so is a grid of more than :data:`MAX_COMBINATIONS`.
+Every resolved experiment (the axes but estimator, data and tuning) also gets one case of protocol
+``identifiability`` (rows with estimator ``(scenario)``: how much of the measured torque the stiffness and its
+time variation explain, :mod:`jointbench.benchmarks.compare.identifiability`): the report's diagnosis of a
+scenario no method can rank. ``params.identify: false`` leaves them out (the report then says how to get them).
+
+A combination an estimator cannot run is skipped and reported with the reason (:mod:`.skips`: a perturbation it
+cannot identify from, data it does not take, valid settings that cannot go together, a backend whose extra is
+not installed: the other backends' rows run). Any other error in a combination (a typo'd key, a negative
+duration, a profile file that is missing or makes K negative, an unstable MuJoCo step) is a config error naming
+the combination, before anything runs (exit 2): every distinct error at once, and a variation's keys when the
+study is loaded, with the file's other errors. A name or value the grid does not know, or a value listed twice
+(``[1, 1.0]``, ``[100 Hz, 0.1 kHz]``), is a config error naming the axis, the value and what is allowed; so is a
+grid of more than :data:`MAX_COMBINATIONS`. Every key: docs/study_yaml.md.
 """
 from __future__ import annotations
 
@@ -57,12 +54,16 @@ import json
 import math
 from typing import Any, Callable, Mapping
 
-from jointbench import estimators
-from jointbench import sims
+from jointbench import estimators, sims
+from jointbench.benchmarks.compare.oracle import trials_estimate as oracle_trials
 from jointbench.benchmarks.compare.tuning import (AXES, AxisValues, OnlyRule, candidates, check_known_estimators,
-                                                  check_search, check_search_applies, grid_settings, skip_summary)
-from jointbench.core.errors import ConfigError, Incompatible
-from jointbench.core.schema import Problems, number, param, parse
+                                                  check_search, check_search_applies, grid_settings, nothing_to_tune,
+                                                  search_for, skip_summary)
+from jointbench.core.errors import ConfigError
+from jointbench.benchmarks.compare.protocol import CompareParams
+from jointbench.benchmarks.compare.skips import backend_missing, build_experiment, skip_reason
+from jointbench.core.schema import Problems, boolean, number, param, parse
+from jointbench.sims.profile import parse_profile
 
 NATIVE = "native"
 DATA = ("trial", "ensemble")
@@ -91,9 +92,11 @@ class Stiffness:
 
 
 @dataclasses.dataclass(frozen=True)
-class _ScenarioSpec:
-    experiment: dict
-    stiffness: Stiffness | None = None
+class ScenarioSpec:
+    """A scenario of a grid: an experiment, the levels its variations take and how it is scored."""
+
+    experiment: dict = param(doc="the experiment simulated (as a part's)")
+    stiffness: Stiffness | None = param(None, doc="levels and period of the variations (needed with a variation axis)")
     discard: float | None = param(None, unit="s", ge=0, doc="seconds not scored at each end")
     realizations: int | None = param(None, ge=2, doc="R of this scenario (over params.realizations)")
     estimators: dict = param(default_factory=dict, doc="estimator -> settings for this scenario")
@@ -101,13 +104,13 @@ class _ScenarioSpec:
 
 
 @dataclasses.dataclass(frozen=True, kw_only=True)
-class _GridAxes(AxisValues):
+class GridAxes(AxisValues):
     """The axes of a grid: the estimators compared, and any other axis (:data:`AXES`)."""
 
     estimator: tuple[Any, ...] = param(doc="the estimators compared")
 
 
-def _axes(value: Any, where: str, key: str) -> _GridAxes:
+def _axes(value: Any, where: str, key: str) -> GridAxes:
     """The grid's axes: each a non-empty list of values, each value listed once."""
     if isinstance(value, Mapping):
         for axis, values in value.items():
@@ -115,15 +118,15 @@ def _axes(value: Any, where: str, key: str) -> _GridAxes:
                 raise ConfigError(f"{where}: grid.{axis}: expected a non-empty list of values, got {values!r}")
             if len({json.dumps(v, sort_keys=True, default=str) for v in values}) != len(values):
                 raise ConfigError(f"{where}: grid.{axis}: a value is listed twice in {values}")
-    return parse(_GridAxes, value, f"{where}: {key}")
+    return parse(GridAxes, value, f"{where}: {key}")
 
 
 @dataclasses.dataclass(frozen=True, kw_only=True)
 class GridSpec:
     """The keys of a part with a comparison grid, as written (the module docstring)."""
 
-    grid: _GridAxes = param(parser=_axes, doc="axis -> the values it takes (every axis but estimator is optional)")
-    scenarios: dict[str, _ScenarioSpec] = param(default_factory=dict, doc="name -> an experiment and its scoring")
+    grid: GridAxes = param(parser=_axes, doc="axis -> the values it takes (every axis but estimator is optional)")
+    scenarios: dict[str, ScenarioSpec] = param(default_factory=dict, doc="name -> an experiment and its scoring")
     variations: dict[str, dict] = param(default_factory=dict, doc="name -> a relative stiffness variation")
     perturbations: dict[str, dict] = param(default_factory=dict, doc="name -> a perturbation {kind: ...}")
     budget: float = param(DEFAULT_BUDGET_MIN, unit="min", gt=0, doc="a larger estimated time needs --yes")
@@ -136,7 +139,7 @@ class Grid:
     """A parsed comparison grid (see the module docstring)."""
 
     axes: Mapping[str, tuple]
-    scenarios: Mapping[str, _ScenarioSpec]
+    scenarios: Mapping[str, ScenarioSpec]
     variations: Mapping[str, dict]
     perturbations: Mapping[str, dict]
     joints: Mapping[str, dict]
@@ -168,6 +171,8 @@ def parse_grid(data: Mapping, experiment: Mapping | None, part_estimators: Mappi
         _check_values(axes, where)
     with problems.catch():
         _check_size(axes, where)
+    with problems.catch():
+        _check_variations(spec.variations, scenarios, where)
     problems.raise_all()
     found["settings"] = _settings(axes, scenarios, part_estimators, where)     # of the estimators named
     found["search"] = _search(spec, scenarios, axes, part_estimators, where, overridden)
@@ -177,13 +182,13 @@ def parse_grid(data: Mapping, experiment: Mapping | None, part_estimators: Mappi
 
 
 def _scenarios(spec: GridSpec, experiment: Mapping | None, where: str,
-               resolve_joint: Callable[[Any, str], dict]) -> dict[str, _ScenarioSpec]:
+               resolve_joint: Callable[[Any, str], dict]) -> dict[str, ScenarioSpec]:
     """The scenarios (``scenarios``, or the part's one ``experiment``), their joint models resolved."""
     if spec.scenarios and experiment is not None:
         raise ConfigError(f"{where}: give either 'experiment' (one scenario) or 'scenarios', not both")
     if not spec.scenarios and experiment is None:
         raise ConfigError(f"{where}: a grid needs 'scenarios' (or one 'experiment')")
-    given = spec.scenarios or {"experiment": _ScenarioSpec(experiment=dict(experiment))}
+    given = spec.scenarios or {"experiment": ScenarioSpec(experiment=dict(experiment))}
     problems, out = Problems(), {}
     for name, sc in given.items():
         w = f"{where}: scenarios.{name}"
@@ -219,6 +224,20 @@ def _check_names(axes: Mapping[str, tuple], scenarios: Mapping, spec: GridSpec, 
                               f"needs 'stiffness: {{mean, amplitude, period}}' (the levels the variations take)")
 
 
+def _check_variations(variations: Mapping[str, dict], scenarios: Mapping[str, ScenarioSpec], where: str) -> None:
+    """Every variation makes a profile at a scenario's levels (the first scenario with ``stiffness``): a missing
+    or wrong key of a variation is found when the study is loaded, with the file's other errors, every one at
+    once (not one per run, combination by combination, as the grid is expanded)."""
+    levels = next((sc.stiffness for sc in scenarios.values() if sc.stiffness is not None), None)
+    if levels is None:
+        return
+    problems = Problems()
+    for name, variation in variations.items():
+        with problems.catch():
+            parse_profile(stiffness_profile(variation, levels), f"{where}: variations.{name}")
+    problems.raise_all()
+
+
 def _names(axis: str, values: tuple, known, where: str, what: str, native: bool = True) -> None:
     for i, v in enumerate(values):
         if native and v == NATIVE:
@@ -228,7 +247,7 @@ def _names(axis: str, values: tuple, known, where: str, what: str, native: bool 
             raise ConfigError(f"{where}: grid.{axis}[{i}]: unknown {what} {v!r}; allowed: {allowed}")
 
 
-def _settings(axes: Mapping[str, tuple], scenarios: Mapping[str, _ScenarioSpec], part_estimators: Mapping,
+def _settings(axes: Mapping[str, tuple], scenarios: Mapping[str, ScenarioSpec], part_estimators: Mapping,
               where: str) -> dict[str, dict]:
     """The part's settings of each estimator on the axis; every combination with a scenario's parses."""
     settings = {}
@@ -283,16 +302,13 @@ def _check_values(axes: dict[str, tuple], where: str) -> None:
         if not isinstance(v, str) or v not in sims.BACKENDS:
             raise ConfigError(f"{where}: grid.backend[{i}]: unknown simulation backend {v!r}; known: "
                               f"{', '.join(sims.BACKENDS.names())}")
-        if getattr(sims.BACKENDS.get(v), "unavailable", lambda: None)():     # an extra not installed
-            raise ConfigError(f"{where}: grid.backend[{i}]: simulation backend {v!r} "
-                              f"{sims.BACKENDS.get(v).unavailable()}")
     for axis, allowed in (("data", DATA), ("tuning", TUNING)):
         for i, v in enumerate(axes.get(axis, ())):
             if v not in allowed:
                 raise ConfigError(f"{where}: grid.{axis}[{i}]: {v!r} not allowed; allowed: {', '.join(allowed)}")
 
 
-def _search(spec: GridSpec, scenarios: Mapping[str, _ScenarioSpec], axes: Mapping[str, tuple],
+def _search(spec: GridSpec, scenarios: Mapping[str, ScenarioSpec], axes: Mapping[str, tuple],
             part_estimators: Mapping, where: str, overridden: bool = False) -> Search:
     """The part's tuning search; with each scenario's over it, every candidate of every estimator parses; none
     idle (:func:`check_search_applies`) unless the grid was narrowed by ``--set``."""
@@ -303,8 +319,8 @@ def _search(spec: GridSpec, scenarios: Mapping[str, _ScenarioSpec], axes: Mappin
     for sname, sc in scenarios.items():
         check_search(sc.tuning, f"{where}: scenarios.{sname}.tuning")
         for est in axes["estimator"]:
-            for cand in candidates(est, {**grid_settings(part_estimators, est), **(sc.estimators.get(est) or {})},
-                                   {**spec.tuning.get(est, {}), **(sc.tuning.get(est) or {})}):
+            settings = {**grid_settings(part_estimators, est), **(sc.estimators.get(est) or {})}
+            for cand in candidates(est, settings, search_for(est, settings, spec.tuning, sc.tuning)):
                 estimators.make(est, cand, f"{where}: tuning of {est} (scenario {sname})")
     return spec.tuning
 
@@ -362,14 +378,6 @@ def _experiment(grid: Grid, combo: Mapping[str, Any]) -> dict:
     return exp
 
 
-def _refusal(cls, mode: str) -> str | None:
-    if mode in cls.accepts:
-        return None
-    takes = " or ".join({"trial": "single trials", "pooled": "pooled records", "ensemble": "ensembles"}[k]
-                        for k in ("trial", "pooled", "ensemble") if k in cls.accepts)
-    return f"{cls.name} takes {takes}, not {'an ensemble' if mode == 'ensemble' else 'a single trial'}"
-
-
 def expand_grid(study_id: str, part, backend: str | None = None) -> tuple[list[dict], list[dict]]:
     """The cases of a grid part as the fields of :class:`benchmarks.harness.case.Case` (one per estimator,
     combination and seed; each case simulates every realization), and the skipped combinations (labels,
@@ -383,6 +391,9 @@ def expand_grid(study_id: str, part, backend: str | None = None) -> tuple[list[d
     cases, skipped = [], []
     identified: dict[str, dict] = {}       # params.identify: one identifiability case per experiment and seed
     built: dict[str, Any] = {}
+    missing = {b: backend_missing(b) for b in axes["backend"]}
+    errors: dict[str, dict] = {}           # an invalid experiment's error -> the combinations (no estimator) with it
+    identify = boolean(part.params.get("identify", CompareParams.identify), f"{part.where}: params", "identify")
     for values in itertools.product(*(axes[a] for a in names)):
         combo = dict(zip(names, values))
         est = combo["estimator"]
@@ -390,27 +401,18 @@ def expand_grid(study_id: str, part, backend: str | None = None) -> tuple[list[d
         mode = combo.get("data") or ("trial" if "trial" in cls.accepts else "ensemble")
         sc = grid.scenarios[combo["scenario"]]
         mapping = _experiment(grid, combo)
-        key = json.dumps([mapping, combo["backend"]], sort_keys=True, default=str)
-        if key not in built:
-            try:
-                built[key] = sims.Experiment.from_mapping(mapping, "the experiment", backend=combo["backend"])
-            except Incompatible as exc:  # valid settings that cannot go together: skipped, with the reason
-                built[key] = str(exc)
-            except ConfigError as exc:   # an invalid config: an error before anything runs
-                labels = ", ".join(f"{a}={v}" for a, v in combo.items() if a != "estimator")
-                raise ConfigError("\n".join(f"{part.where}: the combination {labels}: "
-                                            f"{line.removeprefix('the experiment: ')}"
-                                            for line in str(exc).splitlines())) from None
-        exp = built[key]
+        lacking = missing[combo["backend"]]
+        # a backend whose extra is missing (MuJoCo on the light install): skipped with that reason unless another
+        # would skip the combination anyway (the estimator's, judged on the analytic backend's experiment)
+        exp = build_experiment(built, mapping, "analytic" if lacking else combo["backend"])
+        if isinstance(exp, ConfigError) and not lacking:     # an invalid config: an error before anything runs
+            errors.setdefault(str(exp), {})[", ".join(f"{a}={v}" for a, v in combo.items() if a != "estimator")] = 1
+            continue
         settings = {**grid.settings[est], **(sc.estimators.get(est) or {})}
         tuned = combo.get("tuning") == "tuned"
-        search = candidates(est, settings, {**grid.search.get(est, {}), **(sc.tuning.get(est) or {})}) if tuned else []
-        reason = exp if isinstance(exp, str) else (cls.supports(exp) or _refusal(cls, mode))
-        if not reason:
-            reason = next((rule.reason for rule in grid.only if rule.skips({**combo, "data": mode})), None)
-        if not reason and tuned and not search:
-            reason = (f"nothing to tune: the tuning search names no setting of {est} (its tuned column is its "
-                      f"paper column)")
+        search = candidates(est, settings, search_for(est, settings, grid.search, sc.tuning)) if tuned else []
+        reason = skip_reason(grid.only, combo, cls, mode, exp, lacking,
+                             nothing_to_tune(est, grid.search, sc.tuning) if tuned and not search else None)
         if reason:
             skipped.append({**combo, "data": mode, "reason": reason})
             continue
@@ -427,27 +429,21 @@ def expand_grid(study_id: str, part, backend: str | None = None) -> tuple[list[d
                               seed=seed, where=part.where, backend=combo["backend"]))
             scen = {a: v for a, v in combo.items() if a in SCENARIO_AXES}
             ident = json.dumps([scen, seed], sort_keys=True, default=str)
-            if part.params.get("identify") and ident not in identified:
+            if identify and ident not in identified:
                 identified[ident] = dict(study=study_id, part=part.name, protocol="identifiability",
                                          params={k: v for k, v in params.items() if k not in ("data", "search")},
                                          sweep=scen, experiment=mapping, estimators={}, seed=seed,
                                          where=part.where, backend=combo["backend"])
+    if errors:                           # every invalid combination at once, each distinct error once
+        raise ConfigError("\n".join(
+            f"{part.where}: the combination {next(iter(combos))}"
+            + (f" (and {len(combos) - 1} more with this error)" if len(combos) > 1 else "")
+            + f": {line.removeprefix('the experiment: ')}"
+            for text, combos in errors.items() for line in text.splitlines()))
     if not cases:
         raise ConfigError(f"{part.where}: nothing to run: {skip_summary(skipped)}; change the grid's axes or "
                           f"its 'only' rules{' or --backend' if backend is not None else ''}")
     return cases + list(identified.values()), skipped
-
-
-
-def skipped_rows(study_id: str, skipped: list[dict]) -> list[dict]:
-    """Tidy rows (metric ``skipped``, value NaN, the ``reason``) for the skipped combinations of a run."""
-    rows = []
-    for s in skipped:
-        labels = {k: v for k, v in s.items() if k not in ("part", "estimator", "reason")}
-        cid = s["part"] + "".join(f"-{k}={v}" for k, v in labels.items()) + f"-estimator={s['estimator']}"
-        rows.append({"study": study_id, "part": s["part"], "case_id": cid, "estimator": s["estimator"],
-                     "metric": "skipped", "value": math.nan, "status": "skipped", "reason": s["reason"], **labels})
-    return rows
 
 
 # --------------------------------------------------------------------------------------- time estimate
@@ -485,8 +481,9 @@ def estimate_seconds(cases: list, groups: list[list[int]]) -> float:
         for i in g:
             c = cases[i]
             n = exp.n if exp is not None else 0
-            if c.protocol == "identifiability":     # N_IDENTIFY realizations, with and without noise
-                total += 2 * min(R, 3) * (exp.n_sim * TRIAL_S_PER_STEP if exp is not None else 0) + CASE_OVERHEAD_S
+            if c.protocol == "identifiability":     # N_IDENTIFY realizations, with and without noise; the oracle's
+                trials = 2 * min(R, 3) + oracle_trials(R, M, first.backend)
+                total += trials * (exp.n_sim * TRIAL_S_PER_STEP if exp is not None else 0) + CASE_OVERHEAD_S
                 continue
             est = next(iter(c.estimators), "")
             k = M if c.sweep.get("data") == "ensemble" else 1

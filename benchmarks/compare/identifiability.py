@@ -82,9 +82,12 @@ def trial_identifiability(trial, clean, k, mask=None) -> dict[str, float]:
     value from ``clean``, the same realization simulated without torque noise (the same response: the
     difference is the noise alone, also where the measured torque holds more than the joint's torque, e.g.
     an apparatus's inertia)."""
-    def torque(tr):
-        return tr.output if tr.imposed == "angle" else tr.input      # the torque channel
-    return identifiability(k, trial.truth.signals["angle"], torque(trial), torque(clean), mask)
+    return identifiability(k, trial.truth.signals["angle"], torque_channel(trial), torque_channel(clean), mask)
+
+
+def torque_channel(trial) -> np.ndarray:
+    """The measured torque of a trial: its output when the angle is imposed, its input when the torque is."""
+    return trial.output if trial.imposed == "angle" else trial.input
 
 
 def without_torque_noise(exp):

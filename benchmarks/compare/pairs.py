@@ -39,6 +39,50 @@ def paired(rows: pd.DataFrame, table: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(recs)
 
 
+def families(pairs: pd.DataFrame, alpha: float = ALPHA) -> pd.DataFrame:
+    """One row per family of paired tests (scenario, tuning column, metric): ``pairs`` (m), ``n`` (the most
+    realizations a pair of it shares), ``smallest p`` (:func:`stats.min_signed_rank_p` of n: every
+    difference of one sign), ``Holm threshold`` (alpha / m: the smallest p must be below it for anything
+    to be rejected), ``attainable`` (whether it is), ``rejected`` (pairs with a verdict)."""
+    cols = ["cell", "tuning", "metric", "pairs", "n", "smallest p", "Holm threshold", "attainable", "rejected"]
+    if pairs.empty:
+        return pd.DataFrame(columns=cols)
+    fam = pairs.groupby(["cell", "tuning", "metric"], sort=False).agg(
+        pairs=("p", "size"), n=("n", "max"), rejected=("verdict", lambda v: int((v.fillna("") != "").sum())))
+    fam = fam.reset_index()
+    fam["smallest p"] = [cs.min_signed_rank_p(int(n)) for n in fam["n"]]
+    fam["Holm threshold"] = [cs.holm_first_threshold(int(m), alpha) for m in fam["pairs"]]
+    fam["attainable"] = [cs.rejection_attainable(int(n), int(m), alpha) for n, m in zip(fam["n"], fam["pairs"])]
+    return fam[cols]
+
+
+def attainability_text(pairs: pd.DataFrame, alpha: float = ALPHA) -> str:
+    """Sentences for the report: in how many families a rejection is attainable at all (:func:`families`),
+    and, in the largest families that can reject, how many of the fewest realizations among them may point
+    the other way."""
+    fam = families(pairs, alpha)
+    if fam.empty:
+        return ""
+    ok = int(fam["attainable"].sum())
+    m = int(fam["pairs"].max())
+    can = fam[(fam["pairs"] == m) & fam["attainable"]]
+    n = int(can["n"].min()) if len(can) else 0        # the fewest realizations of the largest families that can
+    text = (f" A rejection is attainable in {ok} of the {len(fam)} families ({100 * ok / len(fam):.0f} %): a "
+            f"family of m pairs over n realizations can reject only if 2/2^n, the smallest exact p-value (every "
+            f"difference of one sign), is below Holm's first threshold {alpha:g}/m.")
+    if ok < len(fam):
+        blind = fam[~fam["attainable"]]
+        text += (f" In the {len(blind)} others (n = {int(blind['n'].min())} to {int(blind['n'].max())} realizations, "
+                 f"m up to {int(blind['pairs'].max())} pairs) no data could reach significance: more realizations are "
+                 "needed for a verdict there (the counts 'ahead' say which way the median paired difference points).")
+    d = max((k for k in range(n + 1) if cs.rejection_attainable(n, m, alpha, k)), default=None)
+    if n and d is not None:
+        text += (f" In the largest family (m = {m} pairs, n = {n}) a pair can still be significant when its "
+                 f"{d} smallest of {n} differences point the other way (exact p "
+                 f"{cs.discordant_signed_rank_p(n, d):.2g} < {alpha:g}/{m} = {alpha / m:.2g}).")
+    return text
+
+
 def wins(pairs: pd.DataFrame, metric: str, tuning: str) -> pd.DataFrame:
     """Method x method: 'w/a/n' = significantly better in w, ahead (median paired difference) in a, of
     the n feasible scenarios where the row's method and the column's were compared on ``metric``."""

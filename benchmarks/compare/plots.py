@@ -1,7 +1,10 @@
 """The figures of a comparison grid, drawn from its full table (:mod:`jointbench.benchmarks.compare.tables`)
 and stored curves: the methods x scenarios heat map of the VAF of k on a diverging scale centred at 0,
 the rise-time / random-error trade-off with the methods whose rise time is infinite at the axis edge,
-and k_hat(t) against the truth per scenario. Each figure is written as PNG (the report) and PDF (print).
+and k_hat(t) against the truth per scenario. Each figure is written as PNG (the report) and as SVG and PDF
+(vector, for print). A method has one colour and marker in every figure and panel
+(:func:`jointbench.benchmarks.compare.styles.method_styles` over all the comparison's methods); legends sit
+outside the axes.
 """
 from __future__ import annotations
 
@@ -11,6 +14,7 @@ import numpy as np
 import pandas as pd
 
 from jointbench.benchmarks.figures import new_figure, save
+from jointbench.benchmarks.compare.styles import TRUTH, MethodStyle, method_styles
 from jointbench.benchmarks.compare.tables import labelled
 
 #: the colour scale of the heat map ends here (% VAF); lower values are drawn in the end colour
@@ -19,18 +23,30 @@ VAF_FLOOR = -100.0
 CURVES_PER_PANEL = 5
 #: of those, drawn with their band over realizations (legibility)
 BANDS = 3
-#: PNG rate of the k_hat(t) figure (many noisy lines: the report inlines it; the PDF has every detail)
-KHAT_DPI = 72
+#: PNG rate of the k_hat(t) figure (many noisy lines: the report inlines it; the SVG and PDF have every detail)
+KHAT_DPI = 100
+#: markers drawn along each k_hat(t) line (its second cue beside the colour)
+MARKS_PER_LINE = 8
+#: vector formats written beside each PNG
+VECTOR_FORMATS = ("svg", "pdf")
 #: series names of the spread of the estimate over realizations in the curves file
 SPREAD = ("p05 over realizations", "p95 over realizations")
 
 
-def save_both(fig, folder, name: str, dpi: int | None = None) -> str:
-    """The figure as ``name`` (PNG; at ``dpi``, else the report's rate) and beside it as PDF (vector, for
-    print); returns the PNG's name."""
+def save_formats(fig, folder, name: str, dpi: int | None = None) -> str:
+    """The figure as ``name`` (PNG; at ``dpi``, else the report's rate) and beside it in every
+    :data:`VECTOR_FORMATS` (for print); returns the PNG's name. The SVG carries no date (reproducible)."""
     folder.mkdir(parents=True, exist_ok=True)
-    fig.savefig(folder / (name.rsplit(".", 1)[0] + ".pdf"), bbox_inches="tight")
+    stem = name.rsplit(".", 1)[0]
+    for fmt in VECTOR_FORMATS:
+        meta = {"Date": None} if fmt == "svg" else {"CreationDate": None}
+        fig.savefig(folder / f"{stem}.{fmt}", bbox_inches="tight", metadata=meta)
     return save(fig, folder, name) if dpi is None else save(fig, folder, name, dpi)
+
+
+def _styles(styles: dict[str, MethodStyle] | None, table: pd.DataFrame) -> dict[str, MethodStyle]:
+    """The styles given, else those of every method of ``table`` (the full table: all tuning columns)."""
+    return styles if styles is not None else method_styles(table["method"])
 
 
 def _vaf_text(v: float) -> str:
@@ -84,7 +100,7 @@ def heat_map(table: pd.DataFrame, rows: pd.DataFrame, backend: str, tuning: str,
     bar.set_label(f"VAF of k (%), median over realizations\n(colour clipped at {VAF_FLOOR:.0f} %; cells: values)",
                   fontsize=8)
     bar.ax.tick_params(labelsize=7)
-    return save_both(fig, folder, name)
+    return save_formats(fig, folder, name)
 
 
 def _bar(value: float, lo: float, hi: float, edge: float | None = None):
@@ -96,10 +112,27 @@ def _bar(value: float, lo: float, hi: float, edge: float | None = None):
     return [[max(0.0, value - lo)], [max(0.0, hi - value)]]
 
 
-def trade_off(table: pd.DataFrame, backend: str, tuning: str, folder, name: str) -> tuple[str | None, list[str]]:
-    """Random error against rise time per square-wave scenario, one point per method with its interval.
-    A method whose rise time is infinite (a step never followed) is drawn at the right edge of the axis
-    with a '>' marker and listed in the panel. Returns the file and one line per panel naming them."""
+def _figure_legend(fig, handles: dict) -> None:
+    """One legend for the whole figure, below its panels (never over the data): ``handles`` label -> artist."""
+    ncol = min(6, max(1, len(handles)))
+    fig.legend(list(handles.values()), list(handles.keys()), loc="upper center", bbox_to_anchor=(0.5, 0.0),
+               ncol=ncol, fontsize=7, frameon=False, handlelength=2.4)
+
+
+def _handle(style: MethodStyle, line: bool):
+    """A legend entry in a method's style: its colour and marker (with a line for line plots)."""
+    from matplotlib.lines import Line2D
+
+    return Line2D([], [], color=style.color, marker=style.marker, ms=5, ls="-" if line else "", lw=1.2)
+
+
+def trade_off(table: pd.DataFrame, backend: str, tuning: str, folder, name: str,
+              styles: dict[str, MethodStyle] | None = None) -> tuple[str | None, list[str]]:
+    """Random error against rise time per square-wave scenario, one point per method with its interval, in
+    the method's colour and marker (``styles``; default: those of every method of ``table``). A method whose
+    rise time is infinite (a step never followed) is drawn hollow at the right edge of the axis (dotted) and
+    listed in the panel. Returns the file and one line per panel naming them."""
+    styles = _styles(styles, table)
     t = table[(table["backend"] == backend) & (table["tuning"] == tuning)]
     rise = t[t["metric"] == "rise_time_s"]
     if rise.empty:
@@ -108,11 +141,7 @@ def trade_off(table: pd.DataFrame, backend: str, tuning: str, folder, name: str)
     ncol = min(3, len(scens))
     nrow = -(-len(scens) // ncol)
     fig, axes = new_figure(nrow, ncol, figsize=(4.4 * ncol, 4.3 * nrow), squeeze=False)
-    import matplotlib.pyplot as plt
-
-    methods = sorted(dict.fromkeys(t["method"]))
-    colors = {m: plt.get_cmap("tab20")(i % 20) for i, m in enumerate(methods)}
-    lines = []
+    lines, drawn = [], set()
     for ax, scen in zip(axes.ravel(), scens):
         r = rise[rise["cell"] == scen].set_index("method")
         e = t[(t["cell"] == scen) & (t["metric"] == "random_error")].set_index("method")
@@ -123,16 +152,17 @@ def trade_off(table: pd.DataFrame, backend: str, tuning: str, folder, name: str)
         xmax = xmax if np.isfinite(xmax) and xmax > 0 else 1.0
         edge = 1.1 * xmax
         for m in fin:
-            x, y = r.loc[m], e.loc[m]
+            x, y, st = r.loc[m], e.loc[m], styles[m]
             ax.errorbar(x["value"], y["value"], xerr=_bar(x["value"], x["lo"], x["hi"], edge),
-                        yerr=_bar(y["value"], y["lo"], y["hi"]), fmt="o", color=colors[m], label=m, ms=5, capsize=2)
+                        yerr=_bar(y["value"], y["lo"], y["hi"]), fmt=st.marker, color=st.color, ms=5, capsize=2)
         for m in inf:
-            y = e.loc[m]
-            ax.errorbar(edge, y["value"], yerr=_bar(y["value"], y["lo"], y["hi"]), fmt=">", color=colors[m],
-                        label=m, ms=6, capsize=2)
+            y, st = e.loc[m], styles[m]
+            ax.errorbar(edge, y["value"], yerr=_bar(y["value"], y["lo"], y["hi"]), fmt=st.marker, color=st.color,
+                        mfc="white", ms=6, capsize=2)
+        drawn.update(fin + inf)
         if inf:
             ax.axvline(edge, color="0.6", lw=0.8, ls=":")
-            listed = textwrap.fill("rise time ∞, drawn at the dotted edge: " + ", ".join(inf), 70)
+            listed = textwrap.fill("rise time ∞, drawn hollow at the dotted edge: " + ", ".join(inf), 70)
             ax.text(0.0, -0.2, listed, transform=ax.transAxes, ha="left", va="top", fontsize=6, color="0.25")
             lines.append(f"{scen}: rise time infinite for {', '.join(inf)}")
         ax.set_xlim(0, 1.15 * xmax)
@@ -143,14 +173,9 @@ def trade_off(table: pd.DataFrame, backend: str, tuning: str, folder, name: str)
         ax.grid(alpha=0.3)
     for ax in axes.ravel()[len(scens):]:
         ax.axis("off")
-    from matplotlib.lines import Line2D
-
-    drawn = sorted({lab for ax in axes.ravel()[:len(scens)] for lab in ax.get_legend_handles_labels()[1]})
-    seen = {m: Line2D([], [], color=colors[m], marker="o", ls="", ms=5) for m in drawn}
-    fig.tight_layout(rect=(0, 0.05 + 0.02 * (len(seen) // 6), 1, 1), h_pad=3.0)
-    fig.legend(list(seen.values()), list(seen.keys()), loc="lower center", ncol=min(6, max(1, len(seen))),
-               fontsize=7, frameon=False)
-    return save_both(fig, folder, name), lines
+    fig.tight_layout(h_pad=3.0)
+    _figure_legend(fig, {m: _handle(styles[m], line=False) for m in sorted(drawn)})
+    return save_formats(fig, folder, name), lines
 
 
 def curve_sets(curves: pd.DataFrame | None, backend: str, tuning: str) -> dict[str, dict]:
@@ -186,29 +211,33 @@ def best_methods(table: pd.DataFrame, cell: str, backend: str, tuning: str, n: i
     return list(v["method"][:n])
 
 
-def khat_figure(sets: dict, table: pd.DataFrame, backend: str, tuning: str, folder, name: str) -> str | None:
-    """k_hat(t) against the truth, one panel per scenario: the truth (black) and the mean estimate over
-    realizations of the :data:`CURVES_PER_PANEL` methods with the highest median VAF of k, the first
-    :data:`BANDS` with the band of the 5th to 95th percentile over realizations where the curves carry it."""
+def khat_figure(sets: dict, table: pd.DataFrame, backend: str, tuning: str, folder, name: str,
+                styles: dict[str, MethodStyle] | None = None) -> str | None:
+    """k_hat(t) against the truth, one panel per scenario: the mean estimate over realizations of the
+    :data:`CURVES_PER_PANEL` methods with the highest median VAF of k, each in its colour with its marker every
+    so often (``styles``; default: those of every method of ``table``), the first :data:`BANDS` with the band
+    of the 5th to 95th percentile over realizations where the curves carry it, and the truth over them all
+    (black). One legend for the figure, below the panels, lists every method drawn."""
     if not sets:
         return None
+    styles = _styles(styles, table)
     cells = list(sets)
     ncol = min(4, len(cells))
     nrow = -(-len(cells) // ncol)
     fig, axes = new_figure(nrow, ncol, figsize=(4.2 * ncol, 2.9 * nrow), squeeze=False)
-    import matplotlib.pyplot as plt
-
-    methods = sorted({m for d in sets.values() for m in d["methods"]})
-    colors = {m: plt.get_cmap("tab20")(i % 20) for i, m in enumerate(methods)}
+    drawn = set()
     for ax, cell in zip(axes.ravel(), cells):
         d = sets[cell]
-        ax.plot(d["t"], d["truth"], color="k", lw=1.6, label="truth")
         shown = [m for m in best_methods(table, cell, backend, tuning, CURVES_PER_PANEL) if m in d["methods"]]
         for i, m in enumerate(shown):
-            s = d["methods"][m]
-            ax.plot(s["t"], s["mean"], color=colors[m], lw=1.0, label=m)
+            s, st = d["methods"][m], styles[m]
+            every = max(1, len(s["t"]) // MARKS_PER_LINE)
+            ax.plot(s["t"], s["mean"], color=st.color, lw=1.0, marker=st.marker, ms=3.5, markevery=(i * every
+                    // max(1, len(shown)), every), label=m, zorder=2)
             if "lo" in s and i < BANDS:
-                ax.fill_between(s["t"], s["lo"], s["hi"], color=colors[m], alpha=0.15, lw=0)
+                ax.fill_between(s["t"], s["lo"], s["hi"], color=st.color, alpha=0.12, lw=0, zorder=1)
+        drawn.update(shown)
+        ax.plot(d["t"], d["truth"], color=TRUTH, lw=1.4, label="truth", zorder=3)
         lo, hi = np.min(d["truth"]), np.max(d["truth"])
         pad = max(0.6 * (hi - lo), 0.2 * abs(hi))
         ax.set_ylim(lo - pad, hi + pad)
@@ -216,9 +245,13 @@ def khat_figure(sets: dict, table: pd.DataFrame, backend: str, tuning: str, fold
         ax.set_xlabel("t (s)", fontsize=7)
         ax.set_ylabel("k (N·m/rad)", fontsize=7)
         ax.tick_params(labelsize=7)
-        ax.legend(fontsize=6, loc="upper right", ncol=2, frameon=False)
         ax.grid(alpha=0.3)
     for ax in axes.ravel()[len(cells):]:
         ax.axis("off")
     fig.tight_layout()
-    return save_both(fig, folder, name, dpi=KHAT_DPI)
+    from matplotlib.lines import Line2D
+
+    handles = {"truth": Line2D([], [], color=TRUTH, lw=1.4)}
+    handles.update({m: _handle(styles[m], line=True) for m in sorted(drawn)})
+    _figure_legend(fig, handles)
+    return save_formats(fig, folder, name, dpi=KHAT_DPI)

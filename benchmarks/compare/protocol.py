@@ -24,10 +24,13 @@ settings are first chosen (:func:`select_setting`) among ``search`` (full settin
 scored; their truth removed before anything sees them): fitted on one tuning trial (or an ensemble of
 ``ensemble_size`` tuning realizations), each candidate predicts the torque of two other tuning realizations
 from their angle (score: the mean VAF). Rows ``tuning_vaf_output`` (label ``candidate``, ``chosen``) give
-every candidate's score.
+every candidate's score; every row of a tuned case carries ``tuning_edge``: ``inside``, or the settings whose
+chosen value is the lowest or highest of the candidates scored (``forgetting=highest``: the candidates, not
+the method, bounded the choice; :func:`edge_of`). The search is the study's ``tuning`` for the estimator, or
+what the estimator's settings declare (:func:`jointbench.benchmarks.compare.tuning.search_for`).
 
-Protocol ``identifiability`` (estimator ``(scenario)``, one case per resolved experiment when the part's
-``params.identify`` is true): the figures of
+Protocol ``identifiability`` (estimator ``(scenario)``, one case per resolved experiment unless the part's
+``params.identify`` is false): the figures of
 :mod:`jointbench.benchmarks.compare.identifiability` from the truth, median over the first ``min(R, 3)`` realizations.
 
 Every method is given the impedance direction, angle to torque (:func:`impedance`), and ``vaf_output``
@@ -56,6 +59,7 @@ from jointbench import estimators, sims
 from jointbench.benchmarks import metrics
 from jointbench.core.scores import vaf
 from jointbench.benchmarks.compare.identifiability import FIGURES, trial_identifiability, without_torque_noise
+from jointbench.benchmarks.compare import oracle
 from jointbench.benchmarks.protocols import Context, register
 from jointbench.benchmarks.scoring import fit_timed, frozen_stiffness, scored_samples
 from jointbench.core.ensemble import Ensemble, valid_mask
@@ -86,7 +90,7 @@ class CompareParams:
     data: Literal["trial", "ensemble"] = param("trial", doc="fit single trials or ensembles")
     tuning: Literal["paper", "tuned"] = param("paper", doc="label: the paper's settings, or tuned on tuning "
                                                            "realizations (never scored) among 'search'")
-    identify: bool = param(False, doc="the grid adds one identifiability case per resolved experiment")
+    identify: bool = param(True, doc="the grid adds one identifiability case per resolved experiment (false: none)")
     search: Any = param(None, doc="tuned: the candidate settings (full mappings; the grid's tuning search)")
     estimator: str = param("", doc="label: the estimator of the case (its settings: the case's estimators)")
     scenario: str = param("", doc="label: the scenario")
@@ -153,6 +157,35 @@ def select_setting(make, candidates, fit_data, held_out, keep) -> tuple[int, lis
     return int(np.nanargmax(scores)), scores
 
 
+#: the ``tuning_edge`` label of a tuned case whose choice lies inside the candidates of every setting
+INSIDE = "inside"
+
+
+def _finite_number(v) -> bool:
+    return isinstance(v, (int, float, np.number)) and not isinstance(v, bool) and bool(np.isfinite(v))
+
+
+def edge_of(name: str, candidates, chosen: int, scores) -> str:
+    """Where candidate ``chosen`` of estimator ``name`` lies among the ``candidates`` scored (a finite
+    score), for each setting they vary over with numeric values: ``"<setting>=lowest"`` or
+    ``"<setting>=highest"`` (joined by ``"; "``) when it takes the lowest or highest value tried, else
+    :data:`INSIDE`. A choice on an edge means the candidates, not the method, bounded the result: a value
+    beyond them may predict better."""
+    parsed = [dataclasses.asdict(estimators.make(name, c, f"tuning of {name}").settings) for c in candidates]
+    scored = [s for s, score in zip(parsed, scores) if _finite_number(score)]
+    mine = parsed[chosen]
+    out = []
+    for key, value in mine.items():
+        values = {s[key] for s in scored if _finite_number(s[key])}
+        if len(values) < 2 or not _finite_number(value):
+            continue
+        if value == min(values):
+            out.append(f"{key}=lowest")
+        elif value == max(values):
+            out.append(f"{key}=highest")
+    return "; ".join(out) or INSIDE
+
+
 def _blind_copy(trial):
     return trial.replace(truth=None)
 
@@ -175,7 +208,8 @@ def _share(p: CompareParams) -> tuple:
 
 
 def _tune(ctx, p: CompareParams, name: str, keep: np.ndarray):
-    """The tuned estimator of a case and the rows of its search."""
+    """The tuned estimator of a case, the rows of its search and where its choice lies among the candidates
+    (:func:`edge_of`: the ``tuning_edge`` label)."""
     if not p.search:
         raise ValueError(f"tuning: tuned needs the candidate settings ('search') of {name}")
     if p.realizations * p.ensemble_size > TUNE_OFFSET:
@@ -184,7 +218,7 @@ def _tune(ctx, p: CompareParams, name: str, keep: np.ndarray):
     best, scores = select_setting(lambda c: estimators.make(name, c, f"tuning of {name}"), p.search, fit, held, keep)
     rows = [dict(candidate=json.dumps(c, sort_keys=True, default=str), chosen=i == best, value=v)
             for i, (c, v) in enumerate(zip(p.search, scores))]
-    return estimators.make(name, p.search[best], f"tuning of {name}"), rows
+    return estimators.make(name, p.search[best], f"tuning of {name}"), rows, edge_of(name, p.search, best, scores)
 
 
 def _realization(ctx, p: CompareParams, r: int, first):
@@ -291,14 +325,14 @@ def compare(ctx: Context) -> None:
     keep = scored_samples(t, p.discard)
     if keep.sum() < 2:
         raise ValueError(f"discard: {p.discard:g} s at each end leaves nothing of the {t[-1] - t[0]:.3g} s record")
-    search_rows = []
+    search_rows, label = [], {}
     if p.tuning == "tuned":
         try:
-            estimator, search_rows = _tune(ctx, p, name, keep)
+            estimator, search_rows, label["tuning_edge"] = _tune(ctx, p, name, keep)
         except InputError as exc:
             ctx.metric("not_fitted", math.nan, name, reason=f"tuning: {exc}")
             return
-    label = {"settings": settings_json(estimator)}
+    label["settings"] = settings_json(estimator)
     for row in search_rows:
         ctx.metric("tuning_vaf_output", row.pop("value"), name, **label, **row)
     fitted = _fit_realizations(ctx, p, name, estimator, first, k, keep, label)
@@ -328,3 +362,8 @@ def identify(ctx: Context) -> None:
         figs.append(trial_identifiability(trial, clean, frozen_stiffness(trial), keep))
     for f in FIGURES:
         ctx.metric(f, float(np.median([d[f] for d in figs])), SCENARIO_ROW, n=n)
+    # the oracle bound (benchmarks/compare/oracle.py): on single trials, and on ensembles where they run
+    if not oracle.not_applicable(ctx.experiment):
+        ens = p.ensemble_size if oracle.fits_ensembles(p.backend) else 0
+        for metric, value in oracle.oracle_errors(ctx.experiment, ctx.seed, p.realizations, p.discard, ens).items():
+            ctx.metric(metric, value, SCENARIO_ROW, n=p.realizations)

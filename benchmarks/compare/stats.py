@@ -141,6 +141,52 @@ def min_signed_rank_p(n: int) -> float:
     return 2.0 / 2.0 ** n if n > 0 else 1.0
 
 
+def discordant_signed_rank_p(n: int, discordant: int = 0) -> float:
+    """The exact two-sided signed-rank p-value of ``n`` pairs without ties whose ``discordant`` smallest
+    absolute differences point the other way: ``2 P(W <= d(d+1)/2)`` under the null (``d = discordant``),
+    the smallest p-value ``n`` pairs can give with ``d`` of them against the rest. ``d = 0``:
+    :func:`min_signed_rank_p`.
+
+    References
+    ----------
+    Wilcoxon (1945) (the null distribution of the signed-rank sum).
+    """
+    if n <= 0:
+        return 1.0
+    if not 0 <= discordant <= n:
+        raise ValueError(f"discordant must be between 0 and n = {n}, got {discordant}")
+    w = discordant * (discordant + 1) // 2
+    return float(min(1.0, 2 * _signed_rank_null(n)[:w + 1].sum()))
+
+
+def holm_first_threshold(m: int, alpha: float) -> float:
+    """The level the smallest of ``m`` p-values must be below for Holm's procedure to reject anything:
+    ``alpha / m`` (Holm 1979; with no p-value below it, no hypothesis of the family is rejected)."""
+    return alpha / m if m > 0 else alpha
+
+
+def rejection_attainable(n: int, m: int, alpha: float, discordant: int = 0) -> bool:
+    """Whether a family of ``m`` paired signed-rank tests over ``n`` shared realizations can reject at
+    family-wise level ``alpha`` after Holm's correction, with the ``discordant`` smallest differences of
+    the best pair pointing the other way (0: every difference of one sign, the most any data can give)."""
+    return discordant_signed_rank_p(n, discordant) < holm_first_threshold(m, alpha)
+
+
+def realizations_needed(m: int, alpha: float, discordant: int = 0, most: int = 200) -> int:
+    """The fewest realizations ``n`` with which a family of ``m`` pairs can reject at ``alpha`` after Holm
+    (:func:`rejection_attainable`) when the ``discordant`` smallest differences point the other way.
+
+    Raises
+    ------
+    ValueError
+        None up to ``most``.
+    """
+    for n in range(max(1, discordant + 1), most + 1):
+        if rejection_attainable(n, m, alpha, discordant):
+            return n
+    raise ValueError(f"no n up to {most} lets {m} pairs reject at {alpha:g} with {discordant} discordant")
+
+
 def paired_comparisons(values: dict[str, dict], better: Better, alpha: float = 0.05) -> list[dict]:
     """Every pair of methods compared over the realizations they share.
 

@@ -254,6 +254,32 @@ def identifiability(rows: pd.DataFrame, table: pd.DataFrame) -> pd.DataFrame:
     return out
 
 
+def unranked_hint(rows: pd.DataFrame, table: pd.DataFrame, primary: str) -> str:
+    """Why each scenario of the ``primary`` backend is not ranked, in one line ('' when every one is): no method
+    was scored there (every combination skipped, failed or refused); or none beats a constant, with how much of
+    the measured torque the time-varying stiffness explains (the identifiability rows), or, without those rows,
+    how to get them (``params.identify``, on by default)."""
+    ident = identifiability(rows, table)
+    if ident.empty:
+        return ""
+    v = table[(table["metric"] == "vaf_stiffness") & (table["backend"] == primary)]
+    scored = set(v[np.isfinite(v["value"].to_numpy(float))]["cell"])
+    tv, snr = IDENTIFIABILITY["tv_share"], IDENTIFIABILITY["tv_snr_db"]
+    why = []
+    for r in ident[(ident["backend"] == primary) & (ident["ranked"] != "yes")].to_dict("records"):
+        cell, best = r["scenario"], r["best median VAF of k (%)"]
+        if cell not in scored:
+            why.append(f"{cell}: no method was scored (see the combinations skipped or not fitted)")
+        elif pd.notna(r.get(tv, np.nan)):
+            why.append(f"{cell}: best median VAF of k {_num(best)} %; the time-varying stiffness torque is "
+                       f"{_num(r[tv])} % of the measured torque's variance, SNR {_num(r[snr])} dB")
+        else:
+            why.append(f"{cell}: best median VAF of k {_num(best)} %; no identifiability rows (the part's "
+                       f"params.identify is false; true, the default, says how much of the torque the time-varying "
+                       f"stiffness explains)")
+    return ("Not ranked, and why: " + "; ".join(why) + ".") if why else ""
+
+
 # ----------------------------------------------------------------------------- backends, settings
 def backend_agreement(table: pd.DataFrame, primary: str) -> list[str]:
     """One line per cell run on more than one backend: how far the other backend's values lie from the
@@ -334,8 +360,9 @@ def settings_table(rows: pd.DataFrame) -> pd.DataFrame:
 
 
 def tuning_table(rows: pd.DataFrame) -> pd.DataFrame:
-    """The tuning search: per method and cell, the candidates tried, the chosen one and its held-out
-    output VAF (rows ``tuning_vaf_output``)."""
+    """The tuning search: per method and cell, the candidates tried, the chosen one, whether it lies on an
+    edge of the candidates (the rows' ``tuning_edge``) and its held-out output VAF (rows
+    ``tuning_vaf_output``)."""
     sel = rows[rows["metric"] == "tuning_vaf_output"]
     if sel.empty:
         return pd.DataFrame()
@@ -343,8 +370,10 @@ def tuning_table(rows: pd.DataFrame) -> pd.DataFrame:
     for (method, cell, backend), g in sel.groupby(["method", "cell", "backend"], sort=False):
         chosen = g[g["chosen"].astype(str).str.lower().isin(["true", "1", "1.0"])] if "chosen" in g else g.iloc[0:0]
         c = chosen.iloc[0] if len(chosen) else g.loc[g["value"].astype(float).idxmax()]
+        edge = c.get("tuning_edge", "")
         recs.append({"method": method, "scenario": cell, "backend": backend, "candidates": len(g),
-                     "chosen": _settings_text(c.get("candidate", "")), "held-out output VAF (%)": float(c["value"]),
+                     "chosen": _settings_text(c.get("candidate", "")), "edge": "" if pd.isna(edge) else edge,
+                     "held-out output VAF (%)": float(c["value"]),
                      "worst candidate (%)": float(g["value"].astype(float).min())})
     return pd.DataFrame(recs)
 

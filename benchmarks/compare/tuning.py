@@ -1,8 +1,13 @@
 """The axes of a comparison grid, its tuning search and its ``only`` rules (:mod:`jointbench.benchmarks.compare.grid`).
 
-* ``tuning`` (part, and per scenario over the part's): estimator -> setting -> the values searched. A case
-  with ``tuning: tuned`` chooses among :func:`candidates` (the paper's settings first, then every
-  combination of the values) on tuning realizations (:func:`jointbench.benchmarks.compare.protocol.select_setting`).
+* The tuning search of an estimator (:func:`search_for`): what its settings declare (its smoothing setting,
+  ``param(..., tune=Tune(...))``, :func:`declared_search`: the configured value and multiples of it), unless
+  the study's ``tuning`` (part, and per scenario over the part's: estimator -> setting -> the values
+  searched) names the estimator, which replaces the declaration. A case with ``tuning: tuned`` chooses
+  among :func:`candidates` (the paper's settings first, then every combination of the values) on tuning
+  realizations (:func:`jointbench.benchmarks.compare.protocol.select_setting`); a choice at the lowest or
+  highest value tried of a setting is an edge choice (:func:`jointbench.benchmarks.compare.protocol.edge_of`,
+  reported by :func:`edge_sentence`): there the candidates, not the method, decided.
 * ``only``: rules that run part of the grid (``[{when, keep, reason}]``, :class:`OnlyRule`): a combination that
   matches ``when`` and not ``keep`` is skipped with the ``reason`` (e.g. MuJoCo on a subset).
 
@@ -15,11 +20,14 @@ import collections
 import dataclasses
 import itertools
 import json
+import math
+import numbers
+import operator
 from typing import Any, Mapping
 
 from jointbench import estimators
 from jointbench.core.errors import ConfigError
-from jointbench.core.schema import param
+from jointbench.core.schema import param, tuned_fields
 
 
 @dataclasses.dataclass(frozen=True, kw_only=True)
@@ -123,6 +131,118 @@ def candidates(est: str, settings: Mapping, search: Mapping[str, list]) -> list[
             seen.add(key)
             unique.append(c)
     return unique
+
+
+def _is_number(v: Any) -> bool:
+    return isinstance(v, numbers.Real) and not isinstance(v, bool) and math.isfinite(v)
+
+
+_BOUNDS = (("gt", operator.gt), ("ge", operator.ge), ("lt", operator.lt), ("le", operator.le))
+
+
+def _multiple(value: float, factor: float, field, integer: bool) -> float | int | None:
+    """``factor`` times ``value``: an integer rounded half up and raised to the field's lower bound, a number
+    that breaks an upper or open bound left out (None)."""
+    x = value * factor
+    meta = field.metadata
+    if integer:
+        x = int(math.floor(x + 0.5))
+        if meta.get("ge") is not None:
+            x = max(x, int(math.ceil(meta["ge"])))
+        if meta.get("gt") is not None:
+            x = max(x, int(math.floor(meta["gt"])) + 1)
+    return x if all(meta.get(b) is None or op(x, meta[b]) for b, op in _BOUNDS) else None
+
+
+def declared_search(est: str, settings: Mapping) -> dict[str, tuple]:
+    """The tuning search estimator ``est`` declares around its ``settings`` (the case's paper settings, as
+    configured): for each smoothing setting (``param(..., tune=Tune(factors))``,
+    :class:`jointbench.core.schema.Tune`), ``factors`` times the configured value, or times the field's
+    default when the configured value is not a number (``auto``); an integer rounded half up and raised to
+    its lower bound; a multiple that breaks a bound or equals the configured value left out. Values carry
+    the field's unit (``"10 1/s"``). Empty when the estimator declares no smoothing setting.
+
+    References
+    ----------
+    The declared settings and their papers: FSEWLS's forgetting rate (Xu & Hollerbach 1998, eq. 6), KBR's
+    kernel width (van de Ruit et al. 2018, eq. 15), skirt's order of the time variation (eq. 14), the SDS
+    window, the number of basis functions of Guarin's method and of the time-varying parallel cascade, the
+    window of the ensemble spectral estimator (each setting's ``doc`` in its estimator's module).
+    """
+    cls = estimators.REGISTRY.get(est)
+    fields = tuned_fields(getattr(cls, "Settings", None))
+    if not fields:
+        return {}
+    parsed = estimators.make(est, settings, f"tuning of {est}").settings
+    out = {}
+    for name, (field, tune) in fields.items():
+        configured = getattr(parsed, name)
+        centre = configured if _is_number(configured) else field.default
+        if not _is_number(centre):
+            continue
+        integer = isinstance(centre, int)
+        unit = field.metadata.get("unit")
+        values = []
+        for f in tune.factors if centre is configured else (1.0, *tune.factors):
+            x = _multiple(centre, f, field, integer)
+            if x is None or x == configured or x in values:
+                continue
+            values.append(x)
+        if values:
+            out[name] = tuple(x if integer or not unit else f"{x:.12g} {unit}" for x in values)
+    return out
+
+
+def search_for(est: str, settings: Mapping, part_search: Mapping[str, Mapping],
+               scenario_search: Mapping[str, Mapping]) -> dict[str, tuple]:
+    """The tuning search of estimator ``est`` in a scenario: the study's (``part_search``, with
+    ``scenario_search`` over it setting by setting) when either names ``est`` (an empty mapping: nothing
+    to tune), else what the estimator declares around its ``settings`` (:func:`declared_search`). Every
+    method, built-in or plugin, is thus tuned by one policy without a study edit, and a study can still
+    choose its own candidates."""
+    if est in part_search or est in scenario_search:
+        return {**(part_search.get(est) or {}), **(scenario_search.get(est) or {})}
+    return declared_search(est, settings)
+
+
+def nothing_to_tune(est: str, part_search: Mapping[str, Mapping], scenario_search: Mapping[str, Mapping]) -> str:
+    """The reason a tuned case of ``est`` is skipped when :func:`search_for` gives no candidate."""
+    if est in part_search or est in scenario_search:
+        why = f"the study's tuning gives {est} no values to try"
+    else:
+        why = f"{est} declares no smoothing setting (param tune=) and the study's tuning does not name it"
+    return f"nothing to tune: {why} (its tuned column is its paper column)"
+
+
+def edge_sentence(rows) -> str:
+    """The report's sentence on edge choices, from labelled tidy rows (columns ``method``, ``case_id``,
+    ``tuning``, ``tuning_edge``): how many tuned cases chose a candidate on an edge, per method and
+    setting (the label of :func:`jointbench.benchmarks.compare.protocol.edge_of`); '' when no row is of a
+    tuned case with a ``tuning_edge`` label."""
+    from jointbench.benchmarks.compare.protocol import INSIDE
+
+    if "tuning_edge" not in rows.columns:
+        return ""
+    cases = rows[(rows["tuning"] == "tuned") & rows["tuning_edge"].notna() & (rows["tuning_edge"] != "")]
+    cases = cases.drop_duplicates("case_id")
+    if cases.empty:
+        return ""
+    at_edge = cases[cases["tuning_edge"] != INSIDE]
+    if at_edge.empty:
+        return (f"Tuning: in every one of the {len(cases)} tuned cases the chosen candidate lies inside the "
+                "values tried of each setting (none at the lowest or highest).")
+    per = []
+    for method, g in cases.groupby("method", sort=True):
+        e = g[g["tuning_edge"] != INSIDE]
+        if len(e):
+            which = collections.Counter(part for text in e["tuning_edge"] for part in text.split("; "))
+            per.append(f"{method} {len(e)} of {len(g)} ("
+                       + ", ".join(f"{w} in {n}" for w, n in sorted(which.items())) + ")")
+    return (f"**Edge choices: in {len(at_edge)} of the {len(cases)} tuned cases the chosen candidate is the lowest "
+            f"or highest value tried of a setting**: {'; '.join(per)}. There the candidates, not the method, "
+            "bounded the result (a value beyond them may predict better): the column 'edge' of the tuning table "
+            "and the rows' `tuning_edge` say which; widen the search (the study's `tuning:` entry, or the factors "
+            "of the estimator's declared `tune=`) to see the method's own optimum.")
 
 
 def matches(combo: Mapping, cond: Mapping[str, tuple]) -> bool:

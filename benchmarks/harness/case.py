@@ -20,7 +20,7 @@ from jointbench import estimators
 from jointbench import sims
 from jointbench.benchmarks import protocols
 from jointbench.core.errors import Refused
-from jointbench.core.schema import parse
+from jointbench.core.schema import Problems, parse
 from jointbench.sims import reuse
 from jointbench.sims.backend import record_simulations
 
@@ -170,12 +170,16 @@ def content_hash(path: str) -> str:
 def parse_inputs(case: Case):
     """The protocol, parsed parameters, experiment and estimators of a case (raises ConfigError)."""
     proto = protocols.REGISTRY.get(case.protocol)
-    params = parse(proto.Params, {**case.params, **case.sweep}, f"{case.where}: params")
-    exp = None
+    problems, params, exp, ests = Problems(), None, None, {}
+    with problems.catch():                 # the errors of the parameters, experiment and estimators at once
+        params = parse(proto.Params, {**case.params, **case.sweep}, f"{case.where}: params")
     if case.experiment is not None:
-        exp = sims.Experiment.from_mapping(case.experiment, f"{case.where}: experiment", backend=case.backend)
-    ests = {name: estimators.make(name, settings, f"{case.where}: estimators.{name}")
-            for name, settings in case.estimators.items()}
+        with problems.catch():
+            exp = sims.Experiment.from_mapping(case.experiment, f"{case.where}: experiment", backend=case.backend)
+    for name, settings in case.estimators.items():
+        with problems.catch():
+            ests[name] = estimators.make(name, settings, f"{case.where}: estimators.{name}")
+    problems.raise_all()
     return proto, params, exp, ests
 
 

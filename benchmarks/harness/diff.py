@@ -226,6 +226,9 @@ def _changes(a: dict, b: dict) -> list[tuple[str, str, str]]:
     pa, pb = a["environment"].get("packages", {}), b["environment"].get("packages", {})
     for lib in sorted(set(pa) | set(pb)):
         add(lib, pa.get(lib, "-"), pb.get(lib, "-"))
+    pa, pb = a["environment"].get("plugins") or {}, b["environment"].get("plugins") or {}
+    for name in sorted(set(pa) | set(pb)):      # outside estimators: distribution, version, source hash
+        add(f"plugin {name}", pa.get(name, "-"), pb.get(name, "-"))
     add("machine", a["machine"], b["machine"])
     return out
 

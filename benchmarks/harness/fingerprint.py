@@ -309,25 +309,52 @@ def repo_path(path: Path) -> str:
 # --- outside estimators (plugins): their source enters the key of the cases that use them ---------------
 def plugin_hash(estimator_names) -> dict[str, str]:
     """``{estimator: "<distribution>==<version> <source hash>"}`` for the estimators of ``estimator_names``
-    whose code lives outside jointbench (plugins, :mod:`jointbench.core.plugins`): the hash of every source file
-    of the plugin's top-level package, so an edited plugin recomputes its cases. Built-in estimators are
-    covered by :func:`code_hash` and give nothing here."""
+    whose code lives outside jointbench (plugins, :mod:`jointbench.core.plugins`; :func:`plugin_text`): in
+    the key of their cases (an edit of their code recomputes them, and only them), in every tidy row of
+    those cases (column ``plugin``), the report and the run history (``jointbench diff`` names a plugin
+    that changed). Built-in estimators are covered by :func:`code_hash` and give nothing here."""
     from jointbench import estimators
 
     out = {}
     for name in sorted(estimator_names):
         module = estimators.REGISTRY.get(name).__module__
         if module.split(".")[0] != "jointbench":
-            out[name] = _plugin_text(module)
+            out[name] = plugin_text(module)
     return out
 
 
 @functools.lru_cache(maxsize=None)
-def _plugin_text(module: str) -> str:
+def plugin_text(module: str) -> str:
+    """``"<distribution>==<version> <source hash>"`` of the plugin that module ``module`` belongs to: the
+    installed distribution and its version, or (a plugin imported from a file or folder) the top-level
+    module's name and its ``__version__`` ('-' when it has none), and :func:`plugin_source_hash`."""
     from jointbench.core import plugins
 
     dist, version = plugins.distribution_of(module)
-    return f"{dist or module.split('.')[0]}=={version or '-'} {plugins.source_hash(module)}"
+    top = module.split(".")[0]
+    if not version:
+        version = str(getattr(sys.modules.get(top), "__version__", "") or "")
+    return f"{dist or top}=={version or '-'} {plugin_source_hash(module)}"
+
+
+def plugin_source_hash(module: str) -> str:
+    """Hash (20 hex digits) of what the plugin's code means: every source file of the top-level package of
+    ``module`` (:func:`jointbench.core.plugins.source_files`, subpackages included) by its name relative to
+    the package and its :func:`module_hash` (syntax tree without docstrings), as for jointbench's own
+    modules: editing a comment, a docstring or a blank line of a plugin changes no key (docs/harness.md). A
+    file that does not parse (never imported) counts by its bytes."""
+    from jointbench.core import plugins
+
+    base, files = plugins.source_files(module)
+    h = hashlib.sha256()
+    for p in files:
+        try:
+            meaning = module_hash(p)
+        except (SyntaxError, ValueError):             # ValueError: not UTF-8 text, or a NUL byte
+            meaning = "bytes " + hashlib.sha256(p.read_bytes()).hexdigest()
+        h.update(f"{p.relative_to(base).as_posix()}\0{meaning}\0".encode())
+    _save_memo()
+    return h.hexdigest()[:20]
 
 
 def plugin_requirements(estimator_names) -> dict[str, str]:
@@ -367,8 +394,8 @@ def environment() -> dict:
     from jointbench.core import plugins
 
     loaded = plugins.loaded()
-    if loaded:          # outside estimators in this run's process (their hashes are in the case keys)
-        env["plugins"] = {p.module: f"{p.distribution or p.spec}=={p.version or '-'}" for p in loaded}
+    if loaded:          # outside estimators in this process (a run records those its cases use: history)
+        env["plugins"] = {p.module: plugin_text(p.module) for p in loaded}
     return env
 
 

@@ -322,9 +322,18 @@ class History:
 
     # ------------------------------------------------------------------ writing
     def begin_run(self, study: str, parts: list[str], config_hash: str, n_cases: int, *, kind: str = "run",
-                  nightly_id: int | None = None, command: str = "", workers: int | None = None) -> int:
+                  nightly_id: int | None = None, command: str = "", workers: int | None = None,
+                  plugins: dict[str, str] | None = None) -> int:
+        """Record a run's start (status ``running``); its id. ``plugins``: the plugin estimators its cases
+        use, estimator -> ``"<distribution>==<version> <source hash>"``
+        (:func:`~benchmarks.harness.fingerprint.plugin_hash`), recorded as the environment's ``plugins`` in
+        place of every plugin loaded in the process (what ``jointbench diff`` compares)."""
         commit, dirty = fingerprint.git_state()
         env = fingerprint.environment()
+        if plugins is not None:
+            env.pop("plugins", None)
+            if plugins:
+                env["plugins"] = dict(plugins)
         with self._tx():
             cur = self.db.execute(
                 "INSERT INTO runs (study, kind, nightly_id, parts, config_hash, code_hash, commit_id, dirty, "

@@ -56,6 +56,7 @@ def _show_run(h, run_id: int) -> int:
                  ("commit", r["commit_id"] + ("-dirty" if r["dirty"] else "")), ("code hash", r["code_hash"]),
                  ("config hash", r["config_hash"]), ("python", r["python"]),
                  ("packages", ", ".join(f"{k} {v}" for k, v in sorted(env.get("packages", {}).items()))),
+                 ("plugins", "; ".join(f"{k}: {v}" for k, v in sorted((env.get("plugins") or {}).items()))),
                  ("machine", r["machine"]), ("command", r["command"] or ""), ("workers", r["workers"]),
                  ("cases", f"{r['n_done']} of {r['n_cases']} done, {r['n_failed'] or 0} failed, {n_refused} refused, "
                            f"{r['n_cached'] or 0} from the cache"),

@@ -79,8 +79,10 @@ def _run_one(args, study: str) -> int:
     from jointbench import api
     from jointbench.benchmarks.checks import headline
 
+    # ``--out`` as given (None without it): the API decides where a run writes, and a run with ``--set`` and no
+    # ``--out`` goes to results/set-runs/, never over the study's own results (benchmarks.study._output_folder)
     with worded_as(RUN_FLAGS):
-        run = api.run(study, parts=args.parts, out=_root(args), executor="serial" if args.serial else
+        run = api.run(study, parts=args.parts, out=args.out, executor="serial" if args.serial else
                       (args.executor or "process"), workers=args.workers, scheduler=args.scheduler,
                       use_cache=not args.no_cache, overrides=args.set or (), backend=args.backend,
                       budget=args.budget, confirm=args.yes, progress=not args.quiet, record_as=_command(args))

@@ -15,14 +15,15 @@ A method developer keeps an estimator in a package of their own and registers it
 
 :func:`load` imports one and records it; the harness hands every worker what it must import
 (:func:`requirement`, :func:`ensure`) so that a plugin estimator runs on every executor (the process pool,
-serially, on Dask), and the plugin's source hash enters the case cache key (an edited plugin recomputes
-its cases: :func:`source_hash`, :func:`jointbench.benchmarks.harness.fingerprint.plugin_hash`).
+serially, on Dask), and the hash of what the plugin's code means (:func:`source_files`, hashed by
+:func:`jointbench.benchmarks.harness.fingerprint.plugin_source_hash` like jointbench's own modules: comments
+and docstrings count for nothing) enters the case cache key (an edited plugin recomputes its cases:
+:func:`jointbench.benchmarks.harness.fingerprint.plugin_hash`).
 """
 from __future__ import annotations
 
 import dataclasses
 import functools
-import hashlib
 import importlib
 import importlib.metadata
 import sys
@@ -145,17 +146,6 @@ def source_files(module: str) -> tuple[Path, tuple[Path, ...]]:
         return base, tuple(sorted(p for p in base.rglob("*.py") if "__pycache__" not in p.parts))
     file = Path(getattr(top, "__file__", "") or "")
     return file.parent, ((file,) if file.is_file() else ())
-
-
-@functools.lru_cache(maxsize=None)
-def source_hash(module: str) -> str:
-    """SHA-256 (20 hex digits) of :func:`source_files` of ``module`` (their names relative to the package,
-    and their bytes), computed once per process: the hash of the code that was imported."""
-    base, files = source_files(module)
-    h = hashlib.sha256()
-    for p in files:
-        h.update(p.relative_to(base).as_posix().encode() + b"\0" + p.read_bytes() + b"\0")
-    return h.hexdigest()[:20]
 
 
 def requirement(module: str) -> tuple[str, str]:

@@ -51,18 +51,54 @@ def _norm_unit(u: str) -> str:
     return re.sub(r"\s+", ".", u)
 
 
+@dataclasses.dataclass(frozen=True)
+class Tune:
+    """The declaration that a setting is its estimator's smoothing setting (the one that trades following a
+    fast change of K(t) against noise), with the candidates a comparison's ``tuned`` column tries by default.
+
+    The candidates are the setting as configured (a study's paper setting: always the first) and
+    ``factors`` times it, for a setting whose configured value is a number (else, e.g. ``auto``, times the
+    field's default); an integer setting is rounded half up; every candidate is kept within the field's
+    bounds. ``factors`` scale with the value a study gives each scenario (a forgetting rate set to 40 / the
+    period of the stiffness's variation), so every method gets the same relative search, whatever the
+    time scale of the scenario. A study's ``tuning:`` entry for the estimator replaces its declaration
+    (:func:`jointbench.benchmarks.compare.tuning.search_for`).
+
+    Examples
+    --------
+    ``window: float = param(1.0, unit="s", gt=0, tune=Tune(factors=(0.5, 2.0)))``: a tuned case tries the
+    configured window, half and twice it.
+    """
+
+    factors: tuple[float, ...] = (0.5, 2.0)
+
+    def __post_init__(self):
+        f = tuple(float(x) for x in self.factors)
+        if not f or not all(math.isfinite(x) and x > 0 for x in f):
+            raise ValueError(f"Tune: factors must be finite numbers > 0, at least one, got {self.factors!r}")
+        object.__setattr__(self, "factors", f)
+
+    def text(self) -> str:
+        """``x0.5, x2`` (for help texts)."""
+        return ", ".join(f"x{f:g}" for f in self.factors)
+
+
 def param(default: Any = dataclasses.MISSING, *, unit: str | None = None, gt: float | None = None,
           ge: float | None = None, lt: float | None = None, le: float | None = None,
           doc: str = "", default_factory: Any = dataclasses.MISSING, allow_inf: bool = False,
-          parser: Callable[[Any, str, str], Any] | None = None) -> Any:
+          parser: Callable[[Any, str, str], Any] | None = None, tune: Tune | None = None) -> Any:
     """A dataclass field with an optional unit and bounds, checked by :func:`parse`.
 
     Numbers must be finite unless ``allow_inf`` (e.g. an SNR of ``.inf`` meaning no noise): an infinite
     lag or segment length only overflows further on. ``parser(value, where, key)`` reads a value by rules
     of its own instead of the field's type (raising :class:`ConfigError`, e.g. made by :func:`error`).
+    ``tune`` declares the estimator's smoothing setting and its default tuning candidates (:class:`Tune`;
+    :func:`tuned_fields` reads them).
     """
+    if tune is not None and not isinstance(tune, Tune):
+        raise TypeError(f"param(tune=...): expected a jointbench.core.schema.Tune, got {tune!r}")
     meta = {"unit": unit, "gt": gt, "ge": ge, "lt": lt, "le": le, "doc": doc, "allow_inf": allow_inf,
-            "parser": parser}
+            "parser": parser, "tune": tune}
     if default_factory is not dataclasses.MISSING:
         return dataclasses.field(default_factory=default_factory, metadata=meta)
     return dataclasses.field(default=default, metadata=meta)
@@ -361,15 +397,29 @@ def _type_text(t: Any) -> str:
 
 
 def describe(cls: type) -> list[tuple[str, str, str, str]]:
-    """(name, type, default, doc) rows for help texts."""
+    """(name, type, default, doc) rows for help texts; a smoothing setting's doc ends with its declared
+    tuning candidates (:class:`Tune`)."""
     rows = []
     hints = typing.get_type_hints(cls)
     for f in dataclasses.fields(cls):
         default = "required" if f.default is dataclasses.MISSING else repr(f.default)
         unit = f.metadata.get("unit")
         tp = _type_text(hints[f.name])
-        rows.append((f.name, tp + (f" [{unit}]" if unit else ""), default, f.metadata.get("doc", "")))
+        doc = f.metadata.get("doc", "")
+        tune = f.metadata.get("tune")
+        if tune is not None:
+            doc += f" [smoothing setting: tuned over {tune.text()} the configured value]"
+        rows.append((f.name, tp + (f" [{unit}]" if unit else ""), default, doc))
     return rows
+
+
+def tuned_fields(cls: type) -> dict[str, tuple[dataclasses.Field, Tune]]:
+    """The fields of settings dataclass ``cls`` declared as smoothing settings (``param(tune=...)``):
+    name -> (field, :class:`Tune`), in field order."""
+    if not dataclasses.is_dataclass(cls):
+        return {}
+    return {f.name: (f, f.metadata["tune"]) for f in dataclasses.fields(cls)
+            if f.metadata.get("tune") is not None}
 
 
 def parse_assignments(items: list[str] | None, where: str) -> dict[str, str]:
