@@ -124,7 +124,7 @@ def test_the_plugin_example_gets_a_tuned_column_without_a_tuning_entry(example):
     src, _, rows, _, stdout = example
     study = yaml.safe_load((src / "comparison.yaml").read_text())
     assert "tuning" not in study["parts"]["grid"] and "tuned" in study["parts"]["grid"]["grid"]["tuning"]
-    assert "5 cases (0 from cache, 5 computed)" in stdout
+    assert "6 cases (0 from cache, 6 computed)" in stdout
     scored = rows[rows["metric"] == "total_error"]
     assert set(zip(scored["estimator"], scored["tuning"])) == {
         ("sliding_ibk", "paper"), ("sliding_ibk", "tuned"), ("fsewls", "paper"), ("fsewls", "tuned"),
@@ -185,9 +185,9 @@ def test_a_comment_edit_recomputes_nothing_and_a_code_edit_is_named_by_diff(exam
     code = init.read_text()
     init.write_text(code.replace('"""A JointBench plugin:', '"""A JointBench plugin (docstring edited):', 1)
                     + "\n# a comment added: nothing to recompute\n")
-    assert "5 cases (5 from cache, 0 computed)" in _run(src / "comparison.yaml", out, src.parent)
+    assert "6 cases (6 from cache, 0 computed)" in _run(src / "comparison.yaml", out, src.parent)
     init.write_text(code.replace('__version__ = "0.1.0"', '__version__ = "0.1.1"\n_EDITED = True'))
-    assert "5 cases (3 from cache, 2 computed)" in _run(src / "comparison.yaml", out, src.parent)
+    assert "6 cases (4 from cache, 2 computed)" in _run(src / "comparison.yaml", out, src.parent)
     after = pd.read_csv(out / "plugin_comparison" / "cases.csv")
     (old,) = set(rows.loc[rows["estimator"] == "sliding_ibk", "plugin"])
     (new,) = set(after.loc[after["estimator"] == "sliding_ibk", "plugin"])
