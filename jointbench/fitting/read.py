@@ -38,7 +38,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from jointbench.fitting import read_limits as limits
-from jointbench.fitting.read_matlab import Recording, Unreadable, opaque_classes, read_objects
+from jointbench.fitting.read_matlab import Recording, Unreadable, read_mat, read_mat73  # noqa: F401 - re-exported
 from jointbench.fitting.read_limits import size_text
 from jointbench.core.errors import InputError
 from jointbench.core.types import Trial
@@ -296,73 +296,6 @@ def read_npz(path: Path) -> dict[str, np.ndarray]:
         raise InputError(f"{where}: cannot read as NPZ: not a zip archive (numpy.savez writes one)") from None
     except (ValueError, OSError, EOFError, KeyError) as exc:
         raise InputError(f"{where}: cannot read as NPZ: {exc}") from None
-
-
-def read_mat(path: Path) -> dict[str, np.ndarray]:
-    """The variables of a MATLAB .mat file: v4-v7.2 through SciPy, v7.3 through h5py (:func:`read_mat73`),
-    a file holding MATLAB class objects (which SciPy returns undecoded, as a variable ``None``) through mat-io
-    (:func:`jointbench.fitting.read_matlab.read_objects`)."""
-    import warnings
-
-    from scipy import io as sio
-
-    where = str(path)
-    limits.check_file(path)
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", sio.matlab.MatReadWarning)    # objects: "Duplicate variable name None"
-            data = sio.loadmat(path)
-    except NotImplementedError:        # version 7.3: HDF5
-        return read_mat73(path)
-    except (sio.matlab.MatReadError, ValueError, TypeError, OSError, EOFError) as exc:
-        raise InputError(f"{where}: cannot read as a MATLAB .mat file: {exc}") from None
-    classes = opaque_classes(data)
-    plain = {k: v for k, v in data.items() if not k.startswith("__") and k != "None"}
-    if classes:
-        return read_objects(path, classes, plain)
-    return plain
-
-
-def read_mat73(path: Path) -> dict[str, np.ndarray]:
-    """Top-level numeric variables of a MATLAB v7.3 (HDF5) file, with MATLAB's shapes.
-
-    MATLAB stores arrays column-major, so HDF5 sees them transposed: an N x 2 matrix is a 2 x N
-    dataset; they are transposed back. Variables that are not numeric arrays (char, cell, struct,
-    sparse, ...) are kept as empty object arrays, reported only if used.
-    """
-    where = str(path)
-    try:
-        import h5py
-    except ImportError:  # h5py is an extra: pip install 'jointbench[hdf5]'
-        raise InputError(f"{where}: MATLAB v7.3 (HDF5) file: reading it needs h5py, not installed: pip install "
-                         f"'jointbench[hdf5]' (or save with: save(file, ..., '-v7'))") from None
-    try:
-        with h5py.File(path, "r") as f:
-            out = {}
-            objects = {}
-            for name, obj in f.items():
-                if name.startswith("#"):
-                    continue                  # MATLAB's internal references group
-                cls = obj.attrs.get("MATLAB_class", b"")
-                cls = cls.decode() if isinstance(cls, bytes) else str(cls)
-                if "MATLAB_object_decode" in obj.attrs:
-                    objects[name] = cls       # a class object (MCOS): mat-io decodes it
-                    continue
-                numeric = isinstance(obj, h5py.Dataset) and obj.dtype.kind in "biuf" and cls not in ("char", "logical")
-                if not numeric or obj.attrs.get("MATLAB_empty", 0):
-                    out[name] = np.array([], dtype=object)
-                    continue
-                nbytes = int(np.prod(obj.shape, dtype=object)) * obj.dtype.itemsize
-                if nbytes > limits.available_memory() // 2:
-                    raise InputError(f"{where}: variable '{name}' is {size_text(nbytes)}, more than half the "
-                                     f"memory available; split the recording")
-                out[name] = np.asarray(obj[()]).T
-    except InputError:
-        raise
-    except Exception as exc:  # noqa: BLE001 - h5py on a damaged file raises RuntimeError, AttributeError, ...
-        text = " ".join(str(exc).split()) or type(exc).__name__
-        raise InputError(f"{where}: cannot read as a MATLAB v7.3 (HDF5) .mat file (damaged?): {text}") from None
-    return read_objects(path, objects, out) if objects else out
 
 
 # --- layouts: {name: ndarray} -> Trial -----------------------------------------------------------

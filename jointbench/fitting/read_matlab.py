@@ -1,4 +1,6 @@
-"""MATLAB class objects in .mat files: the REKLAB toolbox's data objects ``nldat``, ``segdat`` and ``tvdat``.
+"""MATLAB .mat files: v4 to v7.2 through :func:`scipy.io.loadmat`, v7.3 (HDF5) through h5py (an extra: ``pip install
+'jointbench[hdf5]'``), and MATLAB class objects in either: the REKLAB toolbox's data objects ``nldat``, ``segdat``
+and ``tvdat`` (:func:`read_mat`).
 
 MATLAB saves a ``classdef`` object (MCOS) as opaque class data that :func:`scipy.io.loadmat` cannot decode (it
 returns a variable named ``None`` and a warning). When a file holds such objects its variables are read with
@@ -28,6 +30,8 @@ from pathlib import Path
 import numpy as np
 
 from jointbench.core.errors import InputError
+from jointbench.fitting import read_limits
+from jointbench.fitting.read_limits import size_text
 
 #: the REKLAB data classes read as recordings
 CLASSES = ("nldat", "segdat", "tvdat")
@@ -125,6 +129,73 @@ class Unreadable:
         return InputError(f"{where}: '{self.variable}' is a MATLAB object of class {self.classname}: {self.reason}")
 
 
+def read_mat(path: Path) -> dict[str, np.ndarray]:
+    """The variables of a MATLAB .mat file: v4-v7.2 through SciPy, v7.3 through h5py (:func:`read_mat73`),
+    a file holding MATLAB class objects (which SciPy returns undecoded, as a variable ``None``) through mat-io
+    (:func:`read_objects`)."""
+    import warnings
+
+    from scipy import io as sio
+
+    where = str(path)
+    read_limits.check_file(path)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", sio.matlab.MatReadWarning)    # objects: "Duplicate variable name None"
+            data = sio.loadmat(path)
+    except NotImplementedError:        # version 7.3: HDF5
+        return read_mat73(path)
+    except (sio.matlab.MatReadError, ValueError, TypeError, OSError, EOFError) as exc:
+        raise InputError(f"{where}: cannot read as a MATLAB .mat file: {exc}") from None
+    classes = opaque_classes(data)
+    plain = {k: v for k, v in data.items() if not k.startswith("__") and k != "None"}
+    if classes:
+        return read_objects(path, classes, plain)
+    return plain
+
+
+def read_mat73(path: Path) -> dict[str, np.ndarray]:
+    """Top-level numeric variables of a MATLAB v7.3 (HDF5) file, with MATLAB's shapes.
+
+    MATLAB stores arrays column-major, so HDF5 sees them transposed: an N x 2 matrix is a 2 x N
+    dataset; they are transposed back. Variables that are not numeric arrays (char, cell, struct,
+    sparse, ...) are kept as empty object arrays, reported only if used.
+    """
+    where = str(path)
+    try:
+        import h5py
+    except ImportError:  # h5py is an extra: pip install 'jointbench[hdf5]'
+        raise InputError(f"{where}: MATLAB v7.3 (HDF5) file: reading it needs h5py, not installed: pip install "
+                         f"'jointbench[hdf5]' (or save with: save(file, ..., '-v7'))") from None
+    try:
+        with h5py.File(path, "r") as f:
+            out = {}
+            objects = {}
+            for name, obj in f.items():
+                if name.startswith("#"):
+                    continue                  # MATLAB's internal references group
+                cls = obj.attrs.get("MATLAB_class", b"")
+                cls = cls.decode() if isinstance(cls, bytes) else str(cls)
+                if "MATLAB_object_decode" in obj.attrs:
+                    objects[name] = cls       # a class object (MCOS): mat-io decodes it
+                    continue
+                numeric = isinstance(obj, h5py.Dataset) and obj.dtype.kind in "biuf" and cls not in ("char", "logical")
+                if not numeric or obj.attrs.get("MATLAB_empty", 0):
+                    out[name] = np.array([], dtype=object)
+                    continue
+                nbytes = int(np.prod(obj.shape, dtype=object)) * obj.dtype.itemsize
+                if nbytes > read_limits.available_memory() // 2:
+                    raise InputError(f"{where}: variable '{name}' is {size_text(nbytes)}, more than half the "
+                                     f"memory available; split the recording")
+                out[name] = np.asarray(obj[()]).T
+    except InputError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - h5py on a damaged file raises RuntimeError, AttributeError, ...
+        text = " ".join(str(exc).split()) or type(exc).__name__
+        raise InputError(f"{where}: cannot read as a MATLAB v7.3 (HDF5) .mat file (damaged?): {text}") from None
+    return read_objects(path, objects, out) if objects else out
+
+
 def opaque_classes(data: dict) -> dict[str, str]:
     """Variable name -> class of the MATLAB objects that :func:`scipy.io.loadmat` returned undecoded
     (``scipy.io.matlab.MatlabOpaque``: fields ``s0`` the name, ``s2`` the class)."""
@@ -163,7 +234,10 @@ def load_matio():
             before = pd.get_option("future.infer_string")
         except Exception:  # noqa: BLE001 - an option a later pandas removes
             before = None
-        import matio
+        try:
+            import matio
+        except ImportError:          # installed without what it needs (h5py): as if absent
+            return None
         if before is not None and pd.get_option("future.infer_string") != before:
             pd.set_option("future.infer_string", before)
     return matio
