@@ -133,8 +133,10 @@ def reflex_share(trial, prediction) -> float:
     if n < 4 * p:
         return 0.0
     X, e = X[rows] - X[rows].mean(axis=0), r[rows] - r[rows].mean()
-    coef = np.linalg.lstsq(X, e, rcond=None)[0]
-    rss, tss = float(np.sum((e - X @ coef) ** 2)), float(np.sum(e ** 2))
+    G, b = X.T @ X, X.T @ e                 # normal equations: 2p x 2p (the SVD of X took 0.2 s at 6000 x 78)
+    coef = np.linalg.lstsq(G, b, rcond=None)[0]
+    tss = float(e @ e)
+    rss = max(tss - float(coef @ b), 0.0)
     if tss <= 0:
         return 0.0
     r2 = 1.0 - (rss / (n - p - 1)) / (tss / (n - 1))
