@@ -139,6 +139,17 @@ def test_objects_without_mat_io_name_the_class_and_the_extra(tmp_path, monkeypat
     assert read.read_mat(path)["x"].ravel().tolist() == [0.0, 1.0, 2.0]     # the plain arrays are still read
 
 
+def test_a_one_channel_nldat_is_a_recorded_scheduling_variable(tmp_path):
+    """REKLAB's time-varying ankle trial keeps its scheduling variable as an nldat of its own (``sv`` beside
+    ``io``): ``schedule='sv'`` reads its one channel."""
+    angle, torque = ankle_like(4000)
+    sv = np.linspace(-0.4, 0.2, 4000)
+    path = save(tmp_path / "tv.mat", io=nldat(np.c_[angle, torque], ["posPert1", "tqPert1"]),
+                sv=nldat(sv[:, None], ["Scheduling Variable (SV) - Ankle Position (rad)"]))
+    [t] = api.read(f"{path}:io", schedule="sv")
+    np.testing.assert_array_equal(t.channels["sv"], sv)
+
+
 def test_the_command_fits_an_nldat_record(tmp_path, capsys):
     angle, torque = ankle_like(4000)
     path = save(tmp_path / "rec.mat", z=nldat(np.c_[angle, torque], ["posPert1", "tqPert1"]))

@@ -42,7 +42,8 @@ UNITS = {"I": "kg m^2", "B": "N m s/rad", "K": "N m/rad", "stiffness": "N m/rad"
 _EPILOG = """\
 inputs: CSV with a header naming columns time, angle, torque (s, rad, N m; other columns ignored);
 NPZ or MATLAB .mat (v4-v7.3) with variables time, angle, torque; or an N x 2 [angle, torque] array of
-an NPZ/.mat file chosen by --array NAME or FILE:NAME, sampled at the file's scalar 'fs' or --fs.
+an NPZ/.mat file chosen by --array NAME or FILE:NAME, sampled at the file's scalar 'fs' or --fs;
+or a REKLAB nldat object of a .mat file by FILE:NAME (channels by name, the rate from domainIncr).
 Several --input are records of one condition, fitted together. Ensembles (realizations of one
 time-varying condition, aligned in time): an NPZ/.mat file whose angle and torque are 2-D (samples x
 realizations) with fs or time, or several --input records of equal length and rate with --ensemble
