@@ -30,6 +30,20 @@ GAIN_ITERATIONS, FIRST_GAIN_ITERATIONS = 10, 20
 GAIN_RTOL = 1e-9
 
 
+#: what a fit of one trial says beside its numbers (``fit_info["advice"]``, printed by ``jointbench estimate``). Guarin
+#: & Kearney (2017) separate the response to the perturbation from a change of operating point (the movement, a
+#: voluntary torque) by an ensemble of realizations of the same time course, whose mean holds the latter
+#: (``remove_mean='ensemble'``); one trial has none, and the basis functions of time then fit the movement's torque
+#: as time-varying stiffness and reflex gain: on the issue-37 ankle trial with a movement, K(t) of one trial
+#: correlated 0.69 with REKLAB's parameter-varying cascade (issue 37). On simulated trials without a movement one
+#: trial is not worse in the delay: 6 samples (truth 4) on each of five 22 s realizations and on their ensemble.
+SINGLE_TRIAL = ("one trial: the time-varying IRF and reflex gain are fitted to this record alone; an ensemble of "
+                "realizations of the same time course (remove_mean='ensemble') is what separates the response to the "
+                "perturbation from a movement or voluntary torque, which one trial fits as varying stiffness and "
+                "reflex gain: give several realizations, or fit stiffness as a function of position from one trial "
+                "with pv_irf and a schedule")
+
+
 @dataclasses.dataclass(eq=False)
 class TVCascadeEstimate(TVIRFEstimate):
     """The intrinsic TV-IRF (:class:`~jointbench.core.estimate_tv.TVIRFEstimate`: ``h`` lags x time, its
@@ -170,8 +184,8 @@ class TVParallelCascade(EnsembleEstimator):
 
     Notes
     -----
-    Takes an ensemble (or one trial: an ensemble of one). Returns a :class:`TVCascadeEstimate`, valid on
-    the samples both pathways' lags reach in every realization.
+    Takes an ensemble (or one trial: an ensemble of one, fitted with :data:`SINGLE_TRIAL` as its advice). Returns a
+    :class:`TVCascadeEstimate`, valid on the samples both pathways' lags reach in every realization.
 
     References
     ----------
@@ -227,6 +241,8 @@ class TVParallelCascade(EnsembleEstimator):
                 else "not kept: it does not lower the MDL against the intrinsic pathway alone"}
         if keep:
             info["nonlinearity"] = nl.describe()
+        if R == 1:
+            info["advice"] = SINGLE_TRIAL
         def vt(yhat):                                               # about each realization's mean
             return vaf(data.Yv, yhat, bias_counts=True, axis=0, undefined="nan")
 

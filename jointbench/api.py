@@ -141,7 +141,7 @@ def fit(estimator, data=None, *, angle=None, torque=None, fs: float | None = Non
     Fit
         ``estimate`` (:class:`~jointbench.core.estimate.Estimate`), ``frame`` (parameters over time with 95 %
         intervals), ``response`` (IRF/FRF), ``vaf`` (each record's predicted-torque VAF, %), ``predictions``,
-        ``trials`` (as fitted), ``notes``; ``plot(path)`` draws it.
+        ``trials`` (as fitted), ``notes``, ``hints`` (:mod:`jointbench.fitting.hints`); ``plot(path)`` draws it.
 
     Raises
     ------

@@ -102,7 +102,7 @@ def test_the_light_core_and_its_extras():
     assert not core & {"mujoco", "dm-control", "dask", "h5py"}, core
     extras = meta["optional-dependencies"]
     assert {"mujoco", "dask", "hdf5", "all", "test"} <= set(extras)
-    assert extras["all"] == ["jointbench[mujoco,dask,hdf5]"]
+    assert extras["all"] == ["jointbench[mujoco,dask,hdf5,matlab]"]
 
 
 def test_the_mujoco_backend_without_its_extra_is_one_line_naming_it(monkeypatch):

@@ -26,7 +26,8 @@ import jointbench
 REPO = Path(__file__).resolve().parents[1]
 SOURCES = ("pyproject.toml", "README.md", "LICENSE", "jointbench", "sims", "estimators", "benchmarks", "configs")
 #: what the light core's venv does not see of the test venv: jointbench's editable install and the extras
-EXTRAS = ("jointbench", "__editable__", "mujoco", "dm_control", "dm_env", "labmaze", "dask", "distributed", "h5py")
+EXTRAS = ("jointbench", "__editable__", "mujoco", "dm_control", "dm_env", "labmaze", "dask", "distributed", "h5py",
+          "matio", "mat_io")
 
 
 @pytest.fixture(scope="module")

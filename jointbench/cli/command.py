@@ -32,7 +32,7 @@ def main(argv: list[str] | None = None) -> int:
         for v in BLAS_THREAD_VARIABLES:
             os.environ.setdefault(v, "1")
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args = parser.parse_args(estimate.joined_signed_values(sys.argv[1:] if argv is None else argv))
     args.command_line = [str(a) for a in (sys.argv[1:] if argv is None else argv)]   # what the history records
     previous = None
     if argv is None:                       # the real command line (not a call from a test)

@@ -24,6 +24,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import os
+import re
 from pathlib import Path
 from typing import TYPE_CHECKING, Sequence
 
@@ -41,7 +42,8 @@ UNITS = {"I": "kg m^2", "B": "N m s/rad", "K": "N m/rad", "stiffness": "N m/rad"
 _EPILOG = """\
 inputs: CSV with a header naming columns time, angle, torque (s, rad, N m; other columns ignored);
 NPZ or MATLAB .mat (v4-v7.3) with variables time, angle, torque; or an N x 2 [angle, torque] array of
-an NPZ/.mat file chosen by --array NAME or FILE:NAME, sampled at the file's scalar 'fs' or --fs.
+an NPZ/.mat file chosen by --array NAME or FILE:NAME, sampled at the file's scalar 'fs' or --fs;
+or a REKLAB nldat object of a .mat file by FILE:NAME (channels by name, the rate from domainIncr).
 Several --input are records of one condition, fitted together. Ensembles (realizations of one
 time-varying condition, aligned in time): an NPZ/.mat file whose angle and torque are 2-D (samples x
 realizations) with fs or time, or several --input records of equal length and rate with --ensemble
@@ -93,8 +95,8 @@ def add_parser(subparsers) -> None:
                         "low-passed), angle, or a column (CSV) / array (NPZ, .mat) of the input; prints K at "
                         "chosen values with intervals")
     p.add_argument("--at", metavar="V1,V2,...",
-                   help="with --schedule: the scheduling values to print K at (default: 5 over the range visited); "
-                        "write --at=-0.3,0,0.2 when the first is negative")
+                   help="with --schedule: the scheduling values to print K at (default: 5 over the range visited), "
+                        "e.g. --at -0.4,0,0.2")
     p.set_defaults(func=run)
 
 
@@ -143,6 +145,27 @@ def run(args: argparse.Namespace) -> int:
 
 
 # --- presentation: the values of --at, the summary, the output files -----------------------------------
+
+#: options whose value may start with a minus sign (argparse takes ``--at -0.4,0`` for an option ``-0.4,0``: its
+#: own test for a negative number knows no lists, so only ``--at=-0.4,0`` passed)
+SIGNED_VALUE_OPTIONS = ("--at",)
+_SIGNED = re.compile(r"-\.?\d[\d.eE+\-,\s]*")
+
+
+def joined_signed_values(argv: Sequence[str]) -> list[str]:
+    """``argv`` with each of :data:`SIGNED_VALUE_OPTIONS` followed by a value that starts with a minus sign and
+    reads as numbers (``-0.4,0``) written as one argument (``--at=-0.4,0``), which argparse takes as the value;
+    anything else unchanged (``--at --schedule ...`` still lacks its value, and says so)."""
+    argv = [str(a) for a in argv]
+    out, i = [], 0
+    while i < len(argv):
+        if argv[i] in SIGNED_VALUE_OPTIONS and i + 1 < len(argv) and _SIGNED.fullmatch(argv[i + 1]):
+            out.append(f"{argv[i]}={argv[i + 1]}")
+            i += 2
+        else:
+            out.append(argv[i])
+            i += 1
+    return out
 
 def parse_at(text: str) -> "np.ndarray":
     """``V1,V2,...`` -> an array of numbers (one-line error otherwise)."""
@@ -313,6 +336,7 @@ def summary_text(name: str, settings, o: Fit, written: Sequence[tuple[Path, int 
                  + "; ".join(defs))
     for t, vaf in zip(o.trials, o.vaf):
         lines.append(f"  {t.name:<{w}}  {vaf:6.1f} %")
+    lines += [f"hint: {h}" for h in o.hints]
     lines.append("wrote:")
     for path, rows, cols in written:
         lines.append(f"  {path}" + (f"  ({rows} rows: {', '.join(cols)})" if cols else ""))

@@ -9,7 +9,8 @@ several records are one ensemble (:func:`ensemble_name`: the one place this is d
 part of a gated multisine for the multisine methods; information; memory), the fit (numerical failures
 turned into one-line errors), then the output gate (:func:`gate`: the estimate is refused when its own
 prediction of a record it was fitted on is worse than a constant, a value or a bound is not finite, or an
-interval has zero width), which gives each record's prediction and VAF (:func:`score`). Every record is
+interval has zero width), which gives each record's prediction and VAF (:func:`score`), and the hints
+(:mod:`.hints`). Every record is
 fitted and scored as an impedance, torque from angle (:func:`impedance`), also when the torque was imposed.
 Errors name the arguments as the caller knows them (:func:`jointbench.core.errors.argument`).
 """
@@ -49,6 +50,10 @@ class Fit:
     frame, response : DataFrame
         ``estimate.to_frame()`` (parameters over time, with intervals) and ``estimate.response_frame()``
         (the IRF or FRF, or None).
+    hints : list of str
+        What the data say about the fit the user probably wants (:mod:`jointbench.fitting.hints`: a negative
+        stiffness -> the torque's sign; torque that a reflex pathway would explain -> ``parallel_cascade``),
+        one line each; the estimate is as fitted either way.
     """
 
     estimator: object
@@ -59,6 +64,7 @@ class Fit:
     predictions: list
     frame: object
     response: object
+    hints: list[str] = dataclasses.field(default_factory=list)
 
     @property
     def vaf(self) -> list[float]:
@@ -180,7 +186,10 @@ def fit(estimator, data=None, *, angle=None, torque=None, fs: float | None = Non
                             window=None if window is None else checks.as_window(window))
     estimate = fit_checked(est, Ensemble(tuple(trials), name=name) if name is not None else trials)
     predictions = gate(est, estimate, trials)
-    return Fit(est, estimate, raw, trials, notes, predictions, estimate.to_frame(), estimate.response_frame())
+    from jointbench.fitting.hints import hints
+
+    return Fit(est, estimate, raw, trials, notes, predictions, estimate.to_frame(), estimate.response_frame(),
+               hints(est, estimate, trials, predictions, torque_sign))
 
 
 def impedance(trial):

@@ -18,7 +18,11 @@ The angle is taken as the imposed signal (``Trial.imposed == "angle"``). Every p
 :class:`~jointbench.core.errors.InputError` with a message naming the file.
 
 MATLAB files of versions 4 to 7.2 are read with :func:`scipy.io.loadmat`, version 7.3 (HDF5) with
-``h5py`` (an extra: ``pip install 'jointbench[hdf5]'``). An NPZ member is loaded only after its header's
+``h5py`` (an extra: ``pip install 'jointbench[hdf5]'``); a file holding MATLAB class objects (the REKLAB
+toolbox's ``nldat``, ``segdat``, ``tvdat``) with mat-io (:mod:`jointbench.fitting.read_matlab`, the extra
+``matlab``): such an object picked by ``array=`` is a record whose channels are found by name and whose
+sampling rate is ``1 / domainIncr``; a ``segdat`` of several segments is several records
+(:func:`read_source`). An NPZ member is loaded only after its header's
 claimed size has been checked against the bytes stored and the memory available.
 Limits (a regular file, the memory that loading it takes) are checked before anything is loaded:
 :mod:`jointbench.fitting.read_limits`.
@@ -34,6 +38,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from jointbench.fitting import read_limits as limits
+from jointbench.fitting.read_matlab import Recording, Unreadable, read_mat, read_mat73  # noqa: F401 - re-exported
 from jointbench.fitting.read_limits import size_text
 from jointbench.core.errors import InputError
 from jointbench.core.types import Trial
@@ -117,6 +122,17 @@ def read_trial(path: str | Path, *, array: str | None = None, fs: float | None =
         Missing or unreadable file, unknown extension, missing or malformed variable, NaN/inf,
         non-uniform or non-increasing time, mismatched lengths, fewer than 2 samples, no sampling rate.
     """
+    trials = read_records_of(path, array=array, fs=fs, name=name)
+    if len(trials) > 1:
+        raise InputError(f"{path}: '{array}' holds {len(trials)} segments (a segdat): read it with read_trials "
+                         f"(each segment a record of one condition)")
+    return trials[0]
+
+
+def read_records_of(path: str | Path, *, array: str | None = None, fs: float | None = None,
+                    name: str | None = None) -> list[Trial]:
+    """The records of one file (and array): :func:`read_trial`'s record, or one per segment of a REKLAB
+    ``segdat`` object picked by ``array`` (named ``FILE:NAME[segment k]``, k from 1 as REKLAB counts them)."""
     path = Path(path)
     where = str(path)
     if fs is not None and not (np.isfinite(fs) and fs > 0):
@@ -141,7 +157,7 @@ def read_trial(path: str | Path, *, array: str | None = None, fs: float | None =
     name = name or (path.name + (f":{array}" if array else ""))
     if array is not None:
         return _from_array(variables, array, fs, where, name)
-    return _from_columns(variables, fs, where, name)
+    return [_from_columns(variables, fs, where, name)]
 
 
 def read_trials(sources: Sequence[Source | str | Path], *, fs: float | None = None) -> list[Trial]:
@@ -157,7 +173,7 @@ def read_trials(sources: Sequence[Source | str | Path], *, fs: float | None = No
     srcs = [s if isinstance(s, Source) else Source(Path(s)) for s in sources]
     if not srcs:
         raise InputError("no input file given")
-    trials = [read_trial(s.path, array=s.array, fs=fs, name=s.label) for s in srcs]
+    trials = [t for s in srcs for t in read_records_of(s.path, array=s.array, fs=fs, name=s.label)]
     rates = {t.fs for t in trials}
     if len(rates) > 1:
         listing = ", ".join(f"{t.name} at {t.fs:g} Hz" for t in trials)
@@ -282,65 +298,14 @@ def read_npz(path: Path) -> dict[str, np.ndarray]:
         raise InputError(f"{where}: cannot read as NPZ: {exc}") from None
 
 
-def read_mat(path: Path) -> dict[str, np.ndarray]:
-    from scipy import io as sio
-
-    where = str(path)
-    limits.check_file(path)
-    try:
-        data = sio.loadmat(path)
-    except NotImplementedError:        # version 7.3: HDF5
-        return read_mat73(path)
-    except (sio.matlab.MatReadError, ValueError, TypeError, OSError, EOFError) as exc:
-        raise InputError(f"{where}: cannot read as a MATLAB .mat file: {exc}") from None
-    return {k: v for k, v in data.items() if not k.startswith("__")}
-
-
-def read_mat73(path: Path) -> dict[str, np.ndarray]:
-    """Top-level numeric variables of a MATLAB v7.3 (HDF5) file, with MATLAB's shapes.
-
-    MATLAB stores arrays column-major, so HDF5 sees them transposed: an N x 2 matrix is a 2 x N
-    dataset; they are transposed back. Variables that are not numeric arrays (char, cell, struct,
-    sparse, ...) are kept as empty object arrays, reported only if used.
-    """
-    where = str(path)
-    try:
-        import h5py
-    except ImportError:  # h5py is an extra: pip install 'jointbench[hdf5]'
-        raise InputError(f"{where}: MATLAB v7.3 (HDF5) file: reading it needs h5py, not installed: pip install "
-                         f"'jointbench[hdf5]' (or save with: save(file, ..., '-v7'))") from None
-    try:
-        with h5py.File(path, "r") as f:
-            out = {}
-            for name, obj in f.items():
-                if name.startswith("#"):
-                    continue                  # MATLAB's internal references group
-                cls = obj.attrs.get("MATLAB_class", b"")
-                cls = cls.decode() if isinstance(cls, bytes) else str(cls)
-                numeric = isinstance(obj, h5py.Dataset) and obj.dtype.kind in "biuf" and cls not in ("char", "logical")
-                if not numeric or obj.attrs.get("MATLAB_empty", 0):
-                    out[name] = np.array([], dtype=object)
-                    continue
-                nbytes = int(np.prod(obj.shape, dtype=object)) * obj.dtype.itemsize
-                if nbytes > limits.available_memory() // 2:
-                    raise InputError(f"{where}: variable '{name}' is {size_text(nbytes)}, more than half the "
-                                     f"memory available; split the recording")
-                out[name] = np.asarray(obj[()]).T
-            return out
-    except InputError:
-        raise
-    except Exception as exc:  # noqa: BLE001 - h5py on a damaged file raises RuntimeError, AttributeError, ...
-        text = " ".join(str(exc).split()) or type(exc).__name__
-        raise InputError(f"{where}: cannot read as a MATLAB v7.3 (HDF5) .mat file (damaged?): {text}") from None
-
-
 # --- layouts: {name: ndarray} -> Trial -----------------------------------------------------------
 
 def what_is_there(variables: Mapping[str, np.ndarray]) -> str:
     if "__columns__" in variables:
         cols = list(variables["__columns__"])
         return "columns found: " + (", ".join(cols) if cols else "(none)")
-    names = [f"{k} {shape_text(v)}" for k, v in variables.items()]
+    names = [f"{k} {v.describe() if isinstance(v, (Recording, Unreadable)) else shape_text(v)}"
+             for k, v in variables.items()]
     return "variables found: " + (", ".join(names) if names else "(none)")
 
 
@@ -350,6 +315,8 @@ def shape_text(v) -> str:
 
 
 def numeric(v, what: str, where: str) -> np.ndarray:
+    if isinstance(v, Unreadable):
+        raise v.error(where)
     a = np.asarray(v)
     if a.dtype.kind not in "biuf":
         raise InputError(f"{where}: {what} is not a numeric array (MATLAB type or dtype {a.dtype})")
@@ -386,11 +353,13 @@ def _make_trial(where: str, **kw) -> Trial:
         raise InputError(f"{where}: {exc}") from None
 
 
-def _from_array(variables, array: str, fs: float | None, where: str, name: str) -> Trial:
+def _from_array(variables, array: str, fs: float | None, where: str, name: str) -> list[Trial]:
     if array not in variables:
         two = [k for k, v in variables.items() if np.ndim(v) == 2 and np.shape(v)[1] == 2]
         hint = f"; N×2 arrays there: {', '.join(two)}" if two else ""
         raise InputError(f"{where}: no array {array!r}; {what_is_there(variables)}{hint}")
+    if isinstance(variables[array], Recording):
+        return _from_recording(variables[array], fs, where, name)
     a = numeric(variables[array], f"array '{array}'", where)
     if a.ndim != 2 or a.shape[1] != 2:
         tip = " (transpose it to N×2)" if a.ndim == 2 and a.shape[0] == 2 else ""
@@ -399,8 +368,27 @@ def _from_array(variables, array: str, fs: float | None, where: str, name: str) 
     if fs is None:
         raise InputError(f"{where}: no sampling rate for array '{array}': the file has no scalar 'fs' "
                          f"variable; give it with --fs HZ")
-    return _make_trial(where, time=np.arange(a.shape[0]) / fs, angle=a[:, 0], torque=a[:, 1],
-                       fs=fs, name=name)
+    return [_make_trial(where, time=np.arange(a.shape[0]) / fs, angle=a[:, 0], torque=a[:, 1],
+                        fs=fs, name=name)]
+
+
+def _from_recording(rec: Recording, fs: float | None, where: str, name: str) -> list[Trial]:
+    """The records of a REKLAB data object: its angle and torque channels (:meth:`Recording.angle_torque`) at
+    ``1 / domainIncr`` Hz from ``domainStart``, one record per segment of a ``segdat``."""
+    if rec.realizations > 1:
+        raise InputError(f"{where}: {rec.classname} '{rec.variable}' holds {rec.realizations} realizations: an "
+                         f"ensemble, read as one (give it as the only input)")
+    if fs is not None and not np.isclose(rec.fs, fs, rtol=1e-9):
+        raise InputError(f"{where}: {rec.classname} '{rec.variable}' is sampled at {rec.fs:g} Hz (domainIncr "
+                         f"{rec.increment:g} s) but {fs:g} Hz was given")
+    i, j = rec.angle_torque(where)
+    out = []
+    for k, ((first, n), t0) in enumerate(zip(rec.segments, rec.starts)):
+        label = name if len(rec.segments) == 1 else f"{name}[segment {k + 1}]"
+        block = rec.data[first:first + n, :, 0]
+        out.append(_make_trial(where, time=t0 + np.arange(n) / rec.fs, angle=block[:, i], torque=block[:, j],
+                               fs=rec.fs, name=label))
+    return out
 
 
 def _from_columns(variables, fs: float | None, where: str, name: str) -> Trial:

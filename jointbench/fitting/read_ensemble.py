@@ -16,27 +16,36 @@ import numpy as np
 
 from jointbench.fitting.read import (Source, file_rate, numeric, read_mat, read_npz, shape_text, time_base,
                                       what_is_there, read_trials)
+from jointbench.fitting.read_matlab import Recording
 from jointbench.core.ensemble import Ensemble
 from jointbench.core.errors import InputError, argument
 
 def is_ensemble_file(source: Source | str | Path) -> bool:
-    """True for an NPZ/.mat file (column layout) whose ``angle`` and ``torque`` are 2-D (samples × realizations)."""
+    """True for an NPZ/.mat file (column layout) whose ``angle`` and ``torque`` are 2-D (samples × realizations),
+    or a REKLAB data object (``nldat``, ``tvdat``) of several realizations picked by ``FILE:NAME``."""
     src = source if isinstance(source, Source) else Source(Path(source))
-    if src.array is not None or src.path.suffix.lower() not in (".npz", ".mat") or not src.path.is_file():
+    suffix = src.path.suffix.lower()
+    if (src.array is not None and suffix != ".mat") or suffix not in (".npz", ".mat") or not src.path.is_file():
         return False
     try:
-        variables = read_npz(src.path) if src.path.suffix.lower() == ".npz" else read_mat(src.path)
+        variables = read_npz(src.path) if suffix == ".npz" else read_mat(src.path)
     except InputError:
         return False
+    if src.array is not None:
+        rec = variables.get(src.array)
+        return isinstance(rec, Recording) and rec.realizations > 1
     return all(k in variables and np.ndim(variables[k]) == 2 and min(np.shape(variables[k])) > 1
                for k in ("angle", "torque"))
 
 
-def read_ensemble(path: str | Path, *, fs: float | None = None, name: str | None = None):
+def read_ensemble(path: str | Path, *, fs: float | None = None, name: str | None = None, array: str | None = None):
     """Read an ensemble: an NPZ or .mat file whose ``angle`` and ``torque`` are 2-D, samples × realizations.
 
     The sampling rate comes from a scalar ``fs`` variable, a 1-D ``time`` variable (one per sample, shared
     by every realization) or the ``fs`` argument; time starts at ``time[0]`` (or 0).
+
+    ``array`` picks a REKLAB data object (``nldat``, ``tvdat``) of a .mat file instead, whose ``dataSet`` is
+    samples x channels x realizations (:func:`object_ensemble`).
 
     Returns
     -------
@@ -58,6 +67,8 @@ def read_ensemble(path: str | Path, *, fs: float | None = None, name: str | None
         raise InputError(f"{where}: an ensemble file must be .npz or .mat with 2-D angle and torque "
                          f"(samples x realizations), got {path.suffix or '(no extension)'!r}")
     variables = read_npz(path) if suffix == ".npz" else read_mat(path)
+    if array is not None:
+        return object_ensemble(variables.get(array), fs, where, name or f"{path.name}:{array}")
     missing = [k for k in ("angle", "torque") if k not in variables]
     if missing:
         raise InputError(f"{where}: missing variable{'s' if len(missing) > 1 else ''} "
@@ -107,6 +118,23 @@ def read_ensemble(path: str | Path, *, fs: float | None = None, name: str | None
         raise InputError(f"{where}: {exc}") from None
 
 
+def object_ensemble(rec: Recording, fs: float | None, where: str, label: str):
+    """The ensemble of a REKLAB data object of several realizations: its angle and torque channels (found by
+    name, :meth:`~jointbench.fitting.read_matlab.Recording.angle_torque`), samples x realizations, at
+    ``1 / domainIncr`` Hz from ``domainStart``."""
+    if not isinstance(rec, Recording) or len(rec.segments) > 1:
+        raise InputError(f"{where}: '{label}' is not a REKLAB nldat or tvdat object of several realizations")
+    if fs is not None and not np.isclose(rec.fs, fs, rtol=1e-9):
+        raise InputError(f"{where}: {rec.classname} '{rec.variable}' is sampled at {rec.fs:g} Hz (domainIncr "
+                         f"{rec.increment:g} s) but {fs:g} Hz was given")
+    i, j = rec.angle_torque(where)
+    try:
+        return Ensemble.from_arrays(rec.data[:, i, :], rec.data[:, j, :], rec.fs, t0=float(rec.starts[0]),
+                                    name=label, names=[f"{label}[{r}]" for r in range(rec.realizations)])
+    except InputError as exc:
+        raise InputError(f"{where}: {exc}") from None
+
+
 def read_records(sources: Sequence[Source | str | Path], *, fs: float | None = None):
     """The records of ``sources``: a list of trials, or the ensemble of a file with 2-D angle and torque
     (:func:`is_ensemble_file`), which must then be the only source. Whether several records are fitted as
@@ -117,5 +145,5 @@ def read_records(sources: Sequence[Source | str | Path], *, fs: float | None = N
         if len(srcs) > 1:
             raise InputError(f"{two_d[0].path}: holds an ensemble (2-D angle and torque); give it as the only "
                              f"{argument('data')}, or give one record per file")
-        return read_ensemble(two_d[0].path, fs=fs)
+        return read_ensemble(two_d[0].path, fs=fs, array=two_d[0].array)
     return read_trials(srcs, fs=fs)
