@@ -17,7 +17,7 @@ PAPER_STUDIES := westwick2012 xu1998 vanderuit2018_table1
         westwick2012-fig4 westwick2012-fig5 westwick2012-fig6 westwick2012-table1 westwick2012-fig7 \
         westwick2012-fig8 xu1998 xu1998-fig2 xu1998-fig3 xu1998-calibration vanderuit2018-table1 \
         vanderuit2018-table2 apparatus matrix reproduce-mujoco example-ankle clean-results nightly chromium \
-        reflex lpv example-reflex conformance
+        reflex lpv example-reflex parity-reklab conformance
 
 help:
 	@echo "make reproduce   run every implemented paper study (results/<study>/report.md)"
@@ -53,6 +53,7 @@ help:
 	@echo "make lpv         K(theta) from one trial with a slow movement: pv_irf against FSEWLS mapped"
 	@echo "                 through theta (results/lpv/; a comparison study)"
 	@echo "make example-reflex  the parallel cascade on the REKLAB ankle recordings (docs/reflex_example.md; developers only)"
+	@echo "make parity-reklab   parity with REKLAB's PC_stiffnessID on those recordings (docs/reklab_parity.md; developers only)"
 
 $(STAMP): pyproject.toml
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -200,6 +201,13 @@ reflex: $(STAMP)
 	$(RUN) reflex
 lpv: $(STAMP)
 	$(RUN) lpv
+
+# Parity with REKLAB's PC_stiffnessID on the real ankle recordings (needs ../shared beside the checkout; the
+# reference numbers: tools/reklab/, made by python -m tools.reklab.reference with GNU Octave).
+parity-reklab: $(STAMP)
+	@test -f $(SHARED)/data/reklab-ankle/ankle_stationary.npz || \
+	    { echo "$(SHARED)/data/reklab-ankle not found (developers' checkout only)"; exit 2; }
+	$(BIN)/python docs/reklab_parity.py $(SHARED)/data/reklab-ankle/ankle_stationary.npz docs
 
 # The parallel cascade on the real ankle recordings (needs ../shared beside the checkout).
 example-reflex: $(STAMP)

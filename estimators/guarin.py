@@ -9,13 +9,17 @@ from numpy.polynomial import legendre
 from scipy.interpolate import BSpline
 
 from jointbench.estimators import register
+from jointbench.estimators._reflex import VelocitySettings
 from jointbench.estimators._resample import JackknifeSettings, realization_jackknife
 from jointbench.estimators._tvirf import EnsembleEstimator, TVLagSettings, basis_normal, centred
 from jointbench.core.ensemble import Ensemble
 from jointbench.core.errors import InputError
 from jointbench.core.intervals import psd_solve
+from jointbench.core.differentiators import central
+from jointbench.core.estimate import Prediction
 from jointbench.core.estimate_tv import TVIRFEstimate
 from jointbench.core.schema import Tune, param
+from jointbench.core.signal import Differentiate, velocity
 
 BasisKind = Literal["gaussian", "bspline", "legendre"]
 
@@ -64,25 +68,41 @@ class GuarinEstimate(TVIRFEstimate):
     reflex_h: np.ndarray | None = None
     reflex_delay: int = 0
     nonlinearity: str = "rectifier"
+    differentiate: Differentiate = "before_decimation"     #: where the fit took the velocity (its setting)
 
-    def reflex_input(self, u: np.ndarray) -> np.ndarray:
-        """The reflex pathway's input: ``NL(u'(t - delay))`` (velocity by central differences)."""
-        return reflex_signal(np.asarray(u, float)[:, None], self.fs, self.reflex_delay, self.nonlinearity)[:, 0]
+    def reflex_input(self, u: np.ndarray, v: np.ndarray | None = None) -> np.ndarray:
+        """The reflex pathway's input: ``NL(u'(t - delay))``, the velocity ``v`` (default: central differences
+        of ``u``)."""
+        V = None if v is None else np.asarray(v, float)[:, None]
+        return reflex_signal(np.asarray(u, float)[:, None], self.fs, self.reflex_delay, self.nonlinearity, V)[:, 0]
 
-    def predict(self, u: np.ndarray) -> np.ndarray:
+    def predict(self, u: np.ndarray, v: np.ndarray | None = None) -> np.ndarray:
+        """Both pathways' torque for the angle ``u`` (its velocity ``v``: default, central differences of ``u``)."""
         y = super().predict(u)
         if self.reflex_h is None:
             return y
-        x = self.reflex_input(u)
+        x = self.reflex_input(u, v)
         lr = self.reflex_h.shape[0]
         from numpy.lib.stride_tricks import sliding_window_view
         Xr = sliding_window_view(np.concatenate([np.zeros(lr - 1), x]), lr)[:, ::-1]   # x(i - k), k = 0 ... lr-1
         return y + np.einsum("ik,ki->i", Xr, self.reflex_h)
 
+    def prediction(self, trial, index: int = 0) -> Prediction:
+        """As :meth:`TVIRFEstimate.prediction`, a reflex pathway driven by the trial's velocity as the fit took it
+        (``differentiate``: :func:`jointbench.core.signal.velocity`)."""
+        if self.reflex_h is None:
+            return super().prediction(trial, index)
+        y = trial.output - np.mean(trial.output)
+        yhat = self.predict(trial.input - np.mean(trial.input), velocity(trial, self.differentiate))
+        return Prediction(y, yhat, self.valid.copy(), "torque (mean removed) against the intrinsic and reflex "
+                          "pathways' prediction from the angle (mean removed), on the samples where the "
+                          f"time-varying IRF is estimated ({int(self.valid.sum())} of {len(self.valid)})")
 
-def reflex_signal(U: np.ndarray, fs: float, delay: int, nonlinearity: str) -> np.ndarray:
-    """``NL(v(i - delay))`` for every column of ``U`` (zero before the delay), ``v`` the velocity."""
-    v = np.gradient(U, 1.0 / fs, axis=0)
+
+def reflex_signal(U: np.ndarray, fs: float, delay: int, nonlinearity: str, V: np.ndarray | None = None) -> np.ndarray:
+    """``NL(v(i - delay))`` for every column of ``U`` (zero before the delay), ``v`` the velocity: the columns of
+    ``V``, or central differences of ``U`` (:func:`jointbench.core.differentiators.central`)."""
+    v = central(U, fs) if V is None else V
     x = np.maximum(v, 0.0) if nonlinearity == "rectifier" else v
     out = np.zeros_like(x)
     out[delay:] = x[:len(x) - delay]
@@ -113,8 +133,9 @@ class Guarin(EnsembleEstimator):
         ``basis`` ('gaussian', 'bspline', 'legendre'), ``n_basis`` (M), ``width`` (Gaussian width in
         centre spacings); ``lag_before``, ``lag_after`` (s, default 0.04); ``remove_mean``
         ('record', 'ensemble', 'none'); ``edges`` ('valid': only samples whose lags lie in the record;
-        'zero': zero input outside); ``reflex``, ``reflex_delay``, ``reflex_lags``, ``nonlinearity``;
-        ``rcond``.
+        'zero': zero input outside); ``reflex``, ``reflex_delay``, ``reflex_lags``, ``nonlinearity``,
+        ``differentiate`` (where the reflex pathway's velocity is taken: :class:`estimators._reflex.
+        VelocitySettings`); ``rcond``.
 
     Notes
     -----
@@ -134,7 +155,7 @@ class Guarin(EnsembleEstimator):
     accepts = frozenset({"trial", "pooled", "ensemble"})
 
     @dataclasses.dataclass(frozen=True)
-    class Settings(TVLagSettings, JackknifeSettings):
+    class Settings(TVLagSettings, JackknifeSettings, VelocitySettings):
         basis: BasisKind = param("gaussian", doc="basis functions of time: 'gaussian', 'bspline' or 'legendre'")
         n_basis: int = param(21, ge=1, doc="number of basis functions M", tune=Tune())
         width: float = param(1.0, gt=0, doc="Gaussian width, in centre spacings")
@@ -183,7 +204,8 @@ class Guarin(EnsembleEstimator):
         X = np.lib.stride_tricks.sliding_window_view(np.concatenate([pad[0], U, pad[1]]), L, axis=0)[..., ::-1]
         X = X[first:last]                                            # (rows, R, L): row i is sample first + i
         if s.reflex:
-            xr = reflex_signal(ens.inputs, fs, d, s.nonlinearity)
+            xr = reflex_signal(ens.inputs, fs, d, s.nonlinearity,
+                               np.stack([velocity(t, s.differentiate) for t in ens], axis=1))
             if s.remove_mean == "record":            # centred like the output (the rectifier has a mean)
                 xr = xr - xr.mean(axis=0)
             elif s.remove_mean == "ensemble":
@@ -206,5 +228,5 @@ class Guarin(EnsembleEstimator):
                 "reflex": "yes" if s.reflex else "no"}
         est = GuarinEstimate(lags=np.arange(-m1, m2 + 1), h=H[:L], fs=fs, time=ens.time, valid=valid,
                               estimator=self.name, info=info, reflex_h=H[L:] if s.reflex else None,
-                              reflex_delay=d, nonlinearity=s.nonlinearity)
+                              reflex_delay=d, nonlinearity=s.nonlinearity, differentiate=s.differentiate)
         return est.with_intervals(lambda: realization_jackknife(self.name, ens, self._fit_ensemble, est, s))

@@ -14,6 +14,7 @@ from jointbench.core.estimate import IRFEstimate, Prediction
 from jointbench.core.errors import InputError
 from jointbench.core.scores import vaf
 from jointbench.core.schema import param
+from jointbench.core.signal import Differentiate, velocity
 from jointbench.core.types import Trial
 
 
@@ -36,9 +37,11 @@ class ParallelCascadeEstimate(IRFEstimate):
     was not kept (the estimate is then the two-sided IRF alone).
 
     :meth:`predict` is the sum of both pathways; :meth:`intrinsic_torque` and :meth:`reflex_torque` are
-    each alone. :attr:`vaf_total`, :attr:`vaf_intrinsic`, :attr:`vaf_reflex` are the VAFs of the measured
-    torque by the whole model and by each pathway alone (the REKLAB toolbox's VAFT, VAFi, VAFr), in percent,
-    on the samples both pathways reach (:attr:`rows`).
+    each alone. Given an angle only, they differentiate it (central differences); :meth:`prediction` of a
+    trial takes the trial's velocity as the fit did (``differentiate``: :func:`jointbench.core.signal.velocity`).
+    :attr:`vaf_total`, :attr:`vaf_intrinsic`, :attr:`vaf_reflex` are the VAFs of the measured torque by the
+    whole model and by each pathway alone (the REKLAB toolbox's VAFT, VAFi, VAFr), in percent, on the samples
+    both pathways reach (:attr:`rows`).
     """
 
     reflex_h: np.ndarray | None = None
@@ -48,27 +51,31 @@ class ParallelCascadeEstimate(IRFEstimate):
     vaf_total: float = float("nan")
     vaf_intrinsic: float = float("nan")
     vaf_reflex: float = 0.0
+    differentiate: Differentiate = "before_decimation"     #: where the fit took the velocity (its setting)
 
     def intrinsic_torque(self, u: np.ndarray) -> np.ndarray:
         """The intrinsic pathway's torque for the angle ``u`` (the two-sided IRF)."""
         return IRFEstimate.predict(self, u)
 
-    def reflex_torque(self, u: np.ndarray) -> np.ndarray:
-        """The reflex pathway's torque for the angle ``u`` (zeros without a reflex pathway)."""
+    def reflex_torque(self, u: np.ndarray, v: np.ndarray | None = None) -> np.ndarray:
+        """The reflex pathway's torque for the angle ``u`` with its velocity ``v`` (default: central differences
+        of ``u``); zeros without a reflex pathway."""
         u = np.asarray(u, float)
         if self.reflex_h is None:
             return np.zeros(len(u))
-        x = self.nonlinearity(rx.velocity(u, self.fs)) - self.nonlinearity.offset
+        v = rx.velocity(u, self.fs) if v is None else np.asarray(v, float)
+        x = self.nonlinearity(v) - self.nonlinearity.offset
         return rx.lag_matrix(x, self.reflex_delay, len(self.reflex_h)) @ self.reflex_h
 
-    def predict(self, u: np.ndarray) -> np.ndarray:
-        return self.intrinsic_torque(u) + self.reflex_torque(u)
+    def predict(self, u: np.ndarray, v: np.ndarray | None = None) -> np.ndarray:
+        """Both pathways' torque for the angle ``u`` (its velocity ``v``: default, central differences of ``u``)."""
+        return self.intrinsic_torque(u) + self.reflex_torque(u, v)
 
     def prediction(self, trial, index: int = 0) -> Prediction:
-        """The torque (mean removed) against both pathways' prediction from the angle (mean removed), on
-        the samples both pathways reach (:attr:`rows`)."""
+        """The torque (mean removed) against both pathways' prediction from the angle (mean removed) and its
+        velocity as the fit took it, on the samples both pathways reach (:attr:`rows`)."""
         y = trial.output - np.mean(trial.output)
-        yhat = self.predict(trial.input - np.mean(trial.input))
+        yhat = self.predict(trial.input - np.mean(trial.input), velocity(trial, self.differentiate))
         used = np.zeros(len(y), bool)
         used[self.rows[0]:self.rows[1]] = True
         return Prediction(y, yhat, used, "torque (mean removed) against the intrinsic and reflex pathways' prediction "
@@ -116,7 +123,8 @@ class ParallelCascade(Estimator):
         ``lag_before``, ``lag_after`` (s, default 0.04: the REKLAB toolbox's intrinsic IRF of +-40 ms),
         ``remove_mean``, ``pseudo_inverse`` (of the intrinsic IRF); the reflex pathway: ``delay`` (or
         ``delay_min``, ``delay_max``), ``reflex_window``, ``nonlinearity``, ``stretch``, ``order``; the
-        iteration: ``max_iter``, ``tolerance``, ``keep_reflex``.
+        iteration: ``max_iter``, ``tolerance``, ``keep_reflex``; ``differentiate``: the velocity taken before
+        decimation (default) or after (:class:`estimators._reflex.VelocitySettings`).
 
     Notes
     -----
@@ -146,7 +154,7 @@ class ParallelCascade(Estimator):
         check_lengths(self.name, [tr], m1, m2, s)
         u = tr.angle - tr.angle.mean()
         y = tr.torque - tr.torque.mean()
-        v = rx.velocity(u, fs)
+        v = velocity(tr, s.differentiate)
         rx.check_moving(self.name, v)
         scale = float(np.max(np.abs(v)))
         cands, W = rx.delays(self.name, s, fs)
@@ -190,7 +198,8 @@ class ParallelCascade(Estimator):
                                       reflex_h=h, reflex_delay=d, nonlinearity=nl, rows=(first, last),
                                       vaf_total=vaf(y[rows], (tqI + tqR)[rows], undefined="nan"),
                                       vaf_intrinsic=vaf(y[rows], tqI[rows], undefined="nan"),
-                                      vaf_reflex=vaf(y[rows], tqR[rows], undefined="nan"))
+                                      vaf_reflex=vaf(y[rows], tqR[rows], undefined="nan"),
+                                      differentiate=s.differentiate)
         est.fit_info = {**fit.info, **info}
         return est.with_intervals(lambda: irf_intervals(fit))
 
@@ -238,7 +247,7 @@ class ParallelCascade(Estimator):
         est = ParallelCascadeEstimate(lags=irf.lags, h=irf.h, fs=tr.fs, time=tr.time, estimator=self.name,
                                       rows=(m2, n - m1), vaf_total=vaf(y[sl], tqI[sl], undefined="nan"),
                                       vaf_intrinsic=vaf(y[sl], tqI[sl], undefined="nan"), vaf_reflex=0.0,
-                                      reflex_delay=d)
+                                      reflex_delay=d, differentiate=s.differentiate)
         est.fit_info = {**irf.fit_info, **info}
         return est.with_intervals(lambda: irf.intervals)
 

@@ -17,8 +17,10 @@ from jointbench.core.ensemble import Ensemble
 from jointbench.core.errors import InputError
 from jointbench.core.intervals import psd_solve
 from jointbench.core.scores import vaf
+from jointbench.core.estimate import Prediction
 from jointbench.core.estimate_tv import TVIRFEstimate
 from jointbench.core.schema import Tune, param
+from jointbench.core.signal import Differentiate, velocity
 
 #: most alternations of gain and cascade in one parallel-cascade iteration (:meth:`TVParallelCascade._reflex`), and
 #: in the first one, which starts from a constant gain (later ones start from the last iteration's gain, so an
@@ -59,20 +61,33 @@ class TVCascadeEstimate(TVIRFEstimate):
     vaf_total: float = float("nan")
     vaf_intrinsic: float = float("nan")
     vaf_reflex: float = 0.0
+    differentiate: Differentiate = "before_decimation"     #: where the fit took the velocity (its setting)
 
-    def reflex_torque(self, u: np.ndarray) -> np.ndarray:
-        """The reflex pathway's torque for an angle ``u`` on the fitted time base (zeros without one)."""
+    def reflex_torque(self, u: np.ndarray, v: np.ndarray | None = None) -> np.ndarray:
+        """The reflex pathway's torque for an angle ``u`` on the fitted time base, with its velocity ``v``
+        (default: central differences of ``u``); zeros without one."""
         u = np.asarray(u, float)
         if self.reflex_h is None:
             return np.zeros(len(u))
-        x = self.nonlinearity(rx.velocity(u, self.fs)) - self.nonlinearity.offset
+        v = rx.velocity(u, self.fs) if v is None else np.asarray(v, float)
+        x = self.nonlinearity(v) - self.nonlinearity.offset
         return self.reflex_gain * (rx.lag_matrix(x, self.reflex_delay, len(self.reflex_h)) @ self.reflex_h)
 
     def intrinsic_torque(self, u: np.ndarray) -> np.ndarray:
         return TVIRFEstimate.predict(self, u)
 
-    def predict(self, u: np.ndarray) -> np.ndarray:
-        return self.intrinsic_torque(u) + self.reflex_torque(u)
+    def predict(self, u: np.ndarray, v: np.ndarray | None = None) -> np.ndarray:
+        """Both pathways' torque for the angle ``u`` (its velocity ``v``: default, central differences of ``u``)."""
+        return self.intrinsic_torque(u) + self.reflex_torque(u, v)
+
+    def prediction(self, trial, index: int = 0) -> Prediction:
+        """As :meth:`TVIRFEstimate.prediction`, the reflex pathway driven by the trial's velocity as the fit took
+        it (``differentiate``: :func:`jointbench.core.signal.velocity`)."""
+        y = trial.output - np.mean(trial.output)
+        yhat = self.predict(trial.input - np.mean(trial.input), velocity(trial, self.differentiate))
+        return Prediction(y, yhat, self.valid.copy(), "torque (mean removed) against the intrinsic and reflex "
+                          "pathways' prediction from the angle (mean removed), on the samples where the "
+                          f"time-varying IRF is estimated ({int(self.valid.sum())} of {len(self.valid)})")
 
     def summary(self):
         out = super().summary()
@@ -211,7 +226,9 @@ class TVParallelCascade(EnsembleEstimator):
         m1, m2 = lag_samples(s, fs)
         LI, M = m1 + m2 + 1, s.n_basis
         U, Y = centred(self.name, ens, s.remove_mean)
-        V = rx.velocity(U, fs)                                      # (n, R)
+        V = np.stack([velocity(t, s.differentiate) for t in ens], axis=1)      # (n, R): U's velocity
+        if s.remove_mean == "ensemble":
+            V = V - V.mean(axis=1, keepdims=True)
         rx.check_moving(self.name, V)
         cands, W = rx.delays(self.name, s, fs)
         first, last = max(m2, W), n - m1
@@ -253,7 +270,7 @@ class TVParallelCascade(EnsembleEstimator):
                                  estimator=self.name, info=info, reflex_h=h if keep else None,
                                  reflex_gain=_on_record(fit.gain, first, last, n) if keep else None, reflex_delay=d,
                                  nonlinearity=nl, vaf_total=vt(tqI + tqR), vaf_intrinsic=vt(tqI),
-                                 vaf_reflex=vt(tqR) if keep else 0.0)
+                                 vaf_reflex=vt(tqR) if keep else 0.0, differentiate=s.differentiate)
 
     def _delay_and_cascade(self, data: Rows, cands: np.ndarray) -> tuple[int, Cascade]:
         """The delay and the cascade fitted at it: a fixed delay's, or the delay of the joint fit with a constant

@@ -102,7 +102,7 @@ def read(path: str | Path | Sequence[str | Path], *, array: str | None = None, f
 
 def fit(estimator, data=None, *, angle=None, torque=None, fs: float | None = None, array: str | None = None,
         settings: Mapping[str, Any] | None = None, decimate: int = 1, window=None, torque_sign: int = 1,
-        ensemble: bool | None = None, schedule: str | None = None) -> "Fit":
+        ensemble: bool | None = None, schedule: str | None = None, decimate_filter: str = "fir") -> "Fit":
     """Fit ``estimator`` through the checked pipeline (:mod:`jointbench.fitting.pipeline`), the one that
     ``jointbench estimate`` runs: same steps, same numbers.
 
@@ -121,7 +121,13 @@ def fit(estimator, data=None, *, angle=None, torque=None, fs: float | None = Non
         The estimator's settings, checked strictly; units allowed (``{"lag_before": "40 ms"}``);
         ``auto=True`` chooses a time-varying method's smoothing from the data.
     decimate : int
-        Decimate every record by this whole factor (anti-alias filtered) before the fit.
+        Decimate every record by this whole factor (anti-alias filtered) before the fit. The angle's velocity is
+        taken before, at the recorded rate, for the estimators that differentiate it (their ``differentiate``
+        setting).
+    decimate_filter : {'fir', 'chebyshev'}
+        The anti-alias filter (:func:`jointbench.core.signal.decimate`): JointBench's linear-phase FIR, or the
+        Chebyshev IIR of MATLAB's and Octave's ``decimate``, the one the REKLAB toolbox's analyses use
+        (docs/reklab_parity.md).
     window : (start, end) or str, optional
         Fit only this part of every record, seconds from its first sample (``(5, 45)``, ``"5s:45s"``);
         without it a gated multisine is cropped to its whole periods for the multisine methods.
@@ -156,15 +162,17 @@ def fit(estimator, data=None, *, angle=None, torque=None, fs: float | None = Non
         VAF of each record, the widths, ...). The VAF is always the torque's, predicted from the angle, also
         for a trial whose torque was imposed (a torque drive): the numbers its CSV gives.
     """
+    from jointbench.core.signal import DECIMATION_FILTERS
     from jointbench.fitting import pipeline
 
     fs, settings = check.rate(fs), check.mapping(settings, "settings", "{'lag_before': '40 ms'}")
     decimate = check.whole(decimate, "decimate", minimum=1)
+    decimate_filter = check.choice(decimate_filter, "decimate_filter", DECIMATION_FILTERS)
     array, schedule = check.text(array, "array", optional=True), check.text(schedule, "schedule", optional=True)
     ensemble = check.flag(ensemble, "ensemble", optional=True)
     return pipeline.fit(estimator, data, angle=angle, torque=torque, fs=fs, array=array, settings=settings,
                         decimate=decimate, window=window, torque_sign=torque_sign, ensemble=ensemble,
-                        schedule=schedule)
+                        schedule=schedule, decimate_filter=decimate_filter)
 
 
 def score(estimate, data, *, fs: float | None = None, array: str | None = None,

@@ -3,7 +3,8 @@
 ::
 
     jointbench estimate --estimator NAME --input FILE [--input FILE ...] --output OUT.csv
-                        [--set key=value ...] [--decimate Q] [--window START:END] [--array NAME]
+                        [--set key=value ...] [--decimate Q] [--decimate-filter {fir,chebyshev}]
+                        [--window START:END] [--array NAME]
                         [--fs HZ] [--torque-sign {1,-1}] [--plot FIG.png] [--list]
 
 Parses its arguments and calls :func:`jointbench.api.fit` (the checked pipeline,
@@ -73,6 +74,9 @@ def add_parser(subparsers) -> None:
                         "chooses a time-varying method's smoothing from the data")
     p.add_argument("--decimate", type=int, default=1, metavar="Q",
                    help="decimate every record by the whole factor Q (anti-alias filtered)")
+    p.add_argument("--decimate-filter", default="fir", metavar="{fir,chebyshev}",
+                   help="the anti-alias filter of --decimate: fir (default), or chebyshev: the Chebyshev IIR of "
+                        "MATLAB's and Octave's decimate, as the REKLAB toolbox's analyses use")
     p.add_argument("--window", metavar="START:END",
                    help="keep only this part of every record, in seconds from its first sample "
                         "(e.g. 5s:45s, 500ms:, :30)")
@@ -102,6 +106,7 @@ def add_parser(subparsers) -> None:
 
 #: how this command words the arguments of :func:`jointbench.api.fit` in its messages
 FLAGS = {"data": "--input", "estimator": "--estimator", "settings": "--set", "decimate": "--decimate",
+         "decimate_filter": "--decimate-filter",
          "window": "--window", "array": "--array", "fs": "--fs", "torque_sign": "--torque-sign",
          "ensemble": "--ensemble", "schedule": "--schedule"}
 
@@ -135,7 +140,7 @@ def run(args: argparse.Namespace) -> int:
         fit = api.fit(args.estimator, list(args.input), fs=args.fs, array=args.array,
                       settings=parse_assignments(args.settings, where="--set"), decimate=args.decimate,
                       window=args.window, torque_sign=args.torque_sign, ensemble=True if args.ensemble else None,
-                      schedule=args.schedule)
+                      schedule=args.schedule, decimate_filter=args.decimate_filter)
         figure = fit.plot(fmt=plot.suffix[1:].lower()) if plot is not None else None
     written = write_outputs(out, plot, fit, figure)
     print(summary_text(args.estimator, fit.estimator.settings, fit, written, torque_sign=args.torque_sign))

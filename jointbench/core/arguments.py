@@ -79,6 +79,13 @@ def text(value: Any, name: str, *, optional: bool = False) -> str | None:
     return value
 
 
+def choice(value: Any, name: str, options: tuple[str, ...]) -> str:
+    """``value`` when it is one of the texts ``options``."""
+    if not isinstance(value, str) or value not in options:
+        raise _fail(name, "one of " + ", ".join(repr(o) for o in options), value)
+    return value
+
+
 def texts(value: Any, name: str) -> tuple[str, ...]:
     """A list or tuple of non-empty texts (one text: one item), as a tuple; ``None``: empty."""
     if value is None:

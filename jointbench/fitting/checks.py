@@ -220,13 +220,14 @@ class _Shape:
         return self.n / self.fs
 
 
-def decimate_trial(trial, q: int):
-    """Decimate ``trial`` by the whole factor ``q`` with :func:`jointbench.core.signal.resample_trial`."""
+def decimate_trial(trial, q: int, filter: str = "fir"):
+    """Decimate ``trial`` by the whole factor ``q`` with :func:`jointbench.core.signal.resample_trial` (its
+    anti-alias ``filter``; the angle's velocity before decimation kept as a channel)."""
     if q == 1:
         return trial
     from jointbench.core.signal import resample_trial
 
     try:
-        return resample_trial(trial, trial.fs / q)
+        return resample_trial(trial, trial.fs / q, filter=filter)
     except InputError as exc:
         raise InputError(f"{argument('decimate', q)}: {exc}") from None

@@ -154,7 +154,8 @@ def signed(records: list, torque_sign: int) -> list:
 
 
 def prepare(estimator, raw: list, *, torque_sign: int = 1, decimate: int = 1,
-            window: tuple[float | None, float | None] | None = None) -> tuple[list, list[str]]:
+            window: tuple[float | None, float | None] | None = None,
+            decimate_filter: str = "fir") -> tuple[list, list[str]]:
     """The records as they are fitted, and notes on what was done unasked: magnitudes checked, the torque's
     sign, the records as impedances (:func:`impedance`), decimation, the crop (``window``, or a gated
     multisine's whole periods), then information and memory checked."""
@@ -162,7 +163,7 @@ def prepare(estimator, raw: list, *, torque_sign: int = 1, decimate: int = 1,
     decimate = whole(decimate, "decimate", minimum=1)
     checks.check_magnitudes(raw)
     raw = signed(raw, sign)
-    trials = [checks.decimate_trial(impedance(t), decimate) for t in raw]
+    trials = [checks.decimate_trial(impedance(t), decimate, decimate_filter) for t in raw]
     notes: list[str] = []
     if window is not None:
         trials = [checks.crop_window(t, window) for t in trials]
@@ -175,7 +176,7 @@ def prepare(estimator, raw: list, *, torque_sign: int = 1, decimate: int = 1,
 
 def fit(estimator, data=None, *, angle=None, torque=None, fs: float | None = None, array: str | None = None,
         settings: Mapping[str, Any] | None = None, decimate: int = 1, window=None, torque_sign: int = 1,
-        ensemble: bool | None = None, schedule: str | None = None) -> Fit:
+        ensemble: bool | None = None, schedule: str | None = None, decimate_filter: str = "fir") -> Fit:
     """Every decision and every step that can fail, in order, without writing anything (the module
     docstring); the arguments are :func:`jointbench.api.fit`'s."""
     est = make_estimator(estimator, settings, schedule)
@@ -183,7 +184,8 @@ def fit(estimator, data=None, *, angle=None, torque=None, fs: float | None = Non
     name = ensemble_name(est, given, ensemble)
     raw = list(given)
     trials, notes = prepare(est, raw, torque_sign=torque_sign, decimate=decimate,
-                            window=None if window is None else checks.as_window(window))
+                            window=None if window is None else checks.as_window(window),
+                            decimate_filter=decimate_filter)
     estimate = fit_checked(est, Ensemble(tuple(trials), name=name) if name is not None else trials)
     predictions = gate(est, estimate, trials)
     from jointbench.fitting.hints import hints
