@@ -185,12 +185,14 @@ def cd_diagram(mean_rank: pd.Series, pvalues: pd.DataFrame, title: str, folder, 
     kw = {"color_palette": palette}
     sp.critical_difference_diagram(mean_rank, pvalues, ax=ax, alpha=alpha, **kw)
     ax.set_title(title, fontsize=9)
+    from pathlib import Path
+
+    from jointbench.benchmarks.compare.plots import VECTOR_FORMATS, save_formats
+
     stem = name.rsplit(".", 1)[0]
-    out = [name, f"{stem}.svg", f"{stem}.pdf"]
-    for f in out:
-        fig.savefig(folder / f, dpi=150)
+    save_formats(fig, Path(folder), name, dpi=150)         # the PNG, and SVG and PDF without a date
     plt.close(fig)
-    return out
+    return [name, *(f"{stem}.{fmt}" for fmt in VECTOR_FORMATS)]
 
 
 def cd_figures(posthoc: dict, tests: pd.DataFrame, part: str, folder, colours: dict | None = None,

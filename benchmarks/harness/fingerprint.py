@@ -334,7 +334,11 @@ def plugin_text(module: str) -> str:
     top = module.split(".")[0]
     if not version:
         version = str(getattr(sys.modules.get(top), "__version__", "") or "")
-    return f"{dist or top}=={version or '-'} {plugin_source_hash(module)}"
+    try:
+        source = plugin_source_hash(module)
+    except ImportError:              # loaded once, its module since gone (removed, or its folder off sys.path)
+        source = "(source not found)"
+    return f"{dist or top}=={version or '-'} {source}"
 
 
 def plugin_source_hash(module: str) -> str:
