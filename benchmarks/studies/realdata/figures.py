@@ -59,7 +59,7 @@ def realdata_crossval(part, rows, curves, folder, checks) -> PartReport:
         ax.invert_yaxis()
         ax.set_xlabel("output VAF of the held-out half (%)")
         ax.set_title("Two-fold cross-validated output VAF, REKLAB's ankle trials (100 Hz)")
-        ax.legend(fontsize=7, loc="lower left")
+        ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
         ax.grid(axis="x", alpha=0.3)
         report.figures.append((save(fig, folder, "realdata_vaf.png"),
                                "Held-out output VAF per estimator and trial (dots); the bar is the mean VAF of the "
