@@ -22,7 +22,7 @@ import tempfile
 from pathlib import Path
 from typing import Callable
 
-from jointbench.core.errors import ConfigError, InputError, OutputError
+from jointbench.core.errors import ConfigError, InputError, OutputError, argument
 
 #: the environment variable naming the folder where fetched data sets are kept
 DATA_ENV = "JOINTBENCH_DATA"
@@ -57,7 +57,7 @@ DATASETS = {
 def dataset(name: str) -> DataSet:
     """The data set ``name``; one line naming the known ones otherwise."""
     if name not in DATASETS:
-        raise ConfigError(f"unknown data set {name!r}; known: {', '.join(sorted(DATASETS))}")
+        raise ConfigError(f"{argument('name')}: unknown data set {name!r}; known: {', '.join(sorted(DATASETS))}")
     return DATASETS[name]
 
 
