@@ -45,8 +45,8 @@ if TYPE_CHECKING:  # pragma: no cover
 
     from jointbench.fitting.pipeline import Fit
 
-__all__ = ["History", "StudyResult", "estimators", "experiment", "fit", "joint", "load_plugin", "read", "run",
-           "scenario", "scenarios", "score", "settings", "simulate"]
+__all__ = ["History", "StudyResult", "estimators", "experiment", "fetch_data", "fit", "joint", "load_plugin", "read",
+           "run", "scenario", "scenarios", "score", "settings", "simulate"]
 
 
 # ----------------------------------------------------------------------------------------- estimators
@@ -81,6 +81,18 @@ def load_plugin(ref: str):
     from jointbench.core import plugins
 
     return plugins.load(str(check.path(ref, "ref")), "load_plugin")
+
+
+# ------------------------------------------------------------------------------------------------- data
+def fetch_data(name: str, *, url: str | None = None, folder: str | Path | None = None) -> Path:
+    """Download a recorded data set (``"reklab"``: REKLAB's five stationary ankle trials, GPL-2), check its pinned
+    SHA-256 and store it in the user's data folder (``$JOINTBENCH_DATA``, else ``~/.cache/jointbench``); ``url``
+    another address of the same file (a mirror, ``file://``). Returns the stored file
+    (:func:`jointbench.fitting.fetch.fetch`)."""
+    from jointbench.fitting import fetch
+
+    return fetch.fetch(check.text(name, "name"), url=check.text(url, "url", optional=True),
+                       folder=None if folder is None else check.path(folder, "folder"))
 
 
 # ---------------------------------------------------------------------------------------------- fitting

@@ -238,6 +238,10 @@ def _calls(angle, torque, history: Path):
         ("History", lambda: h.runs(kind=3), "kind"),
         ("History", lambda: h.diff(1, -1), "after"),
         ("History", lambda: h.diff(1, 2, config=5), "config"),
+        ("fetch_data", lambda: api.fetch_data(5), "name"),
+        ("fetch_data", lambda: api.fetch_data("nope"), "name"),
+        ("fetch_data", lambda: api.fetch_data("reklab", url=3), "url"),
+        ("fetch_data", lambda: api.fetch_data("reklab", folder=3), "folder"),
         ("StudyResult", None, None),                     # a result, built by run
     ]
 

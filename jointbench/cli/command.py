@@ -1,5 +1,5 @@
 """Command line: ``jointbench run STUDY [STUDY ...]``, ``status``, ``history``, ``diff``, ``nightly``, ``cache``,
-``estimate``, ``list``.
+``estimate``, ``list``, ``data fetch``.
 
 Errors caused by the user (config, data, options, an unwritable results folder) print one line and exit
 with status 2. Ctrl-C (and SIGTERM) stop a run within about a second, keeping every finished case: exit
@@ -14,7 +14,7 @@ import os
 import signal
 import sys
 
-from jointbench.cli import estimate, history, studies
+from jointbench.cli import data, estimate, history, studies
 from jointbench.cli.common import BLAS_THREAD_VARIABLES, OneLineParser, guarded, on_sigterm
 
 
@@ -24,6 +24,7 @@ def build_parser() -> argparse.ArgumentParser:
     studies.add_parsers(sub)
     history.add_parsers(sub)
     estimate.add_parser(sub)
+    data.add_parsers(sub)
     return parser
 
 
