@@ -27,6 +27,15 @@ from jointbench.core.types import Trial
 
 
 # ------------------------------------------------------------------------------------------ estimate
+def record_digest(trial) -> str:
+    """SHA-1 of a record's angle and torque samples (which record an estimate was fitted on)."""
+    import hashlib
+
+    h = hashlib.sha1(np.ascontiguousarray(trial.angle, float).tobytes())
+    h.update(np.ascontiguousarray(trial.torque, float).tobytes())
+    return h.hexdigest()
+
+
 @dataclasses.dataclass(eq=False, kw_only=True)
 class FSEWLSEstimate(ParametricEstimate):
     """Time-varying ``I``, ``B``, ``K`` (arrays on :attr:`time`, the first record's) from FSEWLS.
@@ -54,6 +63,9 @@ class FSEWLSEstimate(ParametricEstimate):
     predicted_filtered_torque: np.ndarray
     transient: float
     highpassed: np.ndarray | None = None
+    #: a digest of each fitted record's angle and torque (:func:`record_digest`): :meth:`prediction` holds only
+    #: for those records (it is the regression's own output)
+    fitted: tuple[str, ...] = ()
 
     def steady(self) -> np.ndarray:
         """Boolean mask of the samples at least :attr:`transient` seconds from both ends."""
@@ -91,6 +103,10 @@ class FSEWLSEstimate(ParametricEstimate):
         :meth:`predict` instead differentiates the angle twice, which amplifies its noise: a VAF on it
         says little about the fit (even the true parameters can score far below zero).
         """
+        if self.fitted and (index >= len(self.fitted) or record_digest(trial) != self.fitted[index]):
+            raise InputError(f"{self.estimator}: its prediction is the filtered torque of the records it was fitted "
+                             f"on (the regression's output, eqs. 3-5), and this record is not record {index + 1} of "
+                             f"them: fit this record to score it (a held-out score needs a refit)")
         return Prediction(self.filtered_torque[index], self.predicted_filtered_torque[index], self.steady(),
                           "the filtered torque L H tau (the regression's output, eqs. 3-5) against Phi^T "
                           f"Theta(t), on the samples {self.transient:.3g} s or more from either end")
@@ -297,7 +313,8 @@ class FSEWLS(Estimator):
         est = FSEWLSEstimate(I=Theta[:, 0], B=Theta[:, 1], K=Theta[:, 2], fs=fs, time=trials[0].time,
                              estimator=self.name, filtered_torque=y,
                              predicted_filtered_torque=np.einsum("rni,ni->rn", Phi, Theta),
-                             transient=self.transient(), highpassed=highpassed)
+                             transient=self.transient(), highpassed=highpassed,
+                             fitted=tuple(record_digest(t) for t in trials))
         est.fit_info = {**est.fit_info, "band": band}
         # the fitted band as the CSV's band_lo_hz, band_hi_hz (the summary's band line)
         est.band_hz = (0.0 if s.highpass_cutoff is None else float(s.highpass_cutoff), float(s.svf_cutoff))

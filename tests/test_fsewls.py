@@ -402,3 +402,16 @@ def test_svf_with_cached_multipliers_is_bit_identical(shape, causal):
             got = svf(theta, tau, FS, 39.4, 3, causal, form)
             assert all(g.shape == w.shape and np.array_equal(g.view(np.int64), w.view(np.int64))
                        for g, w in zip(got, want))
+
+
+def test_its_prediction_of_another_record_is_refused_not_its_own_vaf():
+    """FSEWLS's prediction is the regression's own output (the filtered torque of the records it was fitted on):
+    scoring another record with it gave the fitted record's VAF as if held out (issue 37's real-data track found
+    99.2 % "held out"); now refused in one line, the fitted records scored as before."""
+    from jointbench import api
+    from jointbench.core.errors import InputError
+
+    fit = api.fit("fsewls", api.simulate("matrix:xu1998_elbow", seed=1))
+    assert list(api.score(fit, fit.trials)["vaf"]) == fit.vaf
+    with pytest.raises(InputError, match=r"fitted on .* this record is not record 1"):
+        api.score(fit, api.simulate("matrix:xu1998_elbow", seed=2))

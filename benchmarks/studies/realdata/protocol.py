@@ -90,7 +90,10 @@ def _fold(estimator, fit_on: Trial, test_on: Trial, p: CrossValParams):
     est = pipeline.fit_checked(estimator, train)
     seconds = time.perf_counter() - t0
     fitted = pipeline.gate(estimator, est, train)
-    held_out = pipeline.score(est, test)
+    try:
+        held_out = pipeline.score(est, test)
+    except InputError as exc:                 # an estimate that predicts only the records it was fitted on
+        raise NotCrossValidated(str(exc)) from None
     if np.array_equal(held_out[0].y, fitted[0].y):
         raise NotCrossValidated(f"{estimator.name}: its prediction of another record is the record it was fitted on "
                                 f"(its Estimate.prediction ignores the record given): no held-out VAF")
