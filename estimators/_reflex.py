@@ -1,8 +1,9 @@
 """Shared pieces of the parallel-cascade estimators: the reflex pathway as a Hammerstein cascade.
 
 Private module (the leading underscore keeps it out of the estimator registry). Used by
-:mod:`estimators.parallel_cascade` (one record) and :mod:`estimators.parallel_cascade_tv` (an ensemble,
-time-varying).
+:mod:`estimators.parallel_cascade` (one record), :mod:`estimators.parallel_cascade_tv` (an ensemble,
+time-varying) and :mod:`estimators.pv_parallel_cascade` (one record, parameter-varying: the pathway's settings,
+:class:`PathwaySettings`, without the iteration's).
 
 The reflex pathway of Kearney, Stein & Parameswaran (1997): the joint velocity ``v = theta'`` (central
 differences, taken before decimation by default: :class:`VelocitySettings`), delayed by ``d`` samples,
@@ -93,9 +94,12 @@ class VelocitySettings:
                                              "rate, as REKLAB) or 'after_decimation' (at the fitted rate)")
 
 
+
 @dataclasses.dataclass(frozen=True)
-class ReflexSettings(VelocitySettings):
-    """The reflex pathway and the parallel-cascade iteration (mixed into an estimator's settings)."""
+class PathwaySettings:
+    """The reflex pathway: its delay, lag window and static nonlinearity (mixed into an estimator's settings;
+    where the velocity is taken is :class:`VelocitySettings`, mixed into those that read a decimated record's
+    velocity channel)."""
 
     delay: float | None = param(None, unit="s", ge=0, doc="reflex delay; none: the one of delay_min ... delay_max "
                                                           "(every sample) of least minimum description length of "
@@ -108,6 +112,12 @@ class ReflexSettings(VelocitySettings):
                                                         "stretch velocity, 'polynomial' (estimated) or 'linear'")
     stretch: Literal["positive", "negative"] = param("positive", doc="velocity sign the rectifier passes")
     order: int = param(4, ge=1, le=12, doc="order of the polynomial nonlinearity")
+
+
+@dataclasses.dataclass(frozen=True)
+class ReflexSettings(PathwaySettings, VelocitySettings):
+    """The reflex pathway and the parallel-cascade iteration (mixed into an estimator's settings)."""
+
     max_iter: int = param(20, ge=1, doc="most parallel-cascade iterations")
     tolerance: float = param(0.01, gt=0, doc="stop when the total VAF improves by less (percentage points)")
     keep_reflex: Literal["mdl", "always"] = param("mdl", doc="'mdl': keep the reflex pathway only when it lowers "
@@ -120,7 +130,7 @@ class ReflexSettings(VelocitySettings):
 velocity = differentiators.central
 
 
-def delays(name: str, s: ReflexSettings, fs: float) -> tuple[np.ndarray, int]:
+def delays(name: str, s: PathwaySettings, fs: float) -> tuple[np.ndarray, int]:
     """The candidate delays (samples) and the last lag ``W`` of the reflex lag window (samples): a delay
     ``d`` gives the reflex IRF the lags ``d ... W``.
 
@@ -148,7 +158,7 @@ def delays(name: str, s: ReflexSettings, fs: float) -> tuple[np.ndarray, int]:
     return np.arange(lo, hi + 1), window
 
 
-def basis(v: np.ndarray, s: ReflexSettings, scale: float) -> np.ndarray:
+def basis(v: np.ndarray, s: PathwaySettings, scale: float) -> np.ndarray:
     """The nonlinearity's basis at the velocities ``v`` (any shape): a last axis of ``p`` functions."""
     v = np.asarray(v, float)
     sign = 1.0 if s.stretch == "positive" else -1.0
@@ -318,7 +328,7 @@ class NormalEquations:
         return best_d
 
 
-def scan_settings(s: ReflexSettings) -> ReflexSettings:
+def scan_settings(s: PathwaySettings) -> PathwaySettings:
     """The nonlinearity the delay is found with: the pathway's own, or for an estimated polynomial the
     half-wave rectifier of ``stretch`` (one regressor per lag: the polynomial's products would make the
     scan's model large and its residuals noisy; the delay needs the onset, not the shape)."""

@@ -3,7 +3,8 @@
 from __future__ import annotations
 
 import dataclasses
-from typing import TYPE_CHECKING
+import math
+from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
 from numpy.polynomial import chebyshev
@@ -55,6 +56,66 @@ def schedule_of(name: str, trial: Trial, cutoff: float) -> tuple[np.ndarray, np.
         raise InputError(f"pv_irf: record '{trial.name}' has no channel '{name}' to schedule on; known: {known}")
     s = np.asarray(chans[name], float)
     return s, a - a.mean(), float(max(np.max(np.abs(s)), np.ptp(s))), f"channel '{name}'"
+
+
+def slow_edge(s, fs: float) -> int:
+    """The samples at each end of a record where the slow angle (schedule ``angle_slow``) is the start-up of its
+    low-pass filter rather than the movement: until the filter's transient has decayed to 1 %, ``ln(100) / (zeta
+    2 pi slow_cutoff)`` seconds (the 2nd-order Butterworth's envelope ``exp(-zeta omega t)``, ``zeta = 1 /
+    sqrt(2)``; 3.5 s at 0.3 Hz). There the slow angle is off by up to a few tenths of the movement's amplitude
+    (0.12 rad on a 0.3 rad movement at 0.1 Hz) and the perturbation, the angle minus it, by as much: samples of
+    large leverage in the wrong place of the schedule. 0 for the other schedules (not filtered)."""
+    if s.schedule != "angle_slow":
+        return 0
+    return int(math.ceil(fs * math.log(100.0) / (2.0 * math.pi * s.slow_cutoff / math.sqrt(2.0))))
+
+
+def visited_schedule(name: str, trial: Trial, s, rows: slice) -> tuple[np.ndarray, np.ndarray, float, float, str]:
+    """``(sigma, u, lo, hi, what)``: the scheduling variable and the IRF's input (:func:`schedule_of` with the
+    settings ``s``: ``schedule``, ``slow_cutoff``) and the range ``[lo, hi]`` the schedule visits on the fitted
+    ``rows``.
+
+    Raises
+    ------
+    InputError
+        The schedule spans less than ``s.min_span`` of its range (one line)."""
+    sig, x, reference, what = schedule_of(s.schedule, trial, s.slow_cutoff)
+    lo, hi = float(np.min(sig[rows])), float(np.max(sig[rows]))
+    span = hi - lo
+    if not span >= s.min_span * reference or span <= 0:
+        pct = 100.0 * span / reference if reference > 0 else 0.0
+        raise InputError(f"{name}: the scheduling variable spans {pct:.2g} % of its range; "
+                         f"a parameter-varying "
+                         f"fit needs movement ({what} of record '{trial.name}')")
+    return sig, x, lo, hi, what
+
+
+def schedule_basis(name: str, sigma: np.ndarray, lo: float, hi: float, M: int,
+                   offset: bool) -> tuple[np.ndarray, float]:
+    """``(T1, cond)``: the Chebyshev polynomials ``T_0 ... T_M`` of ``sigma`` mapped from ``[lo, hi]`` to
+    [-1, 1] (``(len(sigma), M + 1)``: the IRF's first ``M``, the offset's all), and the condition number of the
+    columns used (``M + 1`` with an ``offset``, else ``M``), each scaled to unit norm.
+
+    Raises
+    ------
+    InputError
+        The schedule visits too few distinct values for the basis (condition number 1e6 or more; one line)."""
+    T1 = chebyshev.chebvander(2.0 * (np.asarray(sigma, float) - lo) / (hi - lo) - 1.0, M)
+    Tc = T1 if offset else T1[:, :M]
+    cond = float(np.linalg.cond(Tc / np.sqrt(np.sum(Tc * Tc, axis=0))))
+    if not cond < 1e6:
+        raise InputError(f"{name}: the scheduling variable visits too few distinct values for {M} basis "
+                         f"polynomials (condition number {cond:.2g}); the data cannot support that basis: lower "
+                         f"n_basis")
+    return T1, cond
+
+
+def varying_irf_regressors(T: np.ndarray, u: np.ndarray, m1: int, m2: int, rows: slice) -> np.ndarray:
+    """The regressors of the parameter-varying IRF on ``rows``: ``T_m(x(t)) u(t - k)``, column ``m L + k``
+    (``T``: the basis on those rows, ``(N, M)``; lags ``-m1 ... m2``, zero outside the record)."""
+    U = regressor(u, m1, m2, "zero")[0][rows]                                 # (N, L)
+    N, M = T.shape
+    return (T[:, :, None] * U[:, None, :]).reshape(N, M * U.shape[1])
 
 
 @dataclasses.dataclass(eq=False)
@@ -185,8 +246,9 @@ class PVIRF(Estimator):
     default schedule ``angle_slow`` (the angle low-passed, zero phase, at ``slow_cutoff``) the IRF's input
     is the perturbation, the angle minus its slow part, and the offset takes the elastic torque of the
     slow movement (``P(sigma)``); the incremental stiffness ``K(sigma) = sum_k h(k, sigma)`` is then the
-    slope of the torque-angle curve along the movement. Any recorded channel of the trial (``channels``)
-    may be the schedule instead.
+    slope of the torque-angle curve along the movement; the samples within the low-pass filter's start-up at
+    either end (:func:`slow_edge`) are not fitted. Any recorded channel of the trial (``channels``) may be the
+    schedule instead.
 
     The band of K(sigma) is pointwise (``level``), from a segment-robust covariance of the coefficients
     (contiguous segments of the record as clusters, neighbours' products half weighted, as the two-sided
@@ -229,14 +291,17 @@ class PVIRF(Estimator):
         level: float = param(LEVEL, gt=0, lt=1, doc="level of the pointwise band of K(sigma)")
         min_span: float = param(0.01, gt=0, lt=1, doc="the schedule must span at least this fraction of its range")
 
+        #: the estimator the settings' messages name (a subclass's settings name their own)
+        estimator: ClassVar[str] = "pv_irf"
+
         def __post_init__(self):
             """A ``slow_cutoff`` other than the default with a schedule that is not ``angle_slow`` would be
             accepted and have no effect (only the slow angle is low-passed): refused, naming both settings."""
             if self.schedule != "angle_slow" and self.slow_cutoff != type(self).__dataclass_fields__[
                     "slow_cutoff"].default:
-                raise ConfigError(f"pv_irf: slow_cutoff = {self.slow_cutoff:g} Hz has no effect with schedule "
-                                  f"'{self.schedule}' (it is the cutoff of the slow angle, schedule 'angle_slow'); "
-                                  f"remove slow_cutoff or schedule on 'angle_slow'")
+                raise ConfigError(f"{self.estimator}: slow_cutoff = {self.slow_cutoff:g} Hz has no effect with "
+                                  f"schedule '{self.schedule}' (it is the cutoff of the slow angle, schedule "
+                                  f"'angle_slow'); remove slow_cutoff or schedule on 'angle_slow'")
 
     def _fit(self, trials: list[Trial]) -> PVIRFEstimate:
         s = self.settings
@@ -246,33 +311,23 @@ class PVIRF(Estimator):
         check_lengths(self.name, [tr], m1, m2, s)
         if not np.ptp(tr.angle) > 0:
             raise InputError(f"{self.name}: the angle of record '{tr.name}' is constant; nothing to identify")
-        sig, x, reference, what = schedule_of(s.schedule, tr, s.slow_cutoff)
-        rows = slice(m2, n - m1)
-        lo, hi = float(np.min(sig[rows])), float(np.max(sig[rows]))
-        span = hi - lo
-        if not span >= s.min_span * reference or span <= 0:
-            pct = 100.0 * span / reference if reference > 0 else 0.0
-            raise InputError(f"{self.name}: the scheduling variable spans {pct:.2g} % of its range; "
-                             f"a parameter-varying "
-                             f"fit needs movement ({what} of record '{tr.name}')")
+        edge = slow_edge(s, fs)
+        rows = slice(max(m2, edge), n - max(m1, edge))
+        N = rows.stop - rows.start
+        if N <= 0:
+            raise InputError(f"{self.name}: record '{tr.name}' ({n / fs:g} s) is not longer than twice the start-up "
+                             f"of the slow angle's filter ({edge / fs:.3g} s at each end, slow_cutoff = "
+                             f"{s.slow_cutoff:g} Hz); use a longer record or a higher slow_cutoff")
+        sig, x, lo, hi, what = visited_schedule(self.name, tr, s, rows)
         M, L = s.n_basis, m1 + m2 + 1
-        N = n - m1 - m2
         unknowns = M * L + (M + 1 if s.offset else 0)
         if N < SAMPLES_PER_UNKNOWN * unknowns:
             most = max(1, (N // SAMPLES_PER_UNKNOWN - (1 if s.offset else 0)) // (L + (1 if s.offset else 0)))
             raise InputError(f"{self.name}: a basis of {M} polynomials x {L} lags{' + offsets' if s.offset else ''} = "
                              f"{unknowns} unknowns is larger than {N} samples support ({SAMPLES_PER_UNKNOWN} per "
                              f"unknown); lower n_basis (at most {most}) or the lags, or use a longer record")
-        T1 = chebyshev.chebvander(2.0 * (sig[rows] - lo) / span - 1.0, M)        # (N, M + 1): the offset's
-        T = T1[:, :M]                                                             # the IRF's
-        Tc = T1 if s.offset else T
-        cond = np.linalg.cond(Tc / np.sqrt(np.sum(Tc * Tc, axis=0)))
-        if not cond < 1e6:
-            raise InputError(f"{self.name}: the scheduling variable visits too few distinct values for {M} basis "
-                             f"polynomials (condition number {cond:.2g}); the data cannot support that basis: lower "
-                             f"n_basis")
-        U = regressor(x, m1, m2, "zero")[0][rows]                                 # (N, L)
-        X = (T[:, :, None] * U[:, None, :]).reshape(N, M * L)
+        T1, cond = schedule_basis(self.name, sig[rows], lo, hi, M, s.offset)   # (N, M + 1): the offset's
+        X = varying_irf_regressors(T1[:, :M], x, m1, m2, rows)
         if s.offset:
             X = np.hstack([X, T1])
         y = (tr.torque - tr.torque.mean())[rows]
@@ -289,10 +344,11 @@ class PVIRF(Estimator):
                             slow_cutoff=s.slow_cutoff, valid=valid, estimator=self.name, level=s.level)
         est.fit_info = {"schedule": f"{what}, {lo:.4g} ... {hi:.4g}", "unknowns": unknowns,
                         "condition": f"{cond:.3g}"}
-        return est.with_intervals(lambda: _intervals(est))
+        return est.with_intervals(lambda: stiffness_intervals(est))
 
 
-def _intervals(est: PVIRFEstimate) -> Intervals | None:
+def stiffness_intervals(est: PVIRFEstimate) -> Intervals | None:
+    """The pointwise band of K along the fitted record's schedule and over the visited range (101 points)."""
     if est.cov is None:
         return None
     lo_t, hi_t = est.stiffness_band(est.schedule)

@@ -16,11 +16,12 @@ REFLEX_SMALL = ["ankle.sweep.gain=[0,10]", "ankle.sweep.variation=[sine]", "ankl
                 "ankle.params.realizations=2", "ankle.params.ensemble_size=2", "ankle.params.discard=3 s",
                 "ankle.experiment.fs_sim=1 kHz"]
 LPV_SMALL = ["kmap.sweep.movement_frequency=[0.1]", "kmap.sweep.range_scale=[1.0]", "kmap.seeds=1",
-             "kmap.experiment.duration=60 s"]
+             "kmap.experiment.duration=60 s", "reflex.sweep.reflex_gain=[10]", "reflex.sweep.fs=[100]",
+             "reflex.seeds=1", "reflex.experiment.duration=60 s"]
 
 
 def test_the_studies_load_and_expand():
-    for sid, n in (("reflex", 16), ("lpv", 240)):
+    for sid, n in (("reflex", 16), ("lpv", 240 + 72)):          # lpv: kmap, and the reflex part (issue 37)
         study = load_study(sid)
         assert study.checks and all(c.evidence == "sanity" for c in study.checks)
         assert {r.id for r in study.readings}
@@ -52,11 +53,15 @@ def test_lpv_study_smoke(tmp_path):
     folder = tmp_path / "lpv"
     cases = pd.read_csv(folder / "cases.csv")
     assert set(cases["status"]) == {"ok"}
-    m = cases.set_index(["estimator", "metric"])["value"]
+    m = cases[cases["part"] == "kmap"].set_index(["estimator", "metric"])["value"]
+    r = cases[cases["part"] == "reflex"].set_index(["estimator", "metric"])["value"]
     assert {"kmap_rmse_pct", "kmap_max_error", "band_coverage", "band_halfwidth"} <= set(cases["metric"])
     assert m["pv_irf", "kmap_rmse_pct"] < 5 and m["fsewls", "kmap_rmse_pct"] < 50
     report = (folder / "report.md").read_text()
     assert "K(theta) errors by movement" in report and (folder / "lpv_kmap.png").is_file()
+    assert r["pv_parallel_cascade", "kmap_rmse_pct"] < 5 and r["pv_irf", "kmap_rmse_pct"] > 20      # part reflex
+    assert "K(theta) with a reflex" in report
+    assert (folder / "lpv_reflex.png").is_file()
 
 
 @pytest.mark.parametrize("sid", ["reflex", "lpv"])

@@ -95,9 +95,9 @@ def add_parser(subparsers) -> None:
                    help="import an outside estimator first: a module name or the path of a .py file; repeatable "
                         "(installed plugins with a 'jointbench.estimators' entry point need none)")
     p.add_argument("--schedule", metavar="NAME",
-                   help="scheduling variable of a parameter-varying estimator (pv_irf): angle_slow (the angle "
-                        "low-passed), angle, or a column (CSV) / array (NPZ, .mat) of the input; prints K at "
-                        "chosen values with intervals")
+                   help="scheduling variable of a parameter-varying estimator (pv_irf, pv_parallel_cascade): "
+                        "angle_slow (the angle low-passed), angle, or a column (CSV) / array (NPZ, .mat) of the "
+                        "input; prints K at chosen values with intervals (and the reflex gain, when fitted)")
     p.add_argument("--at", metavar="V1,V2,...",
                    help="with --schedule: the scheduling values to print K at (default: 5 over the range visited), "
                         "e.g. --at -0.4,0,0.2")
@@ -188,7 +188,8 @@ def parse_at(text: str) -> "np.ndarray":
 
 
 def stiffness_text(est, at: "np.ndarray | None" = None) -> str:
-    """K at the scheduling values ``at`` (default: 5 over the visited range) with the estimate's band."""
+    """K at the scheduling values ``at`` (default: 5 over the visited range) with the estimate's band, and the
+    reflex pathway's static gain there when the estimate has one (``pv_parallel_cascade``)."""
     import numpy as np
 
     from jointbench.core.intervals import LEVEL
@@ -201,9 +202,12 @@ def stiffness_text(est, at: "np.ndarray | None" = None) -> str:
     level = getattr(est, "level", LEVEL)
     lines = [f"K at chosen values of the scheduling variable '{est.schedule_name}' (visited {est.lo:.4g} ... "
              f"{est.hi:.4g}; {100 * level:g} % pointwise intervals in [ ]):"]
-    for v, kk, a, b in zip(values, k, lo, hi):
+    gains = (est.reflex_gain_at(values) if getattr(est, "reflex_h", None) is not None
+             and hasattr(est, "reflex_gain_at") else [None] * len(values))
+    for v, kk, a, b, g in zip(values, k, lo, hi, gains):
         outside = "" if est.lo <= v <= est.hi else "  (outside the visited range: extrapolated)"
-        lines.append(f"  {v:10.4g}   K = {kk:.4g} [{a:.4g}, {b:.4g}] N.m/rad{outside}")
+        reflex = "" if g is None else f", reflex gain {g:.4g} N.m.s/rad"
+        lines.append(f"  {v:10.4g}   K = {kk:.4g} [{a:.4g}, {b:.4g}] N.m/rad{reflex}{outside}")
     return "\n".join(lines)
 
 
