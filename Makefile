@@ -193,7 +193,7 @@ clean-results:
 # outputs lost; writes .catalogue/summary.md and cases.csv. Some kinds need unshare -m (full and read-only
 # disks) or Dask. CATALOGUE_ARGS='--kind grid --jobs 1', or '--python OTHER/bin/python' to measure another install.
 CATALOGUE_ARGS ?=
-.PHONY: catalogue
+.PHONY: catalogue realdata
 catalogue: $(STAMP)
 	$(BIN)/python -m tools.catalogue --out .catalogue $(CATALOGUE_ARGS)
 # Reflexes and position-dependent stiffness (issue 21): comparison studies (no published values).
@@ -201,6 +201,11 @@ reflex: $(STAMP)
 	$(RUN) reflex
 lpv: $(STAMP)
 	$(RUN) lpv
+# The real-data track (issue 37): every estimator on REKLAB's five ankle recordings, cross-validated output VAF.
+# Its data: `jointbench data fetch reklab` (pinned commit, SHA-256), or the checkout's ../shared copy here.
+REALDATA_DATA ?= $(wildcard ../shared/data/reklab-ankle/ankle_stationary.npz)
+realdata: $(STAMP)
+	$(RUN) realdata $(if $(REALDATA_DATA),--out results --set trials.params.data=$(abspath $(REALDATA_DATA)))
 
 # Parity with REKLAB's PC_stiffnessID on the real ankle recordings (needs ../shared beside the checkout; the
 # reference numbers: tools/reklab/, made by python -m tools.reklab.reference with GNU Octave).

@@ -10,7 +10,7 @@ from jointbench.benchmarks.figures import PartReport, new_figure, register, save
 WHY = ("skipped", "not_fitted", "not_scored", "refused")
 
 
-def vaf_table(rows: pd.DataFrame) -> pd.DataFrame:
+def crossval_table(rows: pd.DataFrame) -> pd.DataFrame:
     """``vaf_cv_mean`` (%) per estimator (rows, best mean first) and trial (columns), with the in-sample
     ``vaf_fit`` mean beside it and the fit time (s, both folds, all trials)."""
     ok = rows[rows["metric"] == "vaf_cv_mean"]
@@ -42,7 +42,7 @@ def realdata_crossval(part, rows, curves, folder, checks) -> PartReport:
     missing = rows[rows["metric"] == "not_run"]
     if len(missing) and not (rows["metric"] == "vaf_cv_mean").any():
         return PartReport(text=f"Not run: {missing['reason'].iloc[0]}.")
-    table = vaf_table(rows)
+    table = crossval_table(rows)
     report = PartReport(tables=[("Cross-validated output VAF (%): mean of the two folds per trial", table)])
     why = why_table(rows)
     if len(why):
