@@ -25,6 +25,10 @@ NAMES = estimators.REGISTRY.names()
 #: only, with its more seeds and whole grid; why). The kit stays honest; the estimators (or the output gate of
 #: jointbench.fitting.pipeline, being added beside this kit) are fixed, then the line goes.
 KNOWN_FAILURES: dict[tuple[str, str], tuple[str, str]] = {
+    ("pv_parallel_cascade", "check_narrow_band"): (
+        "full", "its pointwise band of K(schedule) misses K = 120 in 6 of 30 seeds at 20 ms lags (80 %, issue 33 asks "
+                "85 %; pv_irf, whose K(theta) it extends with the slow movement's terms and an MDL-kept reflex "
+                "pathway, holds 26 of 30): measured at 5ebe7b5, cause not yet found: open"),
 }
 
 
