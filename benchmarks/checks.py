@@ -304,7 +304,7 @@ def discriminating_counts(comparison: pd.DataFrame) -> tuple[int, int] | None:
         return None
     rep = headline_rows(comparison)
     rep = rep[(rep["evidence"] == "reproduction") & (rep["status"] == "pass")]
-    said = rep["discriminating"].fillna("").astype(str)
+    said = rep["discriminating"].astype(object).fillna("").astype(str)
     if not (said != "").any():
         return None
     return int((said == "yes").sum()), len(rep)

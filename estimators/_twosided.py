@@ -30,7 +30,7 @@ from numpy.lib.stride_tricks import sliding_window_view
 
 from jointbench.core.errors import InputError
 from jointbench.core.estimate import IRFEstimate, Intervals
-from jointbench.core.intervals import LEVEL, segment_covariance, t_quantile, z_quantile
+from jointbench.core.intervals import LEVEL, segment_covariance, segment_shortfall, t_quantile, z_quantile
 from jointbench.core.schema import param
 from jointbench.core.types import Trial
 
@@ -352,6 +352,9 @@ def fit_irf(name: str, trials: list[Trial], settings: LagSettings, method: Liter
     cov = None if coord_cov is None else (V_k / s_k) @ coord_cov @ (V_k / s_k).T
     end_effect = correlation_end_effect(name, trials, settings, h) if method == "corr" and cov is not None else None
     info = {}
+    if covariance and coord_cov is None:
+        counts = [len(regression_rows(u, y, m1, m2, rows)[1]) for u, y in pairs]
+        info["intervals"] = "none: " + segment_shortfall(counts, n_lags)
     if mode == "mdl":
         info["pseudo_inverse"] = f"{len(kept)} of {n_lags} singular vectors kept (MDL)"
         if len(kept) < n_lags / 2:

@@ -15,7 +15,8 @@ from jointbench.estimators._reflex import RCOND
 from jointbench.estimators._twosided import LagSettings, check_lengths, lag_samples, regressor
 from jointbench.core.estimate import Estimate, Intervals, Prediction
 from jointbench.core.errors import ConfigError, InputError
-from jointbench.core.intervals import LEVEL, psd_pinv, psd_solve, segment_covariance, t_quantile
+from jointbench.core.intervals import (LEVEL, contrast_dof, psd_pinv, psd_solve, segment_covariance, segment_shortfall,
+                                       t_quantile)
 from jointbench.core.schema import param
 from jointbench.core.types import Trial
 
@@ -28,6 +29,8 @@ DERIVED = ("angle_slow", "angle")
 SAMPLES_PER_UNKNOWN = 10
 #: eigenvalues of the Gram matrix below this fraction of the largest are left out of its pseudo-inverse
 GRAM_RCOND = 1e-12
+#: points of the visited range where the degrees of freedom of K's band are worked out (:func:`stiffness_dof`)
+DOF_POINTS = 101
 
 
 def slow_part(angle: np.ndarray, fs: float, cutoff: float) -> np.ndarray:
@@ -137,12 +140,14 @@ class PVIRFEstimate(Estimate):
     time: np.ndarray
     schedule: np.ndarray      # the scheduling variable at the fitted samples
     cov: np.ndarray | None    # covariance of coef.ravel() (M L)
-    dof: int
+    dof: int                  # the covariance's (segments - 1)
     schedule_name: str = "angle_slow"
     slow_cutoff: float = 1.0
     valid: np.ndarray | None = None
     estimator: str = "pv_irf"
     level: float = LEVEL
+    #: the band's degrees of freedom at DOF_POINTS evenly spaced points of the visited range (:func:`stiffness_dof`)
+    dof_of_x: np.ndarray | None = None
 
     def _x(self, sigma) -> np.ndarray:
         return 2.0 * (np.asarray(sigma, float) - self.lo) / (self.hi - self.lo) - 1.0
@@ -159,15 +164,18 @@ class PVIRFEstimate(Estimate):
         return self._T(np.atleast_1d(sigma)) @ self.coef.sum(axis=1)
 
     def stiffness_band(self, sigma, level: float | None = None) -> tuple[np.ndarray, np.ndarray]:
-        """Pointwise ``level`` band of K(sigma) from the segment-robust covariance (t quantile)."""
+        """Pointwise ``level`` band of K(sigma) from the segment-robust covariance, with the t quantile of the
+        degrees of freedom of K's variance at ``sigma`` (:attr:`dof_of_x`, interpolated; outside the visited
+        range, its end's)."""
         k = self.stiffness_at(sigma)
         if self.cov is None:
             return np.full_like(k, np.nan), np.full_like(k, np.nan)
         T = self._T(np.atleast_1d(sigma))
-        L = self.coef.shape[1]
-        g = np.repeat(T, L, axis=1)                       # d K / d coef[m, k] = T_m
+        g = stiffness_gradient(T, self.coef.shape[1])
         se = np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", g, self.cov, g), 0.0))
-        q = t_quantile(self.dof, self.level if level is None else level)
+        dof = (np.full(len(k), float(self.dof)) if self.dof_of_x is None else
+               np.interp(self._x(np.atleast_1d(sigma)), np.linspace(-1.0, 1.0, len(self.dof_of_x)), self.dof_of_x))
+        q = t_quantile(dof, self.level if level is None else level)
         return k - q * se, k + q * se
 
     def frequency_response(self, f: np.ndarray, t=None) -> np.ndarray:
@@ -252,7 +260,9 @@ class PVIRF(Estimator):
 
     The band of K(sigma) is pointwise (``level``), from a segment-robust covariance of the coefficients
     (contiguous segments of the record as clusters, neighbours' products half weighted, as the two-sided
-    IRF's intervals, :func:`jointbench.core.intervals.segment_covariance`), with a t quantile.
+    IRF's intervals, :func:`jointbench.core.intervals.segment_covariance`), with the t quantile of the
+    degrees of freedom of K(sigma)'s variance (:func:`jointbench.core.intervals.contrast_dof`): fewer where
+    few segments visit sigma.
 
     Parameters
     ----------
@@ -334,17 +344,38 @@ class PVIRF(Estimator):
         G = X.T @ X
         c = psd_solve(G, X.T @ y, RCOND)[0]
         e = y - X @ c
-        cov, dof = segment_covariance([(X, e)], psd_pinv(G, GRAM_RCOND))
+        Pg = psd_pinv(G, GRAM_RCOND)
+        cov, dof = segment_covariance([(X, e)], Pg)
         coef = c[:M * L].reshape(M, L)
         valid = np.zeros(n, bool)
         valid[rows] = True
         est = PVIRFEstimate(lags=np.arange(-m1, m2 + 1), coef=coef, offset=c[M * L:] if s.offset else np.zeros(M + 1),
                             lo=lo, hi=hi, fs=fs, time=tr.time, schedule=sig,
                             cov=None if cov is None else cov[:M * L, :M * L], dof=dof, schedule_name=s.schedule,
-                            slow_cutoff=s.slow_cutoff, valid=valid, estimator=self.name, level=s.level)
+                            slow_cutoff=s.slow_cutoff, valid=valid, estimator=self.name, level=s.level,
+                            dof_of_x=None if cov is None else stiffness_dof(X, Pg, M, L))
         est.fit_info = {"schedule": f"{what}, {lo:.4g} ... {hi:.4g}", "unknowns": unknowns,
                         "condition": f"{cond:.3g}"}
+        if cov is None:
+            est.fit_info["intervals"] = "none: " + segment_shortfall([N], X.shape[1])
         return est.with_intervals(lambda: stiffness_intervals(est))
+
+
+def stiffness_gradient(T: np.ndarray, L: int, width: int | None = None) -> np.ndarray:
+    """``d K(sigma) / d coef`` for the Chebyshev polynomials ``T`` (n, M) of the schedule's values: ``T_m`` for
+    each of ``coef[m, :]``'s ``L`` lags (``n, M L``), zero-padded to ``width`` columns (the other regressors)."""
+    g = np.repeat(T, L, axis=1)
+    return g if width is None else np.hstack([g, np.zeros((len(g), width - g.shape[1]))])
+
+
+def stiffness_dof(X: np.ndarray, P: np.ndarray, M: int, L: int, scale: np.ndarray | None = None) -> np.ndarray:
+    """The degrees of freedom of K(sigma)'s variance (:func:`jointbench.core.intervals.contrast_dof`) at
+    :data:`DOF_POINTS` evenly spaced points of the visited range (mapped to [-1, 1]), for the regressors ``X``
+    (the IRF's ``M L`` columns first) with Gram pseudo-inverse ``P``; ``scale``: ``X``'s columns are the
+    regressors divided by it (the contrasts are divided alike)."""
+    T = chebyshev.chebvander(np.linspace(-1.0, 1.0, DOF_POINTS), M - 1)
+    a = stiffness_gradient(T, L, X.shape[1])
+    return contrast_dof([X], P, a if scale is None else a / scale)
 
 
 def stiffness_intervals(est: PVIRFEstimate) -> Intervals | None:
@@ -354,5 +385,6 @@ def stiffness_intervals(est: PVIRFEstimate) -> Intervals | None:
     lo_t, hi_t = est.stiffness_band(est.schedule)
     grid = np.linspace(est.lo, est.hi, 101)
     lo_g, hi_g = est.stiffness_band(grid)
-    return Intervals(level=est.level, method=f"segment-robust covariance ({est.dof + 1} segments; t quantile), "
-                     "pointwise", bounds={"stiffness": (lo_t, hi_t)}, response={"stiffness": (lo_g, hi_g)})
+    return Intervals(level=est.level, method=f"segment-robust covariance ({est.dof + 1} segments; t quantile of "
+                     "K's Bell-McCaffrey degrees of freedom), pointwise",
+                     bounds={"stiffness": (lo_t, hi_t)}, response={"stiffness": (lo_g, hi_g)})

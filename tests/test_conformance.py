@@ -24,16 +24,7 @@ NAMES = estimators.REGISTRY.names()
 #: (estimator, check) -> (where it fails: "quick" = in make test and make conformance, "full" = in make conformance
 #: only, with its more seeds and whole grid; why). The kit stays honest; the estimators (or the output gate of
 #: jointbench.fitting.pipeline, being added beside this kit) are fixed, then the line goes.
-KNOWN_FAILURES: dict[tuple[str, str], tuple[str, str]] = {
-    ("pv_irf", "check_narrow_band"): (
-        "full", "its pointwise band of K(schedule) misses K = 120 in 5 of 30 seeds at 20 ms lags (83 %, issue 33 asks "
-                "85 %): 26 of 30 with the jackknife covariance at 68fb186, 25 of 30 since 2709fd6 left the slow "
-                "angle's filter start-up (3.5 s at each end of the 30 s record) out of the fitted rows: open"),
-    ("pv_parallel_cascade", "check_narrow_band"): (
-        "full", "its pointwise band of K(schedule) misses K = 120 in 6 of 30 seeds at 20 ms lags (80 %, issue 33 asks "
-                "85 %; pv_irf, whose K(theta) it extends with the slow movement's terms and an MDL-kept reflex "
-                "pathway, holds 26 of 30): measured at 5ebe7b5, cause not yet found: open"),
-}
+KNOWN_FAILURES: dict[tuple[str, str], tuple[str, str]] = {}
 
 
 def params():

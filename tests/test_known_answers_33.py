@@ -113,7 +113,7 @@ def test_pv_irf_band_is_the_propagated_covariance_of_k():
         J[:, j] = dataclasses.replace(pv, coef=c.reshape(pv.coef.shape)).stiffness_at(sig) - base
     se = np.sqrt(np.einsum("ij,jk,ik->i", J, pv.cov, J))
     lo, hi = pv.stiffness_band(sig)
-    q = stats.t.ppf(0.975, pv.dof)
+    q = stats.t.ppf(0.975, np.interp(pv._x(sig), np.linspace(-1, 1, len(pv.dof_of_x)), pv.dof_of_x))
     ratio = (hi - lo) / 2 / (q * se)
     assert np.allclose(ratio, 1.0, rtol=1e-6), (f"the band's half width is not t times the propagated standard "
                                                 f"error of K (ratio {ratio.min():.2g} ... {ratio.max():.2g})")

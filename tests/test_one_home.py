@@ -31,8 +31,8 @@ ALLOWED = {
                                                     "sums (no prediction is formed)",
 }
 #: the public functions of the homes: a module-level function of one of these names elsewhere is a copy
-HOME_NAMES = {"vaf", "t_quantile", "z_quantile", "segment_covariance", "eigen_pinv", "psd_pinv", "psd_solve",
-              "coherence_threshold", "significant", "has_power", "powered", "excited", "frf_and_coherence",
+HOME_NAMES = {"vaf", "t_quantile", "z_quantile", "segment_covariance", "contrast_dof", "eigen_pinv", "psd_pinv",
+              "psd_solve", "coherence_threshold", "significant", "has_power", "powered", "excited", "frf_and_coherence",
               "input_band", "excited_share", "chance"}
 #: files whose 0.95 is data (a published value), not the confidence level
 DATA_FILES = {"benchmarks/studies/vanderuit2018_table1/generate_checks.py"}

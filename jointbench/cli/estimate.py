@@ -332,9 +332,10 @@ def summary_text(name: str, settings, o: Fit, written: Sequence[tuple[Path, int 
         lines.append(f"  {100 * iv.level:g} % confidence intervals in [ ]: {iv.method}"
                      + ("; pointwise bands over time" if any(_varies(b[0]) for b in iv.bounds.values()) else ""))
     else:
-        lines.append("  (no confidence intervals: this estimator provides none)")
+        why = est.fit_info.get("intervals", "this estimator provides none")
+        lines.append(f"  (no confidence intervals: {why.removeprefix('none: ')})")
     extra = {k: v for k, v in est.summary().items()
-             if k not in ("estimator", "fs_hz", "I", "B", "K", "stiffness")}
+             if k not in ("estimator", "fs_hz", "I", "B", "K", "stiffness", "intervals")}
     for k, v in extra.items():
         lines.append(f"  {k}: {v:.6g}" if isinstance(v, float) else f"  {k}: {v}")
     defs = []

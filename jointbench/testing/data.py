@@ -42,6 +42,17 @@ EXPERIMENTS: dict[str, dict[str, Any]] = {
                                    "corner": 6, "slope": -20, "rms": 0.02, "quiet": 0},
                   "sensors": {"torque": {"noise_variance_ratio": 0.1}},
                   "fs_sim": 2500, "duration": 20.0, "acquisition": {"detrend": False, "fs": 50, "decimation": "fft"}},
+    # the ankle moved slowly through its range by the servo with a random perturbation on top (the lpv study's
+    # experiment, Sobhani Tehrani & Kearney 2022's REKLAB pilot trial), its impedance constant so the truth of
+    # K(sigma) is exact at every sigma: a parameter-varying estimator's own kind (tag lpv), long enough for its
+    # segment-robust band
+    "moving": {"joint": ANKLE, "apparatus": {"kind": "position_servo", "stiffness": 30000},
+               "perturbation": {"kind": "moving",
+                                "movement": {"shape": "sine", "mean": -0.105, "amplitude": 0.305, "frequency": 0.1},
+                                "perturbation": {"kind": "filtered_noise", "cutoff": 15, "order": 2, "rms": 0.02},
+                                "fade": 1.0},
+               "sensors": {"torque": {"noise_variance_ratio": 0.1}},
+               "fs_sim": 2000, "duration": 61.0, "acquisition": {"detrend": False, "fs": 100, "trim": 1.0}},
     # a torque drive with a random binary torque (Xu & Hollerbach 1998's elbow): the angle is the output
     "torque_drive": {"joint": {"model": "second_order", "I": 0.06, "B": 0.93, "K": 40.0},
                      "apparatus": {"kind": "torque_drive"},
@@ -83,7 +94,8 @@ class Kind:
 def kind_of(cls) -> Kind:
     """The kind of record ``cls`` identifies from: a multisine where it needs one (``perturbations``), an
     ensemble where it takes nothing else (``accepts``), a torque drive for a recursive time-varying method
-    (tag ``recursive``: FSEWLS, Xu & Hollerbach's elbow), else one position-servo trial. An estimator
+    (tag ``recursive``: FSEWLS, Xu & Hollerbach's elbow), a slow movement with a perturbation on top for a
+    parameter-varying one (tag ``lpv``), else one position-servo trial. An estimator
     tagged ``ensemble`` that takes ensembles is checked on ensembles (its intervals come from the realizations)."""
     from jointbench import estimators
 
@@ -94,6 +106,8 @@ def kind_of(cls) -> Kind:
         return Kind("ensemble", ensemble=True)
     if "recursive" in tags:
         return Kind("torque_drive")
+    if "lpv" in tags:
+        return Kind("moving")
     return Kind("trial")
 
 
