@@ -24,8 +24,8 @@ from jointbench.core.scores import vaf
 
 
 def _decay(x: np.ndarray, c: float) -> np.ndarray:
-    """``z[k] = c z[k-1] + x[k]`` along axis 0."""
-    return sps.lfilter([1.0], [1.0, -c], x, axis=0)
+    """``z[k] = c z[k-1] + x[k]`` along the last axis (time)."""
+    return sps.lfilter([1.0], [1.0, -c], x, axis=-1)
 
 
 def ewls_variances(Phi: np.ndarray, y: np.ndarray, Theta: np.ndarray, dt: float, lam: float,
@@ -76,38 +76,48 @@ def ewls_variances(Phi: np.ndarray, y: np.ndarray, Theta: np.ndarray, dt: float,
     k = np.arange(K + 1)
     gamma = np.fft.irfft(np.sum(np.abs(E) ** 2, axis=0), nfft)[:K + 1] / max(m, 1) * (1.0 - k / (K + 1.0))
     c = np.exp(-lam * dt)
+    P = np.ascontiguousarray(np.moveaxis(Phi, 2, 0))                          # (3, nr, n): rows contiguous in time
     taps = np.concatenate([[0.0], c ** k[1:] * gamma[1:]])
-    q = sps.oaconvolve(Phi, taps[None, :, None], mode="full", axes=1)[:, :n]
-    pp = np.einsum("rnk,rnk->nk", Phi[:, :, i], Phi[:, :, j])                 # (n, 6): Phi Phi^T's unique entries
-    om = gamma[0] * pp + np.einsum("rnk,rnk->nk", Phi[:, :, i], q[:, :, j]) + np.einsum("rnk,rnk->nk", q[:, :, i],
-                                                                                        Phi[:, :, j])
-    S = _decay(om * dt * dt, c * c)
-    first = np.zeros_like(Phi)
-    first[:, :m0] = Phi[:, :m0]
-    g = sps.fftconvolve(first, np.concatenate([gamma[:0:-1], gamma])[None, :, None], mode="same", axes=1)
+    q = sps.oaconvolve(P, taps[None, None, :], mode="full", axes=2)[:, :, :n]
+    pp = np.einsum("krn,krn->kn", P[i], P[j])                                 # (6, n): Phi Phi^T's unique entries
+    om = gamma[0] * pp + np.einsum("krn,krn->kn", P[i], q[j]) + np.einsum("krn,krn->kn", q[i], P[j])
+    S = _decay(om * (dt * dt), c * c)
+    # g_r = sum_{s < m0} gamma(|s - r|) Phi_s: zero from r = m0 + K on, so formed on the first L samples only
+    L = max(1, min(n, m0 + K))
+    g = sps.fftconvolve(P[:, :, :m0], np.concatenate([gamma[:0:-1], gamma])[None, None, :], mode="full",
+                        axes=2)[:, :, K:K + L] if m0 else np.zeros((3, nr, L))
     # Phi_r g_r^T + g_r Phi_r^T (unique entries): Var a is half its sum over r < m0, Cov(b, a) plus its
-    # transpose is its decay (the filter is linear)
-    pg = (np.einsum("rnk,rnk->nk", Phi[:, :, i], g[:, :, j])
-          + np.einsum("rnk,rnk->nk", g[:, :, i], Phi[:, :, j])) * dt * dt
-    ck = c ** np.arange(n)[:, None]
-    S += ck ** 2 * (0.5 * pg[:m0].sum(axis=0)) + ck * _decay(pg, c)
-    R = _decay(pp * dt, c) + ck * R0[i, j]                                    # R(t) with the start
-    full = [[0, 1, 2], [1, 3, 4], [2, 4, 5]]                                  # packed index of entry (a, b)
-    Ri, S = _spd3_inverse(R)[:, full], S[:, full]                             # (n, 3, 3)
-    return np.sum((Ri @ S) * Ri, axis=2)                                      # diag(Ri S Ri), Ri symmetric
+    # transpose is its decay (the filter is linear; past L it decays freely: c^(t - L + 1) times its last value)
+    pg = (np.einsum("krn,krn->kn", P[i, :, :L], g[j]) + np.einsum("krn,krn->kn", g[i], P[j, :, :L])) * (dt * dt)
+    ck = np.exp(-lam * dt * np.arange(n))                                     # c^t
+    cov_ba = np.empty((6, n))
+    cov_ba[:, :L] = _decay(pg, c)
+    cov_ba[:, L:] = np.outer(cov_ba[:, L - 1], ck[1:n - L + 1])
+    S += np.outer(0.5 * pg[:, :m0].sum(axis=1), ck * ck) + ck * cov_ba
+    R = _decay(pp * dt, c) + np.outer(R0[i, j], ck)                           # R(t) with the start
+    Ri = _spd3_inverse(R)
+    # diag(Ri S Ri), both symmetric: sum_a Ri_ka^2 S_aa + 2 sum_{a<b} Ri_ka Ri_kb S_ab, in packed entries
+    at = [[0, 1, 2], [1, 3, 4], [2, 4, 5]]                                    # packed index of entry (a, b)
+    out = np.empty((n, 3))
+    for row in range(3):
+        r = [Ri[at[row][a]] for a in range(3)]
+        out[:, row] = (r[0] * r[0] * S[0] + r[1] * r[1] * S[3] + r[2] * r[2] * S[5]
+                       + 2.0 * (r[0] * r[1] * S[1] + r[0] * r[2] * S[2] + r[1] * r[2] * S[4]))
+    return out
 
 
 def _spd3_inverse(R: np.ndarray) -> np.ndarray:
-    """Inverses of symmetric positive definite 3 x 3 matrices given by their unique entries ``(n, 6)``
+    """Inverses of symmetric positive definite 3 x 3 matrices given by their unique entries ``(6, n)``
     (order :data:`UPPER3`: 00, 01, 02, 11, 12, 22), by the adjugate of the unit-diagonal scaled matrix (the
-    scaling keeps I, B and K, of very different sizes, from losing digits)."""
-    d = 1.0 / np.sqrt(R[:, [0, 3, 5]])
+    scaling keeps I, B and K, of very different sizes, from losing digits); the same layout."""
+    d = 1.0 / np.sqrt(R[[0, 3, 5]])
     i, j = UPPER3
-    a, b, c, dd, e, f = (R * d[:, i] * d[:, j]).T
+    dd_ = d[i] * d[j]
+    a, b, c, dd, e, f = R * dd_
     adj = np.stack([dd * f - e * e, c * e - b * f, b * e - c * dd,
-                    a * f - c * c, b * c - a * e, a * dd - b * b], axis=1)
-    det = a * adj[:, 0] + b * adj[:, 1] + c * adj[:, 2]
-    return adj / det[:, None] * d[:, i] * d[:, j]
+                    a * f - c * c, b * c - a * e, a * dd - b * b])
+    det = a * adj[0] + b * adj[1] + c * adj[2]
+    return adj * (dd_ / det)
 
 
 def delayed_prediction_vaf(Phi: np.ndarray, y: np.ndarray, Theta: np.ndarray, delay: int,
