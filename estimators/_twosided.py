@@ -53,20 +53,27 @@ _BLOCK_VALUES = 2 ** 21
 
 
 @dataclasses.dataclass(frozen=True)
-class LagSettings:
-    """Lag range and preprocessing shared by the two-sided IRF estimators."""
+class Lags:
+    """The lag range of a two-sided IRF (the settings of an estimator that takes its own preprocessing, as
+    :mod:`estimators.pv_irf`)."""
 
     lag_before: float = param(0.1, unit="s", ge=0,
                               doc="anticipatory memory: negative lags down to -M1, M1 = round(lag_before*fs)")
     lag_after: float = param(0.1, unit="s", ge=0,
                              doc="causal memory: positive lags up to M2 = round(lag_after*fs)")
+
+
+@dataclasses.dataclass(frozen=True)
+class LagSettings(Lags):
+    """Lag range and preprocessing shared by the two-sided IRF estimators (:func:`fit_irf`)."""
+
     remove_mean: bool = param(True, doc="subtract each record's mean from angle and torque before fitting")
     pseudo_inverse: PseudoInverse = param("mdl", doc="'mdl': keep the singular vectors that explain the torque, "
                                                      "their number chosen by minimum description length "
                                                      "(REKLAB); 'off': plain least squares")
 
 
-def lag_samples(settings: LagSettings, fs: float) -> tuple[int, int]:
+def lag_samples(settings: Lags, fs: float) -> tuple[int, int]:
     """``(M1, M2)``: the lag range in samples at sampling rate ``fs``.
 
     Raises :class:`InputError` when a nonzero lag setting is less than half a sample (it would round to
@@ -82,7 +89,7 @@ def lag_samples(settings: LagSettings, fs: float) -> tuple[int, int]:
     return m1, m2
 
 
-def check_lengths(name: str, trials: list[Trial], m1: int, m2: int, settings: LagSettings) -> None:
+def check_lengths(name: str, trials: list[Trial], m1: int, m2: int, settings: Lags) -> None:
     """Raise :class:`InputError` when a record is not longer than the lag range ``M1 + M2 + 1``."""
     n_lags = m1 + m2 + 1
     fs = trials[0].fs

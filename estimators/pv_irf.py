@@ -12,7 +12,7 @@ from scipy import signal as sps
 
 from jointbench.estimators import Estimator, register
 from jointbench.estimators._reflex import RCOND
-from jointbench.estimators._twosided import LagSettings, check_lengths, lag_samples, regressor
+from jointbench.estimators._twosided import Lags, check_lengths, lag_samples, regressor
 from jointbench.core.estimate import Estimate, Intervals, Prediction
 from jointbench.core.errors import ConfigError, InputError
 from jointbench.core.intervals import (LEVEL, contrast_dof, psd_pinv, psd_solve, segment_covariance, segment_shortfall,
@@ -59,6 +59,16 @@ def schedule_of(name: str, trial: Trial, cutoff: float) -> tuple[np.ndarray, np.
         raise InputError(f"pv_irf: record '{trial.name}' has no channel '{name}' to schedule on; known: {known}")
     s = np.asarray(chans[name], float)
     return s, a - a.mean(), float(max(np.max(np.abs(s)), np.ptp(s))), f"channel '{name}'"
+
+
+def checked_lags(name: str, trial: Trial, s) -> tuple[int, int]:
+    """``(M1, M2)`` of the settings ``s`` at the trial's rate, after the checks every parameter-varying IRF makes
+    of its one record: longer than the lags, and an angle that moves (one-line :class:`InputError`)."""
+    m1, m2 = lag_samples(s, trial.fs)
+    check_lengths(name, [trial], m1, m2, s)
+    if not np.ptp(trial.angle) > 0:
+        raise InputError(f"{name}: the angle of record '{trial.name}' is constant; nothing to identify")
+    return m1, m2
 
 
 def slow_edge(s, fs: float) -> int:
@@ -289,7 +299,7 @@ class PVIRF(Estimator):
     accepts = frozenset({"trial"})
 
     @dataclasses.dataclass(frozen=True)
-    class Settings(LagSettings):
+    class Settings(Lags):
         lag_before: float = param(0.04, unit="s", ge=0, doc="anticipatory lags down to -M1")
         lag_after: float = param(0.04, unit="s", ge=0, doc="causal lags up to M2")
         schedule: str = param("angle_slow", doc="scheduling variable: 'angle_slow', 'angle' or a channel of the trial")
@@ -317,10 +327,7 @@ class PVIRF(Estimator):
         s = self.settings
         tr = trials[0]
         fs, n = tr.fs, tr.n
-        m1, m2 = lag_samples(s, fs)
-        check_lengths(self.name, [tr], m1, m2, s)
-        if not np.ptp(tr.angle) > 0:
-            raise InputError(f"{self.name}: the angle of record '{tr.name}' is constant; nothing to identify")
+        m1, m2 = checked_lags(self.name, tr, s)
         edge = slow_edge(s, fs)
         rows = slice(max(m2, edge), n - max(m1, edge))
         N = rows.stop - rows.start

@@ -11,10 +11,9 @@ from scipy import signal as sps
 
 from jointbench.estimators import Estimator, register
 from jointbench.estimators import _reflex as rx
-from jointbench.estimators._twosided import check_lengths, lag_samples
-from jointbench.estimators.pv_irf import (GRAM_RCOND, SAMPLES_PER_UNKNOWN, PVIRF, PVIRFEstimate, schedule_basis,
-                                          slow_edge, stiffness_dof, stiffness_intervals, varying_irf_regressors,
-                                          visited_schedule)
+from jointbench.estimators.pv_irf import (GRAM_RCOND, SAMPLES_PER_UNKNOWN, PVIRF, PVIRFEstimate, checked_lags,
+                                          schedule_basis, slow_edge, stiffness_dof, stiffness_intervals,
+                                          varying_irf_regressors, visited_schedule)
 from jointbench.core.errors import InputError
 from jointbench.core.estimate import Prediction
 from jointbench.core.intervals import psd_pinv, psd_solve, segment_covariance, segment_press, segment_shortfall
@@ -250,10 +249,7 @@ class PVParallelCascade(Estimator):
         s = self.settings
         tr = trials[0]
         fs, n = tr.fs, tr.n
-        m1, m2 = lag_samples(s, fs)
-        check_lengths(self.name, [tr], m1, m2, s)
-        if not np.ptp(tr.angle) > 0:
-            raise InputError(f"{self.name}: the angle of record '{tr.name}' is constant; nothing to identify")
+        m1, m2 = checked_lags(self.name, tr, s)
         u = tr.angle - tr.angle.mean()
         v = rx.velocity(u, fs)
         rx.check_moving(self.name, v)

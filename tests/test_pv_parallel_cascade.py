@@ -146,6 +146,15 @@ def test_without_a_reflex_the_pathway_is_dropped():
     assert forced.reflex_h is not None and abs(forced.vaf_reflex) < 0.5
 
 
+@pytest.mark.parametrize("name", ["pv_irf", "pv_parallel_cascade"])
+@pytest.mark.parametrize("key, value", [("pseudo_inverse", "off"), ("remove_mean", False)])
+def test_the_two_sided_irfs_preprocessing_settings_are_not_taken(name, key, value):
+    """The parameter-varying IRFs take the lags of the two-sided IRFs but not their preprocessing (they remove the
+    torque's mean and solve with their own pseudo-inverse): a setting that would change nothing is refused."""
+    with pytest.raises(ConfigError, match=f"unknown key '{key}'"):
+        estimators.make(name, {key: value})
+
+
 def test_settings_and_refusals_are_one_line():
     with pytest.raises(ConfigError, match="pv_parallel_cascade: slow_cutoff = 2 Hz has no effect with schedule "
                                           "'angle'"):
