@@ -182,7 +182,7 @@ class PVIRFEstimate(Estimate):
             return np.full_like(k, np.nan), np.full_like(k, np.nan)
         T = self._T(np.atleast_1d(sigma))
         g = stiffness_gradient(T, self.coef.shape[1])
-        se = np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", g, self.cov, g), 0.0))
+        se = np.sqrt(np.maximum(np.sum((g @ self.cov) * g, axis=1), 0.0))
         dof = (np.full(len(k), float(self.dof)) if self.dof_of_x is None else
                np.interp(self._x(np.atleast_1d(sigma)), np.linspace(-1.0, 1.0, len(self.dof_of_x)), self.dof_of_x))
         q = t_quantile(dof, self.level if level is None else level)

@@ -157,13 +157,13 @@ def contrast_dof(designs: list[np.ndarray], P: np.ndarray, contrasts: np.ndarray
             HV = Hg @ V
             Z.append(HV)
             diag.append(np.sum(V * HV, axis=0))
-    Z = np.array(Z)                                              # (G, p, k)
-    G = len(Z)
-    S = -np.einsum("gpk,pq,hqk->kgh", Z, P, Z)                   # C^T M C = C^T C - (X^T C)^T P (X^T C)
+    Zk = np.ascontiguousarray(np.array(Z).transpose(2, 0, 1))   # (k, G, p)
+    G = Zk.shape[1]
+    S = -(Zk @ P) @ Zk.transpose(0, 2, 1)                        # C^T M C = C^T C - (X^T C)^T P (X^T C)
     S[:, np.arange(G), np.arange(G)] += np.array(diag).T
     SW = S @ _bartlett(segments)
     first = np.trace(SW, axis1=1, axis2=2)
-    second = np.einsum("kgh,khg->k", SW, SW)
+    second = np.sum(SW * SW.transpose(0, 2, 1), axis=(1, 2))
     dof = np.divide(first * first, second, out=np.full(len(A), G - 1.0), where=second > 0)
     return np.clip(dof, 1.0, G - 1.0)
 
