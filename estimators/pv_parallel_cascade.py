@@ -3,6 +3,7 @@ pathway whose static nonlinearity varies with the scheduling variable, from one 
 from __future__ import annotations
 
 import dataclasses
+import functools
 from typing import ClassVar, Literal, NamedTuple
 
 import numpy as np
@@ -294,10 +295,10 @@ class PVParallelCascade(Estimator):
         XR, Lg = design.reflex_regressors(F, d)
         joint = design.solve(XR)
         alone = design.solve(XR[:, :0])
-        keep, rule = keep_reflex(s.keep_reflex, np.hstack([XI, XR]), y, joint, alone, n_int)
+        designs = _Designs(XI, XR)
+        keep, rule = keep_reflex(s.keep_reflex, designs, y, joint, alone)
         fit = joint if keep else alone
-        X = np.hstack([XI, XR]) if keep else XI
-        cov, dof, dof_of_x = _covariance(X, y, fit.c, M, LI)
+        cov, dof, dof_of_x = _covariance(designs.joint if keep else designs.alone, y, fit.c, M, LI)
         cI = fit.c[:n_int]
         info = {"schedule": f"{what}, {lo:.4g} ... {hi:.4g}", "unknowns": len(fit.c), "condition": f"{cond:.3g}",
                 "reflex_delay": f"{d / fs * 1e3:g} ms" + ("" if len(cands) == 1 else
@@ -330,7 +331,7 @@ class PVParallelCascade(Estimator):
                                             reflex_coef=a.reshape(-1, R), reflex_settings=s, reflex_scale=scale,
                                             reflex_offset=offset)
         if cov is None:
-            info["intervals"] = "none: " + segment_shortfall([N], X.shape[1])
+            info["intervals"] = "none: " + segment_shortfall([N], len(fit.c))
         est.fit_info = info
         return est.with_intervals(lambda: stiffness_intervals(est))
 
@@ -404,46 +405,73 @@ class _Design:
         return int(cands[int(np.argmin(scores))])
 
 
-def keep_reflex(how: str, X: np.ndarray, y: np.ndarray, joint: "_Fit", alone: "_Fit", n_int: int) -> tuple[bool, str]:
-    """Whether to keep the reflex pathway, and the rule that decided ('CV', 'MDL', for the summary). ``X``: the
-    intrinsic regressors (the first ``n_int`` columns) and the reflex ones; ``joint`` and ``alone`` their fits with and
-    without the reflex columns. ``'cv'``: when the joint fit predicts the segments it was not fitted on better
-    than the intrinsic pathway alone (:func:`jointbench.core.intervals.segment_press`, both on the same
-    segments); with too few segments for it, as ``'mdl'``. ``'mdl'``: when it lowers the minimum description
-    length ``RSS (1 + k ln N / N)`` (the REKLAB toolbox's rule). ``'always'``."""
+class _Scaled(NamedTuple):
+    """Regressors ``X``, the same with each column scaled to unit norm (``Xs = X / scale``: the intrinsic, offset
+    and reflex columns differ by orders of magnitude), and the pseudo-inverse ``P`` of ``Xs``' Gram matrix."""
+
+    X: np.ndarray
+    Xs: np.ndarray
+    scale: np.ndarray
+    P: np.ndarray
+
+
+def _scaled(X: np.ndarray) -> _Scaled:
+    scale = np.sqrt(np.maximum(np.sum(X * X, axis=0), 1e-300))
+    Xs = X / scale
+    return _Scaled(X, Xs, scale, psd_pinv(Xs.T @ Xs, GRAM_RCOND))
+
+
+class _Designs:
+    """Both pathways' regressors (``joint``: the intrinsic ``XI`` then the reflex ``XR``) and the intrinsic
+    pathway's alone, each scaled once, when first needed (:func:`keep_reflex` and :func:`_covariance` share them)."""
+
+    def __init__(self, XI: np.ndarray, XR: np.ndarray):
+        self.XI, self.XR = XI, XR
+
+    @functools.cached_property
+    def joint(self) -> _Scaled:
+        return _scaled(np.hstack([self.XI, self.XR]))
+
+    @functools.cached_property
+    def alone(self) -> _Scaled:
+        return _scaled(self.XI)
+
+
+def keep_reflex(how: str, designs: _Designs, y: np.ndarray, joint: "_Fit", alone: "_Fit") -> tuple[bool, str]:
+    """Whether to keep the reflex pathway, and the rule that decided ('CV', 'MDL', for the summary); ``joint`` and
+    ``alone`` the fits of ``designs.joint`` and ``designs.alone``. ``'cv'``: when the joint fit predicts the
+    segments it was not fitted on better than the intrinsic pathway alone
+    (:func:`jointbench.core.intervals.segment_press`, both on the joint fit's segments); with too few segments
+    for it, as ``'mdl'``. ``'mdl'``: when it lowers the minimum description length ``RSS (1 + k ln N / N)`` (the
+    REKLAB toolbox's rule). ``'always'``."""
     if how == "always":
         return True, "keep_reflex = always"
+    columns = designs.XI.shape[1] + designs.XR.shape[1]
     if how == "cv":
-        cv_joint, cv_alone = _press(X, y, joint.c), _press(X[:, :n_int], y, alone.c, X.shape[1])
+        cv_joint, cv_alone = _press(designs.joint, y, joint.c, columns), _press(designs.alone, y, alone.c, columns)
         if np.isfinite(cv_joint) and np.isfinite(cv_alone):
             return bool(cv_joint < cv_alone), "CV"
     N = len(y)
-    return bool(rx.mdl(joint.rss, X.shape[1], N) < rx.mdl(alone.rss, n_int, N)), "MDL"
+    return bool(rx.mdl(joint.rss, columns, N) < rx.mdl(alone.rss, designs.XI.shape[1], N)), "MDL"
 
 
-def _press(X: np.ndarray, y: np.ndarray, c: np.ndarray, columns: int | None = None) -> float:
-    """The leave-one-segment-out prediction error of the fit ``c`` of ``X`` to ``y``
-    (:func:`jointbench.core.intervals.segment_press`; segments as for ``columns`` regressors), computed with each
-    column scaled to unit norm as :func:`_covariance`."""
-    scale = np.sqrt(np.maximum(np.sum(X * X, axis=0), 1e-300))
-    Xs = X / scale
-    return segment_press([(Xs, y - X @ c)], psd_pinv(Xs.T @ Xs, GRAM_RCOND), columns or X.shape[1])
+def _press(d: _Scaled, y: np.ndarray, c: np.ndarray, columns: int) -> float:
+    """The leave-one-segment-out prediction error of the fit ``c`` of ``d.X`` to ``y``
+    (:func:`jointbench.core.intervals.segment_press`, in the scaled columns; segments as for ``columns``
+    regressors)."""
+    return segment_press([(d.Xs, y - d.X @ c)], d.P, columns)
 
 
-def _covariance(X: np.ndarray, y: np.ndarray, c: np.ndarray, M: int,
+def _covariance(d: _Scaled, y: np.ndarray, c: np.ndarray, M: int,
                 L: int) -> tuple[np.ndarray | None, int, np.ndarray | None]:
-    """The segment-robust covariance of the coefficients ``c`` of the regressors ``X`` fitted to ``y``
-    (:func:`jointbench.core.intervals.segment_covariance`), computed with each column scaled to unit norm (the
-    intrinsic, offset and reflex columns differ by orders of magnitude) and scaled back; its degrees of freedom;
-    and those of K(sigma)'s variance over the visited range (:func:`estimators.pv_irf.stiffness_dof`, the IRF's
-    ``M L`` columns first)."""
-    scale = np.sqrt(np.maximum(np.sum(X * X, axis=0), 1e-300))
-    Xs = X / scale
-    P = psd_pinv(Xs.T @ Xs, GRAM_RCOND)
-    cov, dof = segment_covariance([(Xs, y - X @ c)], P)
+    """The segment-robust covariance of the coefficients ``c`` of the regressors ``d.X`` fitted to ``y``
+    (:func:`jointbench.core.intervals.segment_covariance`), computed in the scaled columns and scaled back; its
+    degrees of freedom; and those of K(sigma)'s variance over the visited range
+    (:func:`estimators.pv_irf.stiffness_dof`, the IRF's ``M L`` columns first)."""
+    cov, dof = segment_covariance([(d.Xs, y - d.X @ c)], d.P)
     if cov is None:
         return None, dof, None
-    return cov / np.outer(scale, scale), dof, stiffness_dof(Xs, P, M, L, scale)
+    return cov / np.outer(d.scale, d.scale), dof, stiffness_dof(d.Xs, d.P, M, L, d.scale)
 
 
 def _normalized(a: np.ndarray, h: np.ndarray, s, scale: float, xs: np.ndarray, R: int) -> tuple[np.ndarray, np.ndarray]:
