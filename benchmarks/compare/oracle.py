@@ -245,14 +245,6 @@ def efficiency(table: pd.DataFrame, rows: pd.DataFrame) -> pd.DataFrame:
     return out[cols].reset_index(drop=True)
 
 
-def efficiency_wide(eff: pd.DataFrame, backend: str, tuning: str) -> pd.DataFrame:
-    """Methods x scenarios of :func:`efficiency` on one backend and tuning column (the heat map's layout)."""
-    sel = eff[(eff["backend"] == backend) & (eff["tuning"] == tuning)]
-    if sel.empty:
-        return pd.DataFrame()
-    return sel.pivot_table(index="method", columns="cell", values="efficiency", aggfunc="first", sort=False)
-
-
 def bound_text(eff: pd.DataFrame, primary: str) -> str:
     """The report's paragraph on the oracle: what it assumes (module docstring) and, from ``eff``, the
     range of efficiencies on the primary backend and how many method-scenario pairs fall below 1."""

@@ -198,7 +198,7 @@ def segment_press(records: list[tuple[np.ndarray, np.ndarray]], P: np.ndarray,
 def segment_shortfall(counts: list[int], columns: int) -> str:
     """Why :func:`segment_covariance` gives no covariance for records of ``counts`` rows and ``columns``
     regressors (the one segment rule), in words a user can act on."""
-    seg = max(SEGMENT_COLUMNS * columns, int(np.ceil(sum(counts) / MAX_SEGMENTS)))
+    seg = _segment_length(counts, columns)
     have = sum(r // seg for r in counts)
     return (f"the fitted rows hold {have} segments of {seg} rows ({SEGMENT_COLUMNS} per unknown of {columns}); "
             f"the segment-robust covariance needs {MIN_SEGMENTS}: shorten the lags or use a longer record")
@@ -207,10 +207,16 @@ def segment_shortfall(counts: list[int], columns: int) -> str:
 def _segments(counts: list[int], columns: int) -> list[np.ndarray] | None:
     """The one rule (:func:`segment_covariance`): each record's segment edges (``rows // length + 1`` indices,
     the segments covering every row), or None when fewer than :data:`MIN_SEGMENTS` fit."""
-    seg = max(SEGMENT_COLUMNS * columns, int(np.ceil(sum(counts) / MAX_SEGMENTS)))
+    seg = _segment_length(counts, columns)
     if sum(r // seg for r in counts) < MIN_SEGMENTS:
         return None
     return [np.linspace(0, r, r // seg + 1).astype(int) for r in counts]
+
+
+def _segment_length(counts: list[int], columns: int) -> int:
+    """Rows per segment: :data:`SEGMENT_COLUMNS` times the regressors, and at least ``1 / MAX_SEGMENTS`` of all
+    rows."""
+    return max(SEGMENT_COLUMNS * columns, int(np.ceil(sum(counts) / MAX_SEGMENTS)))
 
 
 def _pieces(edges: np.ndarray, *arrays: np.ndarray):
